@@ -1,0 +1,8 @@
+"""Manipulator models: geometry, residuals, inverse kinematics, poses."""
+from .base import Manipulator, Pose
+from .hexapod_66 import Hexapod66
+from .planar_3rpr import Planar3RPR
+
+MODELS = {Planar3RPR.kind: Planar3RPR, Hexapod66.kind: Hexapod66}
+
+__all__ = ["Manipulator", "Pose", "Planar3RPR", "Hexapod66", "MODELS"]

@@ -1,0 +1,165 @@
+"""Common interface of the manipulator models.
+
+A model turns the forward-kinematics problem into minimisation (Chandra & Rolland
+2014, "GLPMA", section 4; Rolland & Chandra 2016, section 2): *solver variables*
+``x`` (the papers' search space) map to a residual vector whose squared sum is
+the fitness.  Each model provides
+
+* ``residual_kernel(x, data, legs, out)`` -- a Numba-compiled function that fills
+  ``out`` with the residuals of one individual; the solvers call it inside their
+  compiled loops so a whole population is evaluated without Python overhead;
+* a *pose parameterisation* used by the Levenberg-Marquardt refinement and by
+  warm starts: ``pose_state(x)``, ``pose_residuals_jacobian(state, legs)``,
+  ``pose_retract(state, step)`` and ``pose_variables(state)``;
+* inverse kinematics and the conversion of variables to a position and a unit
+  quaternion (x, y, z, w).
+
+No ROS import here: this is the core.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import InputError
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Platform pose: position of the platform frame origin (config unit) and a
+    unit quaternion ``[qx, qy, qz, qw]`` rotating platform to base frame."""
+
+    position: np.ndarray
+    orientation: np.ndarray
+
+    def as_dict(self) -> dict:
+        return {"position": [float(v) for v in self.position],
+                "orientation": [float(v) for v in self.orientation]}
+
+
+@njit(cache=True)
+def population_residuals(X, residual_kernel, data, legs, n_res):
+    """Residual vectors of every row of ``X`` (one compiled loop)."""
+    m = X.shape[0]
+    out = np.empty((m, n_res))
+    for i in range(m):
+        residual_kernel(X[i], data, legs, out[i])
+    return out
+
+
+@njit(cache=True)
+def population_fitness(X, residual_kernel, data, legs, n_res):
+    """Fitness (sum of squared residuals) of every row of ``X``; a row whose
+    residuals are not finite (degenerate individual) gets ``+inf``."""
+    m = X.shape[0]
+    f = np.empty(m)
+    r = np.empty(n_res)
+    for i in range(m):
+        residual_kernel(X[i], data, legs, r)
+        s = 0.0
+        for k in range(n_res):
+            s += r[k] * r[k]
+        f[i] = s if np.isfinite(s) else np.inf
+    return f
+
+
+class Manipulator:
+    """Base class; concrete models set the attributes below in ``__init__``."""
+
+    kind: str = ""
+    unit: str = "mm"
+    n_legs: int = 0
+    n_vars: int = 0
+    n_res: int = 0
+    variable_names: tuple = ()
+    # dimension of the pose-space step used by the refinement
+    n_pose: int = 0
+    base: np.ndarray
+    platform: np.ndarray
+    leg_limits: tuple | None = None
+    scale: float = 1.0  # characteristic length of the geometry (config unit)
+    pose_column_scale: np.ndarray  # makes the pose Jacobian's columns commensurate
+    data: tuple = ()
+
+    # -- evaluation --------------------------------------------------------
+    @property
+    def residual_kernel(self):  # pragma: no cover - set per subclass
+        raise NotImplementedError
+
+    def residuals(self, X, legs) -> np.ndarray:
+        X2 = np.atleast_2d(np.asarray(X, dtype=float))
+        return population_residuals(X2, self.residual_kernel, self.data,
+                                    np.asarray(legs, dtype=float), self.n_res)
+
+    def fitness(self, X, legs) -> np.ndarray:
+        X2 = np.atleast_2d(np.asarray(X, dtype=float))
+        return population_fitness(X2, self.residual_kernel, self.data,
+                                  np.asarray(legs, dtype=float), self.n_res)
+
+    # -- validation --------------------------------------------------------
+    def check_legs(self, legs) -> np.ndarray:
+        """Validated leg lengths as a float array, or :class:`InputError`."""
+        try:
+            arr = np.asarray(legs, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"leg lengths are not numbers: {exc}") from None
+        if arr.size != self.n_legs:
+            raise InputError(f"expected {self.n_legs} leg lengths for {self.kind}, got {arr.size}")
+        if not np.all(np.isfinite(arr)):
+            raise InputError("leg lengths must be finite (got NaN or inf)")
+        if np.any(arr <= 0.0):
+            raise InputError("leg lengths must be positive")
+        if self.leg_limits is not None:
+            lo, hi = self.leg_limits
+            if np.any(arr < lo) or np.any(arr > hi):
+                raise InputError(
+                    f"leg lengths outside the configured limits [{lo:g}, {hi:g}] {self.unit}")
+        return arr
+
+    def check_variables(self, x) -> np.ndarray:
+        try:
+            arr = np.asarray(x, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"solver variables are not numbers: {exc}") from None
+        if arr.size != self.n_vars:
+            raise InputError(
+                f"expected {self.n_vars} solver variables ({' '.join(self.variable_names)}), got {arr.size}")
+        if not np.all(np.isfinite(arr)):
+            raise InputError("solver variables must be finite")
+        return arr
+
+    # -- kinematics (subclasses) ----------------------------------------------
+    def inverse_kinematics(self, x) -> np.ndarray:
+        """Leg lengths (config unit) of the pose given by solver variables ``x``."""
+        raise NotImplementedError
+
+    def pose(self, x) -> Pose:
+        raise NotImplementedError
+
+    def variables_from_pose(self, position, orientation) -> np.ndarray:
+        raise NotImplementedError
+
+    def pose_state(self, x):
+        raise NotImplementedError
+
+    def pose_residuals_jacobian(self, state, legs):
+        raise NotImplementedError
+
+    def pose_retract(self, state, step):
+        raise NotImplementedError
+
+    def pose_variables(self, state) -> np.ndarray:
+        raise NotImplementedError
+
+    def distance(self, x1, x2) -> float:
+        """Distance between two solutions in config units (platform joints)."""
+        raise NotImplementedError
+
+    def conditioning(self, x, legs) -> float:
+        """Reciprocal condition number of the leg Jacobian at ``x`` (0 = singular)."""
+        _, J = self.pose_residuals_jacobian(self.pose_state(x), legs)
+        # rotation columns are per radian: scale them to per unit of length
+        s = np.linalg.svd(J * self.pose_column_scale, compute_uv=False)
+        return float(s[-1] / s[0]) if s[0] > 0 else 0.0

@@ -1,0 +1,118 @@
+"""The loop every evolutionary solver shares: compiled chunks of generations
+between which the wall clock is checked, the refinement is scheduled and the
+history of the best fitness is recorded."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..models.base import population_fitness
+from . import refine
+from .common import CONVERGED, SolveResult, Termination
+
+#: generations per compiled call when no deadline limits it
+CHUNK_GENERATIONS = 256
+#: generations of the first chunk under a deadline (timing probe)
+PROBE_GENERATIONS = 4
+#: refine again once the best fitness has improved by this factor since the last try
+POLISH_GAIN = 100.0
+#: iteration cap of one Levenberg-Marquardt refinement
+POLISH_MAX_ITER = 40
+
+
+class Problem:
+    """A model with given leg lengths; counts every evaluation it makes."""
+
+    def __init__(self, model, legs):
+        self.model = model
+        self.legs = np.ascontiguousarray(legs, dtype=float)
+        self.kernel = model.residual_kernel
+        self.data = model.data
+        self.n_res = model.n_res
+
+    def evaluate(self, X, term: Termination) -> np.ndarray:
+        term.nfev += len(X)
+        return population_fitness(np.ascontiguousarray(X), self.kernel, self.data, self.legs, self.n_res)
+
+
+class EvolutionaryState:
+    """A population with its fitness, advanced by a compiled kernel."""
+
+    name = "evolution"
+
+    def __init__(self, problem, pop, fit, rng):
+        self.problem = problem
+        self.pop = np.ascontiguousarray(pop, dtype=float)
+        self.fit = np.ascontiguousarray(fit, dtype=float)
+        self.rng = rng
+
+    def best(self):
+        i = int(np.argmin(self.fit))
+        return self.pop[i].copy(), float(self.fit[i])
+
+    def inject(self, x, f):
+        """Put ``x`` in place of the worst individual."""
+        i = int(np.argmax(self.fit))
+        self.pop[i] = x
+        self.fit[i] = f
+
+    def evals_per_generation(self) -> int:
+        return len(self.pop)
+
+    def advance(self, n_generations, max_evals, tolerance):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def step(self, n_generations, term: Termination):
+        gens, evals = self.advance(int(n_generations), term.evals_left(), term.tolerance)
+        term.nfev += int(evals)
+        return int(gens)
+
+
+def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish):
+    """Run ``make_state(problem, term)``'s population to termination."""
+    term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s)
+    problem = Problem(model, legs)
+    state = make_state(problem, term)
+    history = []
+    nit = 0
+    polished = False
+    last_polish_f = np.inf
+    seconds_per_gen = None
+    x, f = state.best()
+    while True:
+        x, f = state.best()
+        if polish and f * POLISH_GAIN < last_polish_f and term.status(f) is None:
+            last_polish_f = f
+            xp, fp, n = refine.polish(model, x, problem.legs, rng, tolerance=tolerance,
+                                      max_iter=POLISH_MAX_ITER, deadline=term.deadline)
+            term.nfev += n
+            if fp < f:
+                state.inject(xp, fp)
+                x, f, polished = xp, fp, True
+                last_polish_f = min(last_polish_f, fp)
+        history.append((term.nfev, f))
+        stop = term.status(f)
+        if stop is not None:
+            break
+        if term.deadline is None or seconds_per_gen is None:
+            chunk = CHUNK_GENERATIONS if term.deadline is None else PROBE_GENERATIONS
+        else:
+            left = term.deadline - time.perf_counter()
+            chunk = int(max(1, min(CHUNK_GENERATIONS, 0.1 * left / seconds_per_gen)))
+        t0 = time.perf_counter()
+        gens = state.step(chunk, term)
+        if gens:
+            seconds_per_gen = (time.perf_counter() - t0) / gens
+        nit += gens
+        if gens == 0 and term.status(state.best()[1]) is None:
+            break  # fewer evaluations left than one generation needs
+        polished = polished and state.best()[1] >= f
+    x, f = state.best()
+    status = term.final_status(f)
+    return SolveResult(x=model.canonical(x), fun=f, nfev=term.nfev, nit=nit, elapsed_s=term.elapsed(),
+                       status=status, solver=name, polished=polished and status == CONVERGED,
+                       history=history,
+                       message={"converged": "fitness below tolerance",
+                                "budget_exhausted": "time budget exhausted",
+                                "max_evals": "evaluation cap reached"}[status])
