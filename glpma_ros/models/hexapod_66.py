@@ -178,6 +178,10 @@ class Hexapod66(Manipulator):
         R, p = state
         return rotation_from_vector(step[3:]) @ R, p + step[:3]
 
+    def spread_vector(self, length: float) -> np.ndarray:
+        """Per-variable spread for a platform displacement of ``length``."""
+        return np.full(self.n_vars, float(length))
+
     def canonical(self, x) -> np.ndarray:
         return np.array(x, dtype=float)
 

@@ -87,6 +87,10 @@ class Planar3RPR(Manipulator):
     def pose_variables(self, state) -> np.ndarray:
         return np.asarray(state, dtype=float)
 
+    def spread_vector(self, length: float) -> np.ndarray:
+        """Per-variable spread for a platform displacement of ``length``."""
+        return np.array([length, length, length / self.scale])
+
     def canonical(self, x) -> np.ndarray:
         """Variables with theta wrapped to (-pi, pi]."""
         y = np.array(x, dtype=float)

@@ -52,8 +52,9 @@ def _argmin(f):
 
 
 @njit(cache=True)
-def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, fallback_scale):
-    """``lam`` PCX children of ``parents`` (row 0 is the index parent)."""
+def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop):
+    """``lam`` PCX children of ``parents`` (row 0 is the index parent); ``pop``
+    gives the fallback scale when all parents coincide."""
     mu, n = parents.shape
     g = np.zeros(n)
     for k in range(mu):
@@ -80,7 +81,7 @@ def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, fallback_scale):
             w_zeta = sigma_zeta * rng.standard_normal()
             children[c] = parents[0] + w_zeta * d + sigma_eta * D_bar * eta
         else:
-            scale = D_bar if D_bar > 0.0 else fallback_scale
+            scale = D_bar if D_bar > 0.0 else _population_spread(pop)
             children[c] = parents[0] + sigma_eta * scale * eta
     return children
 
@@ -124,7 +125,7 @@ def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
                 k += 1
         for k in range(mu):
             parents[k] = pop[idx[k]]
-        children = pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, _population_spread(pop))
+        children = pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop)
         child_f = population_fitness(children, kernel, data, legs, n_res)
         evals += lam
         # r distinct random members compete with the children for their slots

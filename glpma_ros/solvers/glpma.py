@@ -1,0 +1,80 @@
+"""GLPMA: global-local population memetic algorithm (Chandra & Rolland 2014,
+Algorithm 1).
+
+A master population evolves with the RCGA.  Every ``ls_interval`` master
+generations the best master individual (the *meme*) is placed into a local
+population (it replaces the local population's worst), which evolves for
+``ls_intensity`` G3-PCX generations; the local population's best individual
+then replaces the worst master individual, even when it did not improve.
+The local population is initialised once and kept between local searches.
+
+With ``polish=True`` the driver adds the Levenberg-Marquardt refinement as a
+further local search on the meme (the paper's framework admits any local
+search, section 3); ``polish=False`` is the paper's algorithm alone.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import g3pcx, rcga
+from .common import initial_population
+from .driver import EvolutionaryState, run_evolution
+
+#: the paper's settings (section 5): 3-RPR (100, 100), 5, 1; 6-6 (200, 200), 5, 85
+LS_INTERVAL = 5
+LS_INTENSITY = 1
+
+
+class GLPMAState(EvolutionaryState):
+    """The master population, with the local population alongside it.  One
+    "generation" of this state is one master generation (plus, every
+    ``ls_interval`` of them, one local search)."""
+
+    name = "glpma"
+
+    def __init__(self, master: rcga.RCGAPopulation, local: g3pcx.G3PCXPopulation, ls_interval, ls_intensity):
+        super().__init__(master.problem, master.pop, master.fit, master.rng)
+        self.master, self.local = master, local
+        self.ls_interval, self.ls_intensity = int(ls_interval), int(ls_intensity)
+        if self.ls_interval < 1 or self.ls_intensity < 1:
+            raise ValueError("ls_interval and ls_intensity must be at least 1")
+        self.since_local_search = 0
+
+    def advance(self, n_generations, max_evals, tolerance):
+        gens = evals = 0
+        while gens < n_generations and evals < max_evals:
+            g, e = self.master.advance(min(self.ls_interval - self.since_local_search, n_generations - gens),
+                                       max_evals - evals, tolerance)
+            gens += g
+            evals += e
+            self.since_local_search += g
+            if g == 0 or self.master.fit.min() < tolerance:
+                break
+            if self.since_local_search >= self.ls_interval:
+                self.since_local_search = 0
+                meme, f_meme = self.master.best()
+                self.local.inject(meme, f_meme)
+                _, e = self.local.advance(self.ls_intensity, max_evals - evals, tolerance)
+                evals += e
+                x, f = self.local.best()
+                self.master.inject(x, f)
+        return gens, evals
+
+
+def solve(model, legs, *, population=100, local_population=100, rng=None, init_range=(-50.0, 50.0),
+          center=None, spread=None, tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True,
+          ls_interval=LS_INTERVAL, ls_intensity=LS_INTENSITY, **params):
+    """Minimise the model's fitness with GLPMA (plus the refinement unless ``polish=False``)."""
+    rng = np.random.default_rng(rng)
+
+    def make(problem, term):
+        pop = initial_population(rng, population, model.n_vars, init_range, center, spread)
+        master = rcga.RCGAPopulation(problem, pop, problem.evaluate(pop, term), rng,
+                                     width=rcga.mutation_width(init_range, spread, model.n_vars),
+                                     max_evals=max_evals)
+        lpop = initial_population(rng, local_population, model.n_vars, init_range, center, spread)
+        local = g3pcx.G3PCXPopulation(problem, lpop, problem.evaluate(lpop, term), rng, **params)
+        return GLPMAState(master, local, ls_interval, ls_intensity)
+
+    return run_evolution("glpma", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
+                         budget_s=budget_s, polish=polish)
