@@ -12,6 +12,7 @@ Schema (see ``config/*.yaml``)::
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -118,17 +119,14 @@ def load_manipulator(path) -> Manipulator:
 def config_dir() -> Path:
     """Directory of the shipped configs (installed share dir or source tree)."""
     here = Path(__file__).resolve().parent
-    for candidate in (here.parent / "config", here / "config"):
+    for candidate in (here.parent / "config", Path(sys.prefix) / "share" / "glpma_ros" / "config"):
         if candidate.is_dir():
             return candidate
-    try:  # installed by colcon / pip data_files
-        from importlib.resources import files
-        pkg = files("glpma_ros")
-        if (Path(str(pkg)) / "config").is_dir():
-            return Path(str(pkg)) / "config"
-    except Exception:  # noqa: BLE001
-        pass
-    return Path("/usr/share/glpma_ros/config")
+    try:  # a sourced ROS 2 workspace
+        from ament_index_python.packages import get_package_share_directory
+        return Path(get_package_share_directory("glpma_ros")) / "config"
+    except Exception:  # noqa: BLE001 - not a ROS environment
+        return here.parent / "config"
 
 
 def resolve_config(name: str) -> Path:

@@ -39,7 +39,7 @@ class Pose:
                 "orientation": [float(v) for v in self.orientation]}
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def population_residuals(X, residual_kernel, data, legs, n_res):
     """Residual vectors of every row of ``X`` (one compiled loop)."""
     m = X.shape[0]
@@ -49,7 +49,7 @@ def population_residuals(X, residual_kernel, data, legs, n_res):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def population_fitness(X, residual_kernel, data, legs, n_res):
     """Fitness (sum of squared residuals) of every row of ``X``; a row whose
     residuals are not finite (degenerate individual) gets ``+inf``."""

@@ -27,7 +27,7 @@ from .base import Manipulator, Pose
 PAIRS = ((0, 1), (0, 2), (1, 2))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def residual_kernel(x, data, legs, out):
     base, abc, d0sq = data
     e1x = x[3] - x[0]

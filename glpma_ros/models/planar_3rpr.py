@@ -17,7 +17,7 @@ from numba import njit
 from .base import Manipulator, Pose
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def residual_kernel(x, data, legs, out):
     base, platform = data
     c = math.cos(x[2])

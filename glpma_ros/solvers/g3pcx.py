@@ -42,7 +42,7 @@ SIGMA_ZETA = 0.1
 SIGMA_ETA = 0.1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _argmin(f):
     b = 0
     for i in range(1, f.shape[0]):
@@ -51,7 +51,7 @@ def _argmin(f):
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop):
     """``lam`` PCX children of ``parents`` (row 0 is the index parent); ``pop``
     gives the fallback scale when all parents coincide."""
@@ -86,7 +86,7 @@ def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop):
     return children
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _population_spread(pop):
     n = pop.shape[1]
     s = 0.0
@@ -98,7 +98,7 @@ def _population_spread(pop):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
                       mu, lam, r, sigma_zeta, sigma_eta, kernel, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""

@@ -36,7 +36,7 @@ MUTATION_RATE = 0.1
 MUTATION_B = 5.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _roulette(cum, rng):
     u = rng.random() * cum[-1]
     lo, hi = 0, cum.shape[0] - 1
@@ -49,7 +49,7 @@ def _roulette(cum, rng):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generation, last_generation,
                      crossover_rate, mutation_rate, mutation_b, width, kernel, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
