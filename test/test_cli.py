@@ -1,0 +1,76 @@
+"""glpma-fk solve / solve-all as the contract states: JSON shape, exit status 2
+with one line on stderr for bad input, no traceback."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from conftest import HEX_YAML, ROOT, RPR_YAML
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "glpma_ros", *map(str, args)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=300)
+
+
+def test_solve_json():
+    p = run("solve", RPR_YAML, "--legs", 100, 120, 150, "--json", "--seed", 3)
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout)
+    assert set(out) == {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"}
+    assert out["status"] == "converged" and out["fitness"] < 1e-20 and out["solver"] == "glpma"
+    assert len(out["variables"]) == 3 and out["pose"]["position"][2] == 0.0
+    assert len(out["pose"]["orientation"]) == 4
+
+
+def test_solve_near_warm_start_selects_branch():
+    p = run("solve", RPR_YAML, "--legs", 100, 120, 150, "--near", 97, 20, 1.5, "--json", "--solver", "g3pcx")
+    out = json.loads(p.stdout)
+    assert abs(out["variables"][0] - 97.996115113) < 1e-6
+
+
+def test_solve_no_polish_reports_status():
+    p = run("solve", RPR_YAML, "--legs", 100, 120, 150, "--json", "--no-polish", "--solver", "rcga",
+            "--max-evals", 500)
+    out = json.loads(p.stdout)
+    assert out["status"] == "max_evals" and out["evaluations"] <= 500
+    assert p.returncode == 1
+
+
+def test_solve_all_json():
+    p = run("solve-all", HEX_YAML, "--legs", *[1250] * 6, "--json", "--runs", 200)
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout)
+    assert len(out["solutions"]) == 16 and out["runs"] == 200
+    assert set(out["solutions"][0]) == {"variables", "pose", "fitness"}
+
+
+@pytest.mark.parametrize("args, words", [
+    (["solve", RPR_YAML, "--legs", 100, 120], "expected 3 leg lengths"),
+    (["solve", RPR_YAML, "--legs", 100, 120, "nan"], "finite"),
+    (["solve", RPR_YAML, "--legs", 100, 120, "inf"], "finite"),
+    (["solve", RPR_YAML, "--legs", 100, -120, 150], "positive"),
+    (["solve", "missing.yaml", "--legs", 1, 2, 3], "cannot read"),
+    (["solve", RPR_YAML, "--legs", 100, 120, "abc"], "invalid float"),
+    (["solve", RPR_YAML, "--legs", 1, 2, 3, "--solver", "newton"], "invalid choice"),
+    (["solve", RPR_YAML, "--legs", 1, 2, 3, "--near", 1, 2], "expected 3 solver variables"),
+    (["solve", RPR_YAML, "--legs", 1, 2, 3, "--init-range", 5, 1], "--init-range"),
+    (["solve-all", HEX_YAML, "--legs", 1, 2, 3], "expected 6 leg lengths"),
+    (["solve-all", RPR_YAML, "--legs", 1, 2, 3, "--runs", 0], "--runs"),
+    (["frobnicate"], "invalid choice"),
+    ([], "required"),
+])
+def test_bad_input_exit_2_one_line(args, words):
+    p = run(*args)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], p.stderr
+    assert "Traceback" not in p.stderr and p.stdout == ""
+
+
+def test_bad_config_file(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("manipulator: planar_3rpr\nunit: mm\nbase: [[0,0],[1,0],[0,1]]\nplatform: [[0,0],[1,0],[2,0]]\n")
+    p = run("solve", bad, "--legs", 1, 1, 1)
+    assert p.returncode == 2 and "collinear" in p.stderr and len(p.stderr.strip().splitlines()) == 1
