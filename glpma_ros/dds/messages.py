@@ -1,0 +1,156 @@
+"""ROS 2 Jazzy message types as Cyclone DDS IDL structs.
+
+``rmw_cyclonedds_cpp`` maps a ROS type ``pkg/msg/Name`` to the DDS type
+``pkg::msg::dds_::Name_`` with the fields in the order of the ``.msg`` file and
+final (XCDR1) extensibility -- the Python default.  A ROS node reading or writing
+these types talks to the structs below unchanged.  Every field has a default
+so that ``PoseStamped()`` is a valid message, as in rclpy.
+"""
+# No ``from __future__ import annotations``: cyclonedds resolves the field types at runtime.
+from dataclasses import dataclass, field
+
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import byte, float64, int32, sequence, uint32
+
+# RIHS01 type hashes of the Jazzy definitions (CONTRACT.md); rmw_cyclonedds_cpp
+# expects them in every endpoint's USER_DATA as ``typehash=<hash>;``.
+TYPE_HASHES = {
+    "std_msgs/msg/Float64MultiArray":
+        "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
+    "geometry_msgs/msg/PoseStamped":
+        "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8",
+    "diagnostic_msgs/msg/DiagnosticArray":
+        "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e",
+    "sensor_msgs/msg/JointState":
+        "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
+    "geometry_msgs/msg/PoseArray":
+        "RIHS01_af0cc36d190e104d546d168d6b39df04fa4b4ccecf59cb4c9ed328d3d5004aa0",
+}
+
+
+# -- builtin_interfaces ------------------------------------------------------------
+@dataclass
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: int32 = 0
+    nanosec: uint32 = 0
+
+    @classmethod
+    def from_ns(cls, ns: int) -> "Time":
+        sec, nanosec = divmod(int(ns), 1_000_000_000)
+        return cls(sec=sec, nanosec=nanosec)
+
+    def to_ns(self) -> int:
+        return self.sec * 1_000_000_000 + self.nanosec
+
+
+# -- std_msgs -------------------------------------------------------------------------
+@dataclass
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time = field(default_factory=Time)
+    frame_id: str = ""
+
+
+@dataclass
+class MultiArrayDimension(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayDimension_"):
+    label: str = ""
+    size: uint32 = 0
+    stride: uint32 = 0
+
+
+@dataclass
+class MultiArrayLayout(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayLayout_"):
+    dim: sequence[MultiArrayDimension] = field(default_factory=list)
+    data_offset: uint32 = 0
+
+
+@dataclass
+class Float64MultiArray(IdlStruct, typename="std_msgs::msg::dds_::Float64MultiArray_"):
+    layout: MultiArrayLayout = field(default_factory=MultiArrayLayout)
+    data: sequence[float64] = field(default_factory=list)
+
+
+# -- geometry_msgs ----------------------------------------------------------------------
+@dataclass
+class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+
+
+@dataclass
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+    w: float64 = 1.0
+
+
+@dataclass
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point = field(default_factory=Point)
+    orientation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass
+class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
+    header: Header = field(default_factory=Header)
+    pose: Pose = field(default_factory=Pose)
+
+
+@dataclass
+class PoseArray(IdlStruct, typename="geometry_msgs::msg::dds_::PoseArray_"):
+    header: Header = field(default_factory=Header)
+    poses: sequence[Pose] = field(default_factory=list)
+
+
+# -- sensor_msgs ------------------------------------------------------------------------
+@dataclass
+class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header = field(default_factory=Header)
+    name: sequence[str] = field(default_factory=list)
+    position: sequence[float64] = field(default_factory=list)
+    velocity: sequence[float64] = field(default_factory=list)
+    effort: sequence[float64] = field(default_factory=list)
+
+
+# -- diagnostic_msgs --------------------------------------------------------------------
+@dataclass
+class KeyValue(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
+    key: str = ""
+    value: str = ""
+
+
+@dataclass
+class DiagnosticStatus(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticStatus_"):
+    # level constants of the .msg file (a ``byte``, i.e. IDL octet)
+    OK = 0
+    WARN = 1
+    ERROR = 2
+    STALE = 3
+
+    level: byte = 0
+    name: str = ""
+    message: str = ""
+    hardware_id: str = ""
+    values: sequence[KeyValue] = field(default_factory=list)
+
+
+@dataclass
+class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticArray_"):
+    header: Header = field(default_factory=Header)
+    status: sequence[DiagnosticStatus] = field(default_factory=list)
+
+
+#: ROS type name of each struct, for the USER_DATA type hash
+ROS_TYPE_NAMES = {
+    Float64MultiArray: "std_msgs/msg/Float64MultiArray",
+    PoseStamped: "geometry_msgs/msg/PoseStamped",
+    DiagnosticArray: "diagnostic_msgs/msg/DiagnosticArray",
+    JointState: "sensor_msgs/msg/JointState",
+    PoseArray: "geometry_msgs/msg/PoseArray",
+}
+
+
+def type_hash(msg_type) -> str:
+    """RIHS01 hash of a top-level message type."""
+    return TYPE_HASHES[ROS_TYPE_NAMES[msg_type]]
