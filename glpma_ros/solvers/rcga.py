@@ -4,10 +4,12 @@
 Generational.  Each generation:
 
 * **elitism** -- the best individual is copied unchanged;
-* **roulette-wheel selection** of two parents with weights
-  ``w_i = 1 / (1 + f_i / f_median)``: scale-free and safe for minimisation
-  (the papers do not state their fitness transform; this one keeps selection
-  pressure when the fitness spans twenty orders of magnitude);
+* **roulette-wheel selection** of two parents with weights ``w_i = 1 / f_i``
+  (floored at ``MIN_FITNESS``): the papers do not state their transform; the
+  reciprocal keeps selection pressure while the fitness falls through twenty
+  orders of magnitude (``1 / (1 + f)`` flattens to uniform selection below
+  f ~ 1 and stalls the search there -- measured: median 11 after 10,000
+  evaluations on the 3-RPR, against 7e-21 with ``1 / f``);
 * **Wright's heuristic crossover** (Wright 1991) with probability
   ``crossover_rate``: ``child = better + u (better - worse)``, ``u ~ U(0, 1)``;
   otherwise the child is a copy of the first parent;
@@ -32,6 +34,8 @@ from .driver import EvolutionaryState, run_evolution
 #: the papers' rates (Chandra & Rolland 2014; Chandra, Zhang & Rolland 2009)
 CROSSOVER_RATE = 0.9
 MUTATION_RATE = 0.1
+#: floor of the fitness in the roulette weights 1 / f (an exact solution is not infinitely likely)
+MIN_FITNESS = 1e-300
 #: non-uniform mutation's shape parameter (Michalewicz 1992)
 MUTATION_B = 5.0
 
@@ -64,10 +68,9 @@ def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generat
         best = np.argmin(fit)
         if fit[best] < tolerance:
             break
-        f_med = np.median(fit)
         s = 0.0
         for i in range(N):
-            w = 1.0 / (1.0 + fit[i] / f_med) if f_med > 0.0 else (1.0 if fit[i] == 0.0 else 0.0)
+            w = 1.0 / max(fit[i], MIN_FITNESS)
             s += w
             cum[i] = s
         new[0] = pop[best]
