@@ -1,0 +1,234 @@
+"""The ``glpma_fk`` node over plain Eclipse Cyclone DDS (no ROS 2 installation needed).
+
+Same topics, types, QoS and parameters as the rclpy node (``ros_node.py``);
+both run :class:`~glpma_ros.service.FkService` through
+:class:`~glpma_ros.service.SolveLoop`.  Threads: a reader thread takes leg
+lengths as they arrive and keeps only the newest pending input; the solver
+thread solves it and publishes the pose; the main thread publishes
+``/diagnostics`` every ``diagnostics_period_s`` and handles signals (SIGINT and
+SIGTERM stop the node, SIGHUP re-reads the ``--ros-args`` parameters, i.e. the
+params files, and applies the changed ones).
+
+Run: ``python -m glpma_ros.dds.node --ros-args --params-file config/params_3rpr.yaml``.
+Prints one line ``[glpma_fk] ready: ...`` on stdout once it can take inputs;
+logs go to stderr.
+"""
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+import threading
+import time
+
+from cyclonedds.core import GuardCondition, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
+from cyclonedds.util import duration
+
+from .. import params as P
+from ..errors import GlpmaError, InputError
+from ..service import FkService, SolveLoop
+from . import endpoints
+from .messages import (DiagnosticArray, DiagnosticStatus, Float64MultiArray, Header, KeyValue, Point, Pose,
+                       PoseStamped, Quaternion, Time)
+
+LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
+#: samples taken per read; the newest is solved, the others count as dropped
+TAKE_BATCH = 256
+
+
+def pose_message(pose) -> PoseStamped:
+    """:class:`~glpma_ros.service.PoseOutput` -> ``geometry_msgs/PoseStamped``."""
+    x, y, z = pose.position
+    qx, qy, qz, qw = pose.orientation
+    return PoseStamped(header=Header(stamp=Time.from_ns(pose.stamp_ns), frame_id=pose.frame_id),
+                       pose=Pose(position=Point(x, y, z), orientation=Quaternion(qx, qy, qz, qw)))
+
+
+def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
+    """:class:`~glpma_ros.service.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
+    status = DiagnosticStatus(level=report.level, name=report.name, message=report.message,
+                              hardware_id=report.hardware_id,
+                              values=[KeyValue(key=k, value=v) for k, v in report.values])
+    return DiagnosticArray(header=Header(stamp=Time.from_ns(stamp_ns)), status=[status])
+
+
+class DdsNode:
+    """Endpoints and threads around one :class:`FkService`."""
+
+    def __init__(self, service: FkService, participant: endpoints.Participant, remaps: dict | None = None):
+        self.service = service
+        self.participant = participant
+        depth = service.params["qos_depth"]
+        remaps = remaps or {}
+
+        def topic(name):
+            return remaps.get(name, remaps.get(name.lstrip("/"), remaps.get("/" + name.lstrip("/"), name)))
+
+        self.topics = {name: topic(name) for name in (endpoints.LEG_LENGTHS, endpoints.POSE_ESTIMATE,
+                                                       endpoints.DIAGNOSTICS)}
+        self.pose_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE], PoseStamped, depth)
+        self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray, depth)
+        self.legs_reader = participant.reader(self.topics[endpoints.LEG_LENGTHS], Float64MultiArray, depth)
+        self.loop = SolveLoop(service, self._publish_pose)
+        self._stop = threading.Event()
+        self._guard = GuardCondition(participant.dp)
+        self._waitset = WaitSet(participant.dp)
+        self._waitset.attach(ReadCondition(self.legs_reader, SampleState.Any | ViewState.Any | InstanceState.Any))
+        self._waitset.attach(self._guard)
+        self._reader_thread = threading.Thread(target=self._read_loop, name="glpma_fk-reader", daemon=True)
+
+    def start(self) -> "DdsNode":
+        self.loop.start()
+        self._reader_thread.start()
+        return self
+
+    # -- data path -------------------------------------------------------------------------
+    def _read_loop(self) -> None:
+        log = self.service.log
+        while not self._stop.is_set():
+            self._waitset.wait(duration(milliseconds=200))
+            try:
+                samples = self.legs_reader.take(TAKE_BATCH)
+            except Exception as exc:  # noqa: BLE001 - e.g. a sample that does not deserialize
+                log.warning(f"could not take leg_lengths: {exc}")
+                continue
+            arrival_ns = time.time_ns()
+            valid = [s for s in samples if isinstance(s, Float64MultiArray)]
+            if not valid:
+                continue
+            if len(valid) > 1:
+                self.service.note_dropped(len(valid) - 1)
+            self.loop.submit(list(valid[-1].data), arrival_ns)
+
+    def _publish_pose(self, pose) -> None:
+        self.pose_writer.write(pose_message(pose))
+
+    def publish_diagnostics(self) -> None:
+        self.diag_writer.write(diagnostic_message(self.service.diagnostics(), time.time_ns()))
+
+    # -- lifecycle -----------------------------------------------------------------------------
+    def spin(self, stop: threading.Event, reload=None) -> None:
+        """Publish diagnostics periodically until ``stop`` is set; call ``reload()`` when
+        ``reload.requested`` (set by SIGHUP)."""
+        period = self.service.params["diagnostics_period_s"]
+        next_report = time.monotonic()
+        while not stop.is_set():
+            now = time.monotonic()
+            if now >= next_report:
+                try:
+                    self.publish_diagnostics()
+                except Exception as exc:  # noqa: BLE001
+                    self.service.log.warning(f"publishing diagnostics failed: {exc}")
+                next_report = max(next_report + period, now)
+            if reload is not None and reload.requested.is_set():
+                reload.requested.clear()
+                reload()
+            stop.wait(max(0.0, min(next_report - time.monotonic(), 0.25)))
+
+    def close(self) -> None:
+        self._stop.set()
+        self._guard.set(True)
+        self._reader_thread.join(2.0)
+        self.loop.stop()
+
+
+class ParameterReload:
+    """SIGHUP: re-read the ``--ros-args`` (params files included) and apply what changed."""
+
+    def __init__(self, service: FkService, argv):
+        self.service = service
+        self.argv = list(argv)
+        self.requested = threading.Event()
+
+    def __call__(self) -> None:
+        log = self.service.log
+        try:
+            values, _ = P.resolve(P.parse_ros_args(self.argv).overrides)
+        except InputError as exc:
+            log.error(f"parameter reload failed, keeping the current values: {exc}")
+            return
+        changed = {k: v for k, v in values.items() if v != self.service.params[k]}
+        if not changed:
+            log.info("parameter reload: nothing changed")
+        for name, value in changed.items():
+            ok, reason = self.service.set_parameters({name: value})
+            if not ok:
+                log.error(f"parameter reload: {reason}; keeping {name}={self.service.params[name]!r}")
+
+
+def _split_transport(argv) -> tuple[str, list]:
+    """Remove ``--transport X`` from argv (it is node_entry's choice, passed along)."""
+    rest, transport, i = [], "dds", 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--ros-args":
+            rest.extend(argv[i:])
+            break
+        if tok == "--transport" and i + 1 < len(argv):
+            transport = argv[i + 1]
+            i += 2
+            continue
+        if tok.startswith("--transport="):
+            transport = tok.split("=", 1)[1]
+        else:
+            rest.append(tok)
+        i += 1
+    return transport, rest
+
+
+def _error(message: str, code: int = 2) -> int:
+    print(f"glpma_fk: error: {message}", file=sys.stderr)
+    return code
+
+
+def main(argv=None) -> int:
+    """Run the node over Cyclone DDS until SIGINT/SIGTERM; returns the exit status
+    (2 for bad parameters or configuration, 1 for a DDS failure)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    transport, argv = _split_transport(argv)
+    if transport not in ("dds", "auto"):
+        return _error(f"this is the Cyclone DDS transport; --transport {transport} is not it")
+    try:
+        ros = P.parse_ros_args(argv)
+    except InputError as exc:
+        return _error(str(exc))
+    if ros.other:
+        return _error(f"unexpected arguments {' '.join(ros.other)!r} (parameters go after --ros-args)")
+    logging.basicConfig(level=(ros.log_level or "info").upper(), format=LOG_FORMAT, stream=sys.stderr)
+    log = logging.getLogger(ros.node_name)
+    for warning in ros.warnings:
+        log.warning(warning)
+    try:
+        values, warnings = P.resolve(ros.overrides)
+        for warning in warnings:
+            log.warning(warning)
+        service = FkService(values, logger=log, node_name=ros.node_name)
+        domain_id = endpoints.domain_id_from_env()
+    except (GlpmaError, ValueError) as exc:
+        return _error(str(exc))
+
+    log.info(f"{service.describe()}; warming up the solvers (Numba compiles on first use)")
+    log.info(f"warm-up done in {service.warm_up():.2f} s")
+    try:
+        node = DdsNode(service, endpoints.Participant(domain_id), ros.remaps).start()
+    except Exception as exc:  # noqa: BLE001 - e.g. a bad CYCLONEDDS_URI
+        return _error(f"cannot start Cyclone DDS: {exc}", 1)
+
+    stop = threading.Event()
+    reload = ParameterReload(service, argv)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, lambda *_: reload.requested.set())
+    topics = ", ".join(f"rt/{t.lstrip('/')}" for t in node.topics.values())
+    print(f"[{ros.node_name}] ready: domain {domain_id}, topics {topics}", flush=True)
+    try:
+        node.spin(stop, reload)
+    finally:
+        node.close()
+        log.info(f"stopped: {service.summary()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
