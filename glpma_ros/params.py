@@ -326,3 +326,27 @@ def resolve(overrides: dict) -> tuple[dict, list[str]]:
             continue
         params[name] = coerce(name, value)
     return params, warnings
+
+
+TRANSPORTS = ("auto", "rclpy", "dds")
+
+
+def split_transport(argv, default: str = "auto") -> tuple[str, list]:
+    """``--transport X`` (or ``--transport=X``) before ``--ros-args``, and the other arguments."""
+    rest, transport, i = [], default, 0
+    argv = list(argv)
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--ros-args":
+            rest.extend(argv[i:])
+            break
+        if tok == "--transport" and i + 1 < len(argv):
+            transport = argv[i + 1]
+            i += 2
+            continue
+        if tok.startswith("--transport="):
+            transport = tok.split("=", 1)[1]
+        else:
+            rest.append(tok)
+        i += 1
+    return transport, rest

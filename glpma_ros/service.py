@@ -129,7 +129,8 @@ class FkService:
     """Leg lengths (metres) in, poses (metres) out, with the estimator's warm state in between."""
 
     def __init__(self, parameters: dict | None = None, *, logger=None, node_name: str = P.NODE_NAME):
-        """``parameters``: name -> value (unknown names are an error, missing ones take their default).
+        """``parameters``: name -> value (unknown names are an error, missing ones take their default);
+        ``logger``: anything with ``debug/info/warning/error(str)`` (``logging.Logger``, an rclpy logger).
         Raises :class:`~glpma_ros.errors.ConfigError` or :class:`InputError` with a one-line reason."""
         self.log = logger or logging.getLogger(node_name)
         self.node_name = node_name
@@ -218,7 +219,7 @@ class FkService:
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
             except Exception as exc:  # noqa: BLE001 - the node must survive anything
-                self.log.exception("internal error while solving")
+                self.log.error(f"internal error while solving: {exc!r}")
                 return self._reject(f"internal error: {exc}", "internal error", None, arrival)
             st.last_estimate = estimate
             st.starts[estimate.start] += 1
@@ -418,8 +419,8 @@ class SolveLoop:
             if outcome.pose is not None:
                 try:
                     self.publish(outcome.pose)
-                except Exception:  # noqa: BLE001 - a failed publish must not stop the loop
-                    self.service.log.exception("publishing the pose failed")
+                except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
+                    self.service.log.error(f"publishing the pose failed: {exc!r}")
 
     def stop(self, timeout: float = 2.0) -> None:
         self._stop.set()

@@ -156,26 +156,6 @@ class ParameterReload:
                 log.error(f"parameter reload: {reason}; keeping {name}={self.service.params[name]!r}")
 
 
-def _split_transport(argv) -> tuple[str, list]:
-    """Remove ``--transport X`` from argv (it is node_entry's choice, passed along)."""
-    rest, transport, i = [], "dds", 0
-    while i < len(argv):
-        tok = argv[i]
-        if tok == "--ros-args":
-            rest.extend(argv[i:])
-            break
-        if tok == "--transport" and i + 1 < len(argv):
-            transport = argv[i + 1]
-            i += 2
-            continue
-        if tok.startswith("--transport="):
-            transport = tok.split("=", 1)[1]
-        else:
-            rest.append(tok)
-        i += 1
-    return transport, rest
-
-
 def _error(message: str, code: int = 2) -> int:
     print(f"glpma_fk: error: {message}", file=sys.stderr)
     return code
@@ -185,7 +165,7 @@ def main(argv=None) -> int:
     """Run the node over Cyclone DDS until SIGINT/SIGTERM; returns the exit status
     (2 for bad parameters or configuration, 1 for a DDS failure)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    transport, argv = _split_transport(argv)
+    transport, argv = P.split_transport(argv, default="dds")
     if transport not in ("dds", "auto"):
         return _error(f"this is the Cyclone DDS transport; --transport {transport} is not it")
     try:

@@ -1,0 +1,44 @@
+"""``glpma-fk node``: run the estimator node over rclpy or over plain Cyclone DDS.
+
+``--transport auto`` (the default) takes rclpy when it can be imported (ROS 2
+sourced), Cyclone DDS otherwise.  Everything after ``--ros-args`` is the same
+for both transports.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+from .params import TRANSPORTS, split_transport
+
+
+def rclpy_available() -> bool:
+    try:
+        importlib.import_module("rclpy")
+    except Exception:  # noqa: BLE001 - ImportError, or a broken ROS environment
+        return False
+    return True
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    transport, rest = split_transport(argv)
+    if transport not in TRANSPORTS:
+        print(f"glpma-fk node: error: --transport must be one of {', '.join(TRANSPORTS)}, got {transport!r}",
+              file=sys.stderr)
+        return 2
+    if transport == "auto":
+        transport = "rclpy" if rclpy_available() else "dds"
+    if transport == "rclpy":
+        if not rclpy_available():
+            print("glpma-fk node: error: rclpy is not importable (source ROS 2 Jazzy first, "
+                  "or use --transport dds)", file=sys.stderr)
+            return 2
+        from .ros_node import main as ros_main
+        return ros_main(rest)
+    from .dds.node import main as dds_main
+    return dds_main(rest)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,128 @@
+"""The ``glpma_fk`` node on rclpy (``ros2 run glpma_ros fk_node``).
+
+A thin adapter: parameters are declared from :mod:`glpma_ros.params` (with
+descriptions and ranges), changes are validated and applied by
+:class:`~glpma_ros.service.FkService`, inputs go through the shared
+:class:`~glpma_ros.service.SolveLoop` (newest input only), and messages are
+converted here.  Importable only where rclpy is.
+"""
+from __future__ import annotations
+
+import array
+import sys
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
+                                SetParametersResult)
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64MultiArray
+
+from . import params as P
+from .errors import GlpmaError
+from .service import FkService, SolveLoop
+
+ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
+             P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
+             P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY}
+
+
+def descriptor(spec: P.ParamSpec) -> ParameterDescriptor:
+    d = ParameterDescriptor(name=spec.name, type=ROS_TYPES[spec.type], description=spec.description,
+                            additional_constraints=spec.constraints, read_only=spec.read_only)
+    if spec.range and spec.type == P.DOUBLE:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.range[0]),
+                                                     to_value=float(spec.range[1]), step=0.0)]
+    elif spec.range and spec.type == P.INTEGER:
+        d.integer_range = [IntegerRange(from_value=int(spec.range[0]), to_value=int(spec.range[1]), step=1)]
+    return d
+
+
+def _plain(value):
+    """rclpy parameter value -> the plain Python value the service expects."""
+    if isinstance(value, (array.array, tuple)):
+        return list(value)
+    return value
+
+
+class FkNode(Node):
+    def __init__(self, **node_kwargs):
+        super().__init__(P.NODE_NAME, **node_kwargs)
+        for spec in P.PARAMETERS:
+            # an empty array has no inferable type: declare the type without a default
+            default = Parameter.Type.DOUBLE_ARRAY if spec.type == P.DOUBLE_ARRAY and not spec.default \
+                else spec.default
+            self.declare_parameter(spec.name, default, descriptor(spec))
+        values = {spec.name: _plain(self.get_parameter(spec.name).value) for spec in P.PARAMETERS}
+        values = {k: ([] if v is None and P.SPECS[k].type == P.DOUBLE_ARRAY else v) for k, v in values.items()}
+        self.service = FkService(values, logger=self.get_logger(), node_name=self.get_name())
+        self.get_logger().info(f"{self.service.describe()}; warming up the solvers")
+        self.get_logger().info(f"warm-up done in {self.service.warm_up():.2f} s")
+
+        qos = QoSProfile(depth=values["qos_depth"], history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+        self.pose_pub = self.create_publisher(PoseStamped, "pose_estimate", qos)
+        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
+        self.loop = SolveLoop(self.service, self._publish_pose).start()
+        self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
+        self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.get_logger().info("ready")
+
+    def _on_legs(self, msg: Float64MultiArray) -> None:
+        self.loop.submit(list(msg.data), self.get_clock().now().nanoseconds)
+
+    def _publish_pose(self, pose) -> None:
+        msg = PoseStamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(pose.stamp_ns, 1_000_000_000)
+        msg.header.frame_id = pose.frame_id
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = pose.position
+        o = msg.pose.orientation
+        o.x, o.y, o.z, o.w = pose.orientation
+        self.pose_pub.publish(msg)
+
+    def _publish_diagnostics(self) -> None:
+        report = self.service.diagnostics()
+        msg = DiagnosticArray()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.status = [DiagnosticStatus(level=bytes([report.level]), name=report.name, message=report.message,
+                                       hardware_id=report.hardware_id,
+                                       values=[KeyValue(key=k, value=v) for k, v in report.values])]
+        self.diag_pub.publish(msg)
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        ok, reason = self.service.set_parameters({p.name: _plain(p.value) for p in parameters})
+        return SetParametersResult(successful=ok, reason=reason)
+
+    def destroy_node(self):
+        self.loop.stop()
+        self.get_logger().info(f"stopped: {self.service.summary()}")
+        return super().destroy_node()
+
+
+def main(args=None) -> int:
+    """Entry point of ``fk_node``; ``args`` are the arguments after the program name."""
+    rclpy.init(args=None if args is None else [sys.argv[0], *args])
+    node = None
+    try:
+        node = FkNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (GlpmaError, ParameterException) as exc:
+        print(f"glpma_fk: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
