@@ -214,7 +214,8 @@ class FkService:
             st = self.stats
             st.received += 1
             try:
-                legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
+                with np.errstate(over="ignore", invalid="ignore"):
+                    legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
                 estimate = self.estimator.estimate(legs)
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
