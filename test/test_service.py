@@ -335,3 +335,18 @@ def test_solve_loop_solves_the_newest_input_and_counts_dropped(service):
     assert [p.stamp_ns for p in published] == [1, 5]
     values = service.diagnostics().as_dict()
     assert values["inputs dropped"] == "3" and values["inputs received"] == "5"
+
+
+# -- transport choice ---------------------------------------------------------------------------------------
+
+def test_node_entry_chooses_the_transport(monkeypatch, capsys):
+    from glpma_ros import node_entry
+    from glpma_ros.dds import node as dds_node
+    calls = []
+    monkeypatch.setattr(node_entry, "rclpy_available", lambda: False)
+    monkeypatch.setattr(dds_node, "main", lambda argv: calls.append(argv) or 0)
+    assert node_entry.main(["--transport", "auto", "--ros-args", "-p", "solver:=rcga"]) == 0
+    assert calls == [["--ros-args", "-p", "solver:=rcga"]]
+    assert node_entry.main(["--transport", "rclpy"]) == 2
+    assert "rclpy is not importable" in capsys.readouterr().err
+    assert node_entry.main(["--transport", "zmq"]) == 2
