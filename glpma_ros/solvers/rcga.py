@@ -54,6 +54,24 @@ def _roulette(cum, rng):
 
 
 @njit(cache=True, error_model="numpy")
+def roulette_cumulative(fit, cum):
+    """Cumulative roulette weights ``1 / f`` (floored at ``MIN_FITNESS``) into ``cum``."""
+    s = 0.0
+    for i in range(fit.shape[0]):
+        s += 1.0 / max(fit[i], MIN_FITNESS)
+        cum[i] = s
+
+
+@njit(cache=True, error_model="numpy")
+def wright_crossover(pop, fit, a, b, rng, out):
+    """Wright's heuristic crossover of ``pop[a]`` and ``pop[b]`` into ``out``:
+    ``better + u (better - worse)``, ``u ~ U(0, 1)`` (one draw)."""
+    better, worse = (a, b) if fit[a] <= fit[b] else (b, a)
+    u = rng.random()
+    out[:] = pop[better] + u * (pop[better] - pop[worse])
+
+
+@njit(cache=True, error_model="numpy")
 def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generation, last_generation,
                      crossover_rate, mutation_rate, mutation_b, width, kernel, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
@@ -68,11 +86,7 @@ def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generat
         best = np.argmin(fit)
         if fit[best] < tolerance:
             break
-        s = 0.0
-        for i in range(N):
-            w = 1.0 / max(fit[i], MIN_FITNESS)
-            s += w
-            cum[i] = s
+        roulette_cumulative(fit, cum)
         new[0] = pop[best]
         new_f[0] = fit[best]
         changed[0] = False
@@ -82,9 +96,7 @@ def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generat
             b = _roulette(cum, rng)
             changed[i] = False
             if rng.random() < crossover_rate and a != b:
-                better, worse = (a, b) if fit[a] <= fit[b] else (b, a)
-                u = rng.random()
-                new[i] = pop[better] + u * (pop[better] - pop[worse])
+                wright_crossover(pop, fit, a, b, rng, new[i])
                 changed[i] = True
             else:
                 new[i] = pop[a]
