@@ -108,6 +108,7 @@ class Statistics:
 
     def __init__(self):
         self.received = self.published = self.rejected = self.dropped = self.deadline_misses = 0
+        self.dropped_reported = 0     # dropped count at the last diagnostics report
         self.reasons: Counter = Counter()
         self.starts: Counter = Counter()
         self.solve_s: deque = deque(maxlen=WINDOW)
@@ -146,7 +147,8 @@ class FkService:
         self.params = values
         self.stats = Statistics()
         self._throttle = LogThrottle()
-        self._lock = threading.RLock()
+        self._lock = threading.RLock()          # estimator, parameters, statistics
+        self._drop_lock = threading.Lock()      # the dropped counters only
 
     # -- construction --------------------------------------------------------------------
     def _initial_variables(self, initial_pose):
@@ -259,10 +261,10 @@ class FkService:
         return Outcome(None, reason, estimate, self._finish(arrival))
 
     def note_dropped(self, count: int = 1) -> None:
-        """The transport replaced ``count`` pending inputs by newer ones before solving them."""
-        with self._lock:
+        """The transport replaced ``count`` pending inputs by newer ones before solving them.
+        Does not wait for a solve in progress (the reader thread calls it)."""
+        with self._drop_lock:
             self.stats.dropped += count
-            self.stats.period["dropped"] += count
 
     # -- parameters -----------------------------------------------------------------------------
     def set_parameters(self, changes: dict) -> tuple[bool, str]:
@@ -295,9 +297,10 @@ class FkService:
     # -- diagnostics ------------------------------------------------------------------------------
     def diagnostics(self) -> DiagnosticReport:
         """The current statistics as a DiagnosticStatus; starts a new reporting period."""
-        with self._lock:
+        with self._lock, self._drop_lock:
             st = self.stats
             period, st.period = st.period, Counter()
+            period["dropped"], st.dropped_reported = st.dropped - st.dropped_reported, st.dropped
             solve = _percentiles_ms(st.solve_s)
             latency = _percentiles_ms(st.latency_s)
             last = st.last_estimate

@@ -174,6 +174,7 @@ def main(argv=None) -> int:
         return _error(str(exc))
     if ros.other:
         return _error(f"unexpected arguments {' '.join(ros.other)!r} (parameters go after --ros-args)")
+    logging.addLevelName(logging.WARNING, "WARN")     # ROS 2's spelling
     logging.basicConfig(level=(ros.log_level or "info").upper(), format=LOG_FORMAT, stream=sys.stderr)
     log = logging.getLogger(ros.node_name)
     for warning in ros.warnings:
