@@ -1,0 +1,215 @@
+"""Peer implementations on the identical fitness: pypop7 and pymoo G3-PCX, and
+``scipy.optimize.least_squares`` for the warm (tracking) case.
+
+All peers are benchmark-only dependencies, imported lazily.  They call the same
+compiled fitness as our solvers (``models.base.population_fitness``), through a
+counter that records every evaluation, the first one below the success threshold
+and the best-so-far trace, so evaluations are counted the same way for everyone.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+import numpy as np
+
+from ..models.base import population_fitness
+from .common import SUCCESS_TOLERANCE, Run
+
+#: pymoo needs bounds (its PM mutation scales with them): this many init half-widths
+#: around the init range's centre, so that every solution is well inside
+PYMOO_BOUND_FACTOR = 10.0
+
+
+class PeerMissing(RuntimeError):
+    """The peer library is not installed."""
+
+
+def available(name: str) -> str | None:
+    """None if the peer can be imported, else the reason."""
+    try:
+        if name == "pypop7":
+            import pypop7.optimizers.ga.g3pcx  # noqa: F401
+        elif name == "pymoo":
+            import pymoo.algorithms.soo.nonconvex.g3pcx  # noqa: F401
+        elif name == "scipy":
+            import scipy.optimize  # noqa: F401
+        else:
+            raise ValueError(name)
+    except ImportError as exc:
+        return f"not installed ({exc})"
+    return None
+
+
+class CountingFitness:
+    """The model's fitness, counting evaluations in call order."""
+
+    def __init__(self, model, legs, tolerance=SUCCESS_TOLERANCE, max_evals=None):
+        self.kernel, self.data, self.n_res = model.residual_kernel, model.data, model.n_res
+        self.legs = np.ascontiguousarray(legs, dtype=float)
+        self.tolerance = tolerance
+        self.max_evals = max_evals
+        self.n = 0
+        self.best = math.inf
+        self.first_success = None
+        self.history = []
+        self._last_logged = math.inf
+
+    def _record(self, F):
+        for f in F:
+            self.n += 1
+            if f < self.best:
+                self.best = float(f)
+                if self.best < 0.5 * self._last_logged:
+                    self.history.append((self.n, self.best))
+                    self._last_logged = self.best
+                if self.first_success is None and f < self.tolerance and (
+                        self.max_evals is None or self.n <= self.max_evals):
+                    self.first_success = self.n
+
+    def one(self, x) -> float:
+        X = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(1, -1))
+        F = population_fitness(X, self.kernel, self.data, self.legs, self.n_res)
+        self._record(F)
+        return float(F[0])
+
+    def many(self, X) -> np.ndarray:
+        F = population_fitness(np.ascontiguousarray(X, dtype=float), self.kernel, self.data, self.legs, self.n_res)
+        self._record(F)
+        return F
+
+    def run(self, wall_s) -> Run:
+        self.history.append((self.n, self.best))
+        ok = self.first_success is not None
+        return Run(ok, self.first_success if ok else self.n, wall_s, self.best, self.history)
+
+
+def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
+    """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1),
+    unbounded search, initial population uniform in ``init_range``."""
+    try:
+        from pypop7.optimizers.ga.g3pcx import G3PCX
+    except ImportError as exc:
+        raise PeerMissing(str(exc)) from None
+    fit = CountingFitness(model, legs, tolerance, max_evals)
+    n = model.n_vars
+    low, high = init_range
+    problem = {"fitness_function": fit.one, "ndim_problem": n,
+               "lower_boundary": np.full(n, float(low)), "upper_boundary": np.full(n, float(high))}
+    options = {"max_function_evaluations": int(max_evals),
+               "fitness_threshold": float(np.nextafter(tolerance, 0.0)),  # pypop7 stops at <=
+               "seed_rng": int(seed), "n_individuals": int(population), "verbose": 0, "saving_fitness": 0}
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        G3PCX(problem, options).optimize()
+    return fit.run(time.perf_counter() - t0)
+
+
+def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
+    """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial
+    population uniform in ``init_range``, bounds ``PYMOO_BOUND_FACTOR`` times wider."""
+    try:
+        from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX
+        from pymoo.config import Config
+        from pymoo.core.problem import Problem
+        from pymoo.optimize import minimize
+        from pymoo.termination.collection import TerminationCollection
+        from pymoo.termination.fmin import MinimumFunctionValueTermination
+        from pymoo.termination.max_eval import MaximumFunctionCallTermination
+    except ImportError as exc:
+        raise PeerMissing(str(exc)) from None
+    Config.warnings["not_compiled"] = False
+    fit = CountingFitness(model, legs, tolerance, max_evals)
+    n = model.n_vars
+    low, high = (float(v) for v in init_range)
+    centre, half = 0.5 * (low + high), 0.5 * (high - low)
+
+    class FK(Problem):
+        def __init__(self):
+            super().__init__(n_var=n, n_obj=1, xl=np.full(n, centre - PYMOO_BOUND_FACTOR * half),
+                             xu=np.full(n, centre + PYMOO_BOUND_FACTOR * half))
+
+        def _evaluate(self, X, out, *args, **kwargs):
+            out["F"] = fit.many(X)[:, None]
+
+    X0 = np.random.default_rng(seed).uniform(low, high, size=(population, n))
+    termination = TerminationCollection(MaximumFunctionCallTermination(int(max_evals)),
+                                        MinimumFunctionValueTermination(tolerance))
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        minimize(FK(), G3PCX(pop_size=int(population), sampling=X0), termination, seed=int(seed), verbose=False)
+    return fit.run(time.perf_counter() - t0)
+
+
+PEER_SOLVERS = {"pypop7": pypop7_g3pcx, "pymoo": pymoo_g3pcx}
+PEER_LABEL = {"pypop7": "pypop7 G3PCX", "pymoo": "pymoo G3PCX"}
+
+
+# -- scipy.optimize.least_squares, warm start ------------------------------------------
+def _left_jacobian(w):
+    """Left Jacobian of SO(3): exp(w + dw) = exp(J_l(w) dw) exp(w) to first order."""
+    theta = math.sqrt(float(w @ w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if theta < 1e-6:
+        return np.eye(3) + 0.5 * K + K @ K / 6.0
+    return (np.eye(3) + ((1.0 - math.cos(theta)) / theta ** 2) * K
+            + ((theta - math.sin(theta)) / theta ** 3) * K @ K)
+
+
+class ScipyWarm:
+    """One warm-started ``least_squares`` solve per call.
+
+    ``jac="analytic"``: leg residuals in the model's pose parameterisation with the
+    model's analytic Jacobian (3-RPR: the variables; hexapod: position plus a
+    rotation vector ``w`` applied as ``exp(w) R0``, Jacobian composed with the
+    left Jacobian of SO(3), exact).  ``jac="2-point"``: the solver's own residual
+    vector of the solver variables (hexapod: the nine-variable model with its
+    rigidity terms) and finite differences."""
+
+    def __init__(self, model, method, jac, tol=1e-15):
+        from scipy.optimize import least_squares
+        self.least_squares = least_squares
+        self.model, self.method, self.jac, self.tol = model, method, jac, tol
+
+    def solve(self, x_start, legs):
+        """Returns (variables, nfev)."""
+        model, ls = self.model, self.least_squares
+        kw = {"method": self.method, "xtol": self.tol, "ftol": self.tol, "gtol": self.tol}
+        if self.jac == "2-point":
+            res = ls(lambda x: model.residuals(x, legs)[0], np.asarray(x_start, dtype=float), **kw)
+            return res.x, res.nfev
+        if model.kind == "planar_3rpr":
+            cache = {}
+
+            def rj(x):
+                key = x.tobytes()
+                if key not in cache:
+                    cache.clear()
+                    cache[key] = model.pose_residuals_jacobian(x, legs)
+                return cache[key]
+
+            res = ls(lambda x: rj(x)[0], np.asarray(x_start, dtype=float), jac=lambda x: rj(x)[1], **kw)
+            return res.x, res.nfev
+        from ..models.hexapod_66 import rotation_from_vector
+        R0, p0 = model.pose_state(x_start)
+        cache = {}
+
+        def rj(s):
+            key = s.tobytes()
+            if key not in cache:
+                cache.clear()
+                r, J = model.pose_residuals_jacobian((rotation_from_vector(s[3:]) @ R0, p0 + s[:3]), legs)
+                J = J.copy()
+                J[:, 3:] = J[:, 3:] @ _left_jacobian(s[3:])
+                cache[key] = (r, J)
+            return cache[key]
+
+        res = ls(lambda s: rj(s)[0], np.zeros(6), jac=lambda s: rj(s)[1], **kw)
+        s = res.x
+        return model.pose_variables((rotation_from_vector(s[3:]) @ R0, p0 + s[:3])), res.nfev
+
+
+SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]

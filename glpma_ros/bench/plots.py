@@ -1,0 +1,128 @@
+"""Figures (matplotlib, Agg backend): PNG files, one per question."""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",
+          "pymoo": "tab:brown"}
+#: the papers' other populations of the same solver (001 Tables 5 and 8)
+EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1000): "gold"}
+
+
+def color_for(solver, population):
+    return EXTRA_COLORS.get((solver, population), COLORS[solver])
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def success_curves(path: Path, title, max_evals, series) -> Path:
+    """ECDF of evaluations to success and median best fitness vs evaluations.
+
+    ``series``: list of (label, color, linestyle, runs) where runs are ``common.Run``."""
+    plt = _plt()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
+    for label, color, ls, runs in series:
+        if not runs:
+            continue
+        n = len(runs)
+        ok = np.sort([r.nfev for r in runs if r.success])
+        frac = np.searchsorted(ok, grid, side="right") / n
+        ax1.step(grid, 100 * frac, where="post", color=color, ls=ls, label=f"{label} ({n} runs)")
+        # median best-so-far fitness: history is (evaluations, best) per chunk, a step function
+        curves = []
+        for r in runs:
+            if not r.history:
+                continue
+            h = np.array(r.history, dtype=float)
+            idx = np.searchsorted(h[:, 0], grid, side="right") - 1
+            best = np.where(idx >= 0, np.minimum.accumulate(h[:, 1])[np.maximum(idx, 0)], np.nan)
+            if r.success:  # a run stops at success: it stays below the threshold afterwards
+                best = np.where(grid >= r.nfev, np.minimum(best, r.fun), best)
+            curves.append(best)
+        if curves:
+            arr = np.array(curves)
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                med = np.nanmedian(arr, axis=0)
+            ax2.step(grid, np.maximum(med, 1e-32), where="post", color=color, ls=ls, label=label)
+    ax1.set_xscale("log")
+    ax1.set_xlabel("fitness evaluations")
+    ax1.set_ylabel("runs with fitness < 1e-20 (%)")
+    ax1.set_ylim(-2, 102)
+    ax1.set_xlim(1, max_evals)
+    ax1.grid(alpha=0.3)
+    ax1.legend(fontsize=7, loc="upper left")
+    ax1.set_title("success vs evaluations")
+    ax2.set_xscale("log")
+    ax2.set_yscale("log")
+    ax2.axhline(1e-20, color="k", lw=0.8, ls=":")
+    ax2.set_xlabel("fitness evaluations")
+    ax2.set_ylabel("median best fitness")
+    ax2.set_xlim(1, max_evals)
+    ax2.grid(alpha=0.3)
+    ax2.set_title("convergence (median over runs)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) -> Path:
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ms = np.asarray(latency_s) * 1e3
+    hi = max(float(np.percentile(ms, 99.9)) * 1.3, target_ms * 1.2)
+    bins = np.linspace(0.0, hi, 80)
+    ax.hist(np.clip(ms, 0, hi), bins=bins, color="tab:green", alpha=0.75, label="ours: Estimator (warm)")
+    for row in scipy_rows:
+        if row.latency_s is not None and row.method == "lm" and row.jac == "analytic":
+            ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
+                    label="scipy least_squares lm, analytic J")
+    p50, p99 = np.percentile(ms, [50, 99])
+    ax.axvline(p50, color="k", ls="--", lw=1, label=f"p50 {p50:.3f} ms")
+    ax.axvline(p99, color="k", ls="-", lw=1, label=f"p99 {p99:.3f} ms")
+    ax.axvline(target_ms, color="tab:red", ls=":", lw=1.5, label=f"target p99 ≤ {target_ms:g} ms")
+    ax.set_yscale("log")
+    ax.set_xlabel("solve time per step (ms), values above the range clipped into the last bin")
+    ax.set_ylabel("steps")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def deadline_plot(path: Path, rows, margin_ms) -> Path:
+    plt = _plt()
+    budgets = sorted({r.budget_ms for r in rows})
+    labels = list(dict.fromkeys(r.label for r in rows))
+    fig, axes = plt.subplots(1, len(budgets), figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6),
+                             sharey=True, squeeze=False)
+    for ax, b in zip(axes[0], budgets):
+        by_label = {r.label: r.overrun_ms for r in rows if r.budget_ms == b}
+        data = [by_label.get(label, np.array([np.nan])) for label in labels]
+        ax.boxplot(data, orientation="horizontal", whis=(0, 100), showfliers=False)
+        ax.axvline(0.0, color="k", lw=0.8)
+        ax.axvline(margin_ms, color="tab:red", ls=":", label=f"budget + {margin_ms:g} ms")
+        ax.set_xlabel("elapsed − budget (ms)")
+        ax.set_title(f"budget {b:g} ms")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_yticks(range(1, len(labels) + 1), labels, fontsize=7)
+    axes[0][-1].legend(fontsize=7)
+    fig.suptitle("deadline honouring: whiskers span min to max")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,184 @@
+"""``glpma-fk bench``: argument parsing and the order of the experiments."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from .common import REPO_ROOT, command_line, git_revision, machine
+
+SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "dds")
+
+#: default run counts: (full, --quick)
+DEFAULTS = {
+    "runs": (100, 10),                # ours, every row except pure hexapod
+    "hexapod_runs": (100, 5),         # ours, pure hexapod rows (0.1-0.5 s each)
+    "peer_runs": (100, 5),            # peers on the 3-RPR
+    "peer_hexapod_runs": (None, 0),   # peers on the hexapod: None = PEER_HEXAPOD_RUNS
+    "track_steps": (1000, 300),
+    "deadline_solves": (100, 20),
+    "solve_all_repeats": (5, 1),
+    "gap_runs": (100, 10),
+    "dds_steps": (1000, 200),
+}
+#: pypop7 ~18 s and pymoo ~85 s per 500,000-evaluation hexapod run on the reference machine
+PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="glpma-fk bench",
+        description="Reproduce the papers' tables (001 Tables 5 and 8, 002's all-solutions experiment) against "
+                    "peer implementations, measure warm-tracking latency and deadline honouring, and write "
+                    "BENCHMARKS.md with figures.")
+    p.add_argument("--quick", action="store_true", help="few runs per row (about a minute)")
+    p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", default=None,
+                   help="restrict to these manipulators")
+    p.add_argument("--sections", choices=SECTIONS, nargs="+", default=None,
+                   help=f"run only these sections (default: all of {', '.join(SECTIONS)})")
+    p.add_argument("--runs", type=int, help="runs per configuration (default 100; --quick 10)")
+    p.add_argument("--hexapod-runs", type=int,
+                   help="runs per pure hexapod configuration (default 100; --quick 5)")
+    p.add_argument("--peer-runs", type=int, help="runs per peer on the 3-RPR (default 100; --quick 5)")
+    p.add_argument("--peer-hexapod-runs", type=int,
+                   help="runs per peer on the hexapod (default pypop7 10, pymoo 3; --quick 0 = skipped)")
+    p.add_argument("--gap-runs", type=int, help="runs of the larger-cap G3-PCX diagnostics (default 100)")
+    p.add_argument("--track-steps", type=int, help="steps of each tracking trajectory (default 1000)")
+    p.add_argument("--track-budget-ms", type=float, default=20.0,
+                   help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
+    p.add_argument("--deadline-solves", type=int, help="solves per deadline cell (default 100; --quick 20)")
+    p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
+    p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
+    p.add_argument("--solve-all-repeats", type=int, help="solve_all repetitions with seeds 0.. (default 5)")
+    p.add_argument("--dds-steps", type=int, help="messages of the DDS end-to-end run (default 1000)")
+    p.add_argument("--out", type=Path, default=REPO_ROOT / "doc" / "bench", help="directory for the PNGs")
+    p.add_argument("--markdown", type=Path, default=REPO_ROOT / "BENCHMARKS.md", help="report path")
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return p
+
+
+def _count(args, name):
+    v = getattr(args, name)
+    if v is not None:
+        if v < 0:
+            raise SystemExit(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
+        return v
+    return DEFAULTS[name][1 if args.quick else 0]
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["--"]:          # `glpma-fk bench -- --quick` (the CLI passes the rest through)
+        argv = argv[1:]
+    try:
+        args = build_parser().parse_args(argv)
+        counts = {name: _count(args, name) for name in DEFAULTS}
+    except SystemExit as exc:           # usage errors and --help: a status, not an exception
+        if isinstance(exc.code, str):
+            print(f"error: {exc.code}", file=sys.stderr)
+            return 2
+        return int(exc.code or 0)
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from . import experiments as ex
+    from . import plots, report
+    from .scenarios import LATENCY_TARGET_MS, load
+
+    t_start = time.perf_counter()
+    sections = set(args.sections or SECTIONS)
+    keys = args.only or ["3rpr", "hexapod"]
+    progress = not args.no_progress
+    scenarios = {k: load(k) for k in keys}
+    runs, hex_runs = counts["runs"], counts["hexapod_runs"]
+    res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
+           "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
+           "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
+           "figures": {}}
+    if args.markdown:
+        args.markdown = args.markdown.resolve()
+    out_dir = args.out.resolve()
+    if not args.no_plots:
+        out_dir.mkdir(parents=True, exist_ok=True)
+
+    def say(msg):
+        print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    if "tables" in sections:
+        for k, sc in scenarios.items():
+            say(f"{sc.label}: the papers' table, pure and default")
+            res["tables"][k] = ex.paper_tables(sc, hex_runs if k == "hexapod" else runs, runs, progress)
+    if "peers" in sections:
+        peer_runs = counts["peer_runs"]
+        for k, sc in scenarios.items():
+            say(f"{sc.label}: pure G3-PCX peers")
+            if k == "hexapod":
+                if args.peer_hexapod_runs is not None:
+                    by_peer = {n: args.peer_hexapod_runs for n in PEER_HEXAPOD_RUNS}
+                elif args.quick:
+                    by_peer = {n: 0 for n in PEER_HEXAPOD_RUNS}
+                    by_peer.update({f"{n}_why": "skipped in --quick (500,000 evaluations per run: "
+                                                f"~18 s pypop7, ~85 s pymoo)" for n in PEER_HEXAPOD_RUNS})
+                else:
+                    by_peer = dict(PEER_HEXAPOD_RUNS)
+            else:
+                by_peer = {n: peer_runs for n in PEER_HEXAPOD_RUNS}
+            res["peers"][k] = ex.peer_g3pcx(sc, by_peer, progress)
+        if "3rpr" in scenarios and counts["gap_runs"] > 0:
+            say("3-RPR: G3-PCX with larger evaluation caps")
+            res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
+    if "solve-all" in sections:
+        for k, sc in scenarios.items():
+            say(f"{sc.label}: all solutions")
+            res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
+                                                       progress)
+    if "tracking" in sections:
+        for k, sc in scenarios.items():
+            say(f"{sc.label}: warm tracking and scipy least_squares")
+            res["tracking"][k] = ex.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
+            res["scipy"][k] = ex.scipy_warm(sc, res["tracking"][k], progress)
+    if "deadline" in sections:
+        say("deadline honouring")
+        res["deadline"] = ex.deadlines(list(scenarios.values()), args.budgets_ms, max(1, counts["deadline_solves"]),
+                                       progress)
+    if "dds" in sections:
+        say("DDS end to end")
+        res["dds"] = ex.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
+        if res["dds"].get("status") != "run":
+            print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
+
+    if not args.no_plots:
+        say("figures")
+        for k, sc in scenarios.items():
+            series = []
+            for row in res["tables"].get(k, []):
+                c = row.config
+                series.append((f"{report.SOLVER_LABEL[c.solver]} {c.pop_label} {'pure' if not c.polish else 'default'}",
+                               plots.color_for(c.solver, c.population), "-" if not c.polish else "--",
+                               row.runs))
+            for row in res["peers"].get(k, []):
+                if row.status == "run":
+                    series.append((f"{row.name} G3PCX", plots.COLORS[row.name], ":", row.runs))
+            if series:
+                from .. import solvers
+                path = out_dir / f"success_vs_evals_{k}.png"
+                res["figures"][f"success_{k}"] = plots.success_curves(
+                    path, f"{sc.label}: success and convergence", solvers.PAPER_SETTINGS[sc.model.kind]["max_evals"],
+                    series)
+            if k in res["tracking"]:
+                res["figures"][f"latency_{k}"] = plots.latency_histogram(
+                    out_dir / f"latency_{k}.png", f"{sc.label}: warm tracking, solve time per step",
+                    res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
+        if res["deadline"]:
+            res["figures"]["deadline"] = plots.deadline_plot(out_dir / "deadline.png", res["deadline"],
+                                                             ex.DEADLINE_MARGIN_MS)
+    res["wall_s"] = time.perf_counter() - t_start
+    text = report.render(res, args.markdown)
+    if args.markdown:
+        args.markdown.parent.mkdir(parents=True, exist_ok=True)
+        args.markdown.write_text(text)
+        say(f"wrote {args.markdown}")
+    else:
+        print(text)
+    return 0

@@ -1,0 +1,56 @@
+"""glpma-fk bench, smallest path: the 3-RPR only, a handful of runs, every section,
+report and figures in a temporary directory."""
+import pytest
+
+from glpma_ros.bench import main
+
+SECTIONS = ["## Summary", "## The papers' tables (001 Tables 5 and 8)", "### 3-RPR: 001 Table 5",
+            "## Success vs evaluations", "## Pure G3-PCX against peer implementations",
+            "## Why the papers' pure G3-PCX figures do not reproduce", "## All real assembly modes",
+            "## Warm tracking latency (solve only)", "## Warm solve against `scipy.optimize.least_squares`",
+            "## Deadline honouring", "## DDS end to end"]
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    md = out / "BENCH.md"
+    rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
+               "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--solve-all-runs", "20",
+               "--dds-steps", "20", "--no-progress", "--out", str(out), "--markdown", str(md)])
+    assert rc == 0
+    return out, md.read_text()
+
+
+def test_markdown_has_every_table(report):
+    _, text = report
+    for heading in SECTIONS:
+        assert heading in text, heading
+    assert "Machine: " in text and "Command: `glpma-fk bench --quick --only 3rpr" in text
+    assert "6-6 hexapod" not in text.split("## Summary")[1]
+    # the paper's rows, ours beside the published figures
+    for method, pop, paper_evals in (("RCGA", "50", "7,301 ± 218"), ("RCGA", "100", "5,111 ± 189"),
+                                     ("G3-PCX", "100", "2,984 ± 73"), ("GLPMA", "(100, 100)", "7,448 ± 243")):
+        for mode in ("pure", "default (polish)"):
+            rows = [ln for ln in text.splitlines() if ln.startswith(f"| {method} | {pop} | {mode} | 2 |")]
+            assert len(rows) == 1 and paper_evals in rows[0], (method, pop, mode)
+    for peer in ("pypop7 G3PCX", "pymoo G3PCX"):
+        assert any(ln.startswith(f"| {peer} |") for ln in text.splitlines()), peer
+    assert "| 3-RPR | 30 | 20 |" in text                      # tracking row
+    assert "| ours: Estimator (warm, GLPMA + LM) |" in text and "| scipy `lm`, analytic |" in text
+    assert "| 3-RPR | 20 | U[" in text                          # solve_all row: 20 runs
+    assert "| 3-RPR, infeasible legs, default (polish) | glpma | 1 | 2 |" in text
+
+
+def test_polished_rows_converge_and_figures_exist(report):
+    out, text = report
+    for line in text.splitlines():
+        if "| default (polish) | 2 |" in line:
+            assert "| 100 % |" in line, line
+    for name in ("success_vs_evals_3rpr.png", "latency_3rpr.png", "deadline.png"):
+        assert (out / name).stat().st_size > 1000, name
+
+
+def test_bad_arguments_return_status_2(capsys):
+    assert main(["--only", "nonsense"]) == 2
+    assert main(["--runs", "-1"]) == 2
