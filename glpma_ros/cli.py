@@ -98,7 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("solve", help="solve one set of leg lengths")
     s.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
     s.add_argument("--legs", type=float, nargs="+", required=True, help="leg lengths, config unit")
-    s.add_argument("--solver", choices=["glpma", "g3pcx", "rcga"], default="glpma")
+    s.add_argument("--solver", choices=list(__import__("glpma_ros.solvers", fromlist=["SOLVERS"]).SOLVERS), default="glpma")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--budget-ms", type=float, default=None, help="wall-clock budget")
     s.add_argument("--max-evals", type=int, default=None, help="evaluation cap (paper's by default)")

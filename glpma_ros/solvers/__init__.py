@@ -1,8 +1,16 @@
 """Solvers: one module per algorithm, one result type (:class:`SolveResult`)."""
-from . import g3pcx, glpma, rcga, refine
+import inspect
+
+from . import de, g3pcx, gasa, glpma, rcga, refine, sa
 from .common import BUDGET_EXHAUSTED, CONVERGED, MAX_EVALS, SolveResult, Termination
 
-SOLVERS = {"glpma": glpma.solve, "g3pcx": g3pcx.solve, "rcga": rcga.solve}
+SOLVERS = {"glpma": glpma.solve, "g3pcx": g3pcx.solve, "rcga": rcga.solve,
+           "sa": sa.solve, "gasa": gasa.solve, "de": de.solve}
+
+#: solvers whose own paper sizes the population differently from 001's PAPER_SETTINGS:
+#: SA a single chain (004), GA-SA 40 (004), DE 10 D (003 Eq. 23); functions of the model
+DEFAULT_POPULATION = {"sa": sa.default_population, "gasa": gasa.default_population,
+                      "de": de.default_population}
 
 #: the papers' population sizes per manipulator (Chandra & Rolland 2014, section 5)
 PAPER_SETTINGS = {
@@ -18,12 +26,16 @@ def solve(name, model, legs, **kwargs):
     if name not in SOLVERS:
         raise ValueError(f"unknown solver {name!r}; choose one of {', '.join(SOLVERS)}")
     settings = dict(PAPER_SETTINGS[model.kind])
-    if name != "glpma":
-        for key in ("local_population", "ls_interval", "ls_intensity"):
-            settings.pop(key)
+    # keep only the settings the solver names (GLPMA-only keys go to GLPMA alone)
+    named = inspect.signature(SOLVERS[name]).parameters
+    settings = {k: v for k, v in settings.items()
+                if k in named}
+    if name in DEFAULT_POPULATION:
+        settings["population"] = DEFAULT_POPULATION[name](model)
     settings.update({k: v for k, v in kwargs.items() if v is not None})
     return SOLVERS[name](model, legs, **settings)
 
 
 __all__ = ["SOLVERS", "PAPER_SETTINGS", "solve", "SolveResult", "Termination",
-           "CONVERGED", "BUDGET_EXHAUSTED", "MAX_EVALS", "g3pcx", "rcga", "glpma", "refine"]
+           "CONVERGED", "BUDGET_EXHAUSTED", "MAX_EVALS", "g3pcx", "rcga", "glpma", "refine",
+           "sa", "gasa", "de"]

@@ -1,0 +1,169 @@
+"""Hybrid GA-SA: a genetic algorithm whose mutation is replaced by simulated
+annealing of each child (Chandra, Zhang & Rolland 2009, "Solving the forward
+kinematics of the 3RPR planar parallel manipulator using a hybrid
+meta-heuristic paradigm", CIRA 2009 -- paper 004, Algorithm 1 and section
+IV.A item 4; first used for the 6-6 manipulator by Chandra, Frean & Rolland 2009).
+
+Generational.  Each generation (004 Algorithm 1):
+
+* **elitism** -- the best individual is copied unchanged (004 section IV.A:
+  "roulette wheel selection is used in conjunction with the elitist strategy");
+* for each other slot: **roulette-wheel selection** of two parents (the RCGA's
+  weights ``1 / f``, :func:`rcga.roulette_cumulative`), **Wright's heuristic
+  crossover** into a single child with probability ``crossover_rate = 0.9``
+  (:func:`rcga.wright_crossover`; otherwise the child is a copy of the first
+  parent), then, with probability ``sa_rate = 0.9`` and *in place of
+  mutation*, the child is presented to **simulated annealing** for
+  ``sa_iterations = 500`` iterations (Markov chains, :func:`sa.anneal`) of
+  ``chain_length = 20`` proposals, from the current initial temperature with
+  cooling rate 0.01 per chain; the best point the annealer visits is the
+  child copied into the new population (Algorithm 1 steps 4-5);
+* **"Lower the initial temperature T"** (Algorithm 1 step 6, inside the loop
+  over children): after each child the annealer's initial temperature, 10 at
+  the start of the run, is multiplied by ``1 - cooling_rate``.  It is not reset
+  between generations.  Read this way the last annealing temperature of the
+  ``k``-th child is ``10 x 0.99^(k + 499)``, which reaches the 1e-4 scale of
+  004's stopping rule after ~650 children: 16-18 generations of 40, the
+  published 18 +- 3 (without step 6 the annealer would end every child at
+  T ~ 0.07 and the run would not get below f ~ 1e-2).
+
+One "iteration" in 004 Table II's sense is one GA generation.  The annealer's
+neighbourhood follows the law of :mod:`.sa`: ``b(T) = b0 sqrt(T / T0_SA)``,
+``b0`` half the initial range at the SA baseline's ``T0_SA = 100``, so at the
+hybrid's T = 10 the proposals are ``sqrt(0.1)`` of that (004 gives no ``b``).
+
+Evaluation counting: a crossover child costs one evaluation, every annealing
+proposal one; a copied child that is not annealed costs none.  A generation cut
+short by the evaluation cap or by reaching the tolerance keeps the previous
+individuals in the slots it did not fill, and counts as one generation.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from . import sa
+from .common import initial_population
+from .driver import EvolutionaryState, run_evolution
+from .rcga import CROSSOVER_RATE, _roulette, mutation_width, roulette_cumulative, wright_crossover
+
+#: 004 section IV.A item 4: "initial temperature of 10"
+T0 = 10.0
+#: 004 section IV.A item 4 and IV.B: "N of 500 iterations" of SA per child
+SA_ITERATIONS = 500
+#: 004 section IV.A item 4: "Markov chain length of 20"
+CHAIN_LENGTH = 20
+#: 004 section IV.A item 4: "cooling rate of 0.01" (per chain, and per child for step 6)
+COOLING_RATE = 0.01
+#: 004 section IV.A item 4: "The SA is used as a genetic operator and applied at the rate of 0.9"
+SA_RATE = 0.9
+#: 004 section IV.A: "The population size of 40"
+POPULATION = 40
+
+
+@njit(cache=True, error_model="numpy")
+def gasa_generations(pop, fit, rng, n_generations, max_evals, tolerance, temperature, t_ref, b_ref, sa_iterations,
+                     chain_length, cooling_rate, crossover_rate, sa_rate, kernel, data, legs, n_res):
+    """Evolve ``pop``/``fit`` in place; returns (generations, evaluations,
+    initial temperature for the next child)."""
+    N, n = pop.shape
+    new = np.empty_like(pop)
+    new_f = np.empty(N)
+    cum = np.empty(N)
+    child = np.empty(n)
+    child_best = np.empty(n)
+    r = np.empty(n_res)
+    gens = 0
+    evals = 0
+    while gens < n_generations and evals < max_evals:
+        best = np.argmin(fit)
+        if fit[best] < tolerance:
+            break
+        roulette_cumulative(fit, cum)
+        new[0] = pop[best]
+        new_f[0] = fit[best]
+        filled = 1
+        for i in range(1, N):
+            if evals >= max_evals:
+                break
+            a = _roulette(cum, rng)
+            b = _roulette(cum, rng)
+            if rng.random() < crossover_rate and a != b:
+                wright_crossover(pop, fit, a, b, rng, child)
+                cf = sa.fitness_one(child, kernel, data, legs, r)
+                evals += 1
+            else:
+                child[:] = pop[a]
+                cf = fit[a]
+            if rng.random() < sa_rate:
+                child_best[:] = child
+                _, cf, e, _ = sa.anneal(child, cf, child_best, cf, temperature, t_ref, b_ref, sa_iterations,
+                                        chain_length, cooling_rate, max_evals - evals, tolerance, rng,
+                                        kernel, data, legs, n_res)
+                evals += e
+                child[:] = child_best
+            temperature *= 1.0 - cooling_rate  # Algorithm 1 step 6
+            new[i] = child
+            new_f[i] = cf
+            filled += 1
+            if cf < tolerance:
+                break
+        for i in range(filled, N):  # a generation cut short keeps the previous individuals
+            new[i] = pop[i]
+            new_f[i] = fit[i]
+        pop[:] = new
+        fit[:] = new_f
+        gens += 1
+    return gens, evals, temperature
+
+
+class GASAPopulation(EvolutionaryState):
+    name = "gasa"
+
+    def __init__(self, problem, pop, fit, rng, *, width, t0=T0, sa_iterations=SA_ITERATIONS,
+                 chain_length=CHAIN_LENGTH, cooling_rate=COOLING_RATE, crossover_rate=CROSSOVER_RATE,
+                 sa_rate=SA_RATE, neighbour_fraction=sa.NEIGHBOUR_FRACTION):
+        super().__init__(problem, pop, fit, rng)
+        self.temperature = float(t0)
+        self.sa_iterations, self.chain_length = int(sa_iterations), int(chain_length)
+        self.cooling_rate, self.crossover_rate, self.sa_rate = float(cooling_rate), float(crossover_rate), float(sa_rate)
+        width = np.broadcast_to(np.asarray(width, dtype=float), (pop.shape[1],))
+        self.b_ref = np.ascontiguousarray(float(neighbour_fraction) * width)
+        if not (self.temperature > 0 and self.sa_iterations >= 1 and self.chain_length >= 1
+                and 0 <= self.cooling_rate < 1 and len(pop) >= 2):
+            raise ValueError("GA-SA needs t0 > 0, sa_iterations >= 1, chain_length >= 1, "
+                             "0 <= cooling_rate < 1 and a population of at least 2")
+
+    def evals_per_generation(self) -> int:
+        return (len(self.pop) - 1) * (1 + self.sa_iterations * self.chain_length)
+
+    def advance(self, n_generations, max_evals, tolerance):
+        p = self.problem
+        gens, evals, self.temperature = gasa_generations(
+            self.pop, self.fit, self.rng, n_generations, max_evals, tolerance, self.temperature, sa.T0,
+            self.b_ref, self.sa_iterations, self.chain_length, self.cooling_rate, self.crossover_rate,
+            self.sa_rate, p.kernel, p.data, p.legs, p.n_res)
+        return gens, evals
+
+
+def default_population(model) -> int:
+    """004's population of 40."""
+    return POPULATION
+
+
+def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,
+          tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
+    """Minimise the model's fitness with the hybrid GA-SA (plus the refinement
+    unless ``polish=False``).  ``params``: ``t0``, ``sa_iterations``,
+    ``chain_length``, ``cooling_rate``, ``crossover_rate``, ``sa_rate``,
+    ``neighbour_fraction``."""
+    rng = np.random.default_rng(rng)
+
+    def make(problem, term):
+        pop = initial_population(rng, population, model.n_vars, init_range, center, spread)
+        fit = problem.evaluate(pop, term)
+        return GASAPopulation(problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars),
+                              **params)
+
+    return run_evolution("gasa", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
+                         budget_s=budget_s, polish=polish)
