@@ -131,6 +131,7 @@ class PoseListener:
         self.diag_reader = participant.reader(endpoints.DIAGNOSTICS, DiagnosticArray, depth)
         self.poses: list = []            # (recv_ns, stamp_ns, frame_id, position (3,), quaternion (4,))
         self.diagnostics: dict | None = None
+        self.diagnostics_stamp_ns = 0
         self._stop = False
         self._guard = GuardCondition(participant.dp)
         self._waitset = WaitSet(participant.dp)
@@ -159,6 +160,7 @@ class PoseListener:
                     status = d.status[0]
                     self.diagnostics = {"level": int(status.level), "message": status.message,
                                         "values": {kv.key: kv.value for kv in status.values}}
+                    self.diagnostics_stamp_ns = d.header.stamp.to_ns()
 
     def close(self):
         self._stop = True
@@ -193,10 +195,12 @@ def match_poses(model, sent: list[Sent], poses: list, window: int = 8) -> list[t
 def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: float = 5.0, *,
         domain_id: int | None = None, qos_depth: int = 10, solution: int | None = None,
         amplitude: float = 1.0, connect_timeout_s: float = 30.0, settle_s: float = 0.3,
-        tail_s: float = 1.0, progress=None) -> dict:
+        tail_s: float = 1.0, diagnostics_wait_s: float = 1.5, progress=None) -> dict:
     """Drive the node for ``duration_s`` at ``rate_hz`` and return the summary (a JSON-able dict).
 
     ``progress(i, n, summary_so_far)`` is called about once a second while sending, if given.
+    After sending, waits up to ``tail_s`` for the last poses and up to ``diagnostics_wait_s``
+    for a ``/diagnostics`` report of the node that covers every input (``node_diagnostics``).
     Raises :class:`TimeoutError` when no node answers within ``connect_timeout_s``."""
     from .dds import endpoints
     from .dds.messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
@@ -244,6 +248,10 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         while time.monotonic() < deadline and len(listener.poses) < len(sent):
             time.sleep(0.01)
         time.sleep(min(0.05, tail_s))
+        # wait for a diagnostics report of the node issued after the last input
+        deadline = time.monotonic() + diagnostics_wait_s
+        while time.monotonic() < deadline and sent and listener.diagnostics_stamp_ns <= sent[-1].send_ns:
+            time.sleep(0.02)
     finally:
         listener.close()
 

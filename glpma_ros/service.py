@@ -104,10 +104,12 @@ def _percentiles_ms(samples) -> tuple[float, float, float]:
 
 
 class Statistics:
-    """Counters since start, and distributions over the last :data:`WINDOW` inputs."""
+    """Counters since start, and distributions over the last :data:`WINDOW` inputs.
+    ``handled`` inputs went through :meth:`FkService.handle`; ``dropped`` ones were replaced
+    by a newer input first; received = handled + dropped."""
 
     def __init__(self):
-        self.received = self.published = self.rejected = self.dropped = self.deadline_misses = 0
+        self.handled = self.published = self.rejected = self.dropped = self.deadline_misses = 0
         self.dropped_reported = 0     # dropped count at the last diagnostics report
         self.reasons: Counter = Counter()
         self.starts: Counter = Counter()
@@ -214,7 +216,7 @@ class FkService:
         arrival = time.perf_counter() if arrival is None else arrival
         with self._lock:
             st = self.stats
-            st.received += 1
+            st.handled += 1
             try:
                 with np.errstate(over="ignore", invalid="ignore"):
                     legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
@@ -256,7 +258,7 @@ class FkService:
         st.last_reason = reason
         suppressed = self._throttle(key)
         if suppressed is not None:
-            more = f" (+{suppressed} similar since the last report)" if suppressed else ""
+            more = f" (+{suppressed} similar suppressed)" if suppressed else ""
             self.log.warning(f"input rejected: {reason}{more}")
         return Outcome(None, reason, estimate, self._finish(arrival))
 
@@ -306,7 +308,7 @@ class FkService:
             last = st.last_estimate
             cond_last = last.conditioning if last is not None else math.nan
             values = [
-                ("inputs received", st.received + st.dropped),
+                ("inputs received", st.handled + st.dropped),
                 ("inputs solved", st.published),
                 ("inputs rejected", st.rejected),
                 ("inputs dropped", st.dropped),
@@ -348,7 +350,7 @@ class FkService:
                 problems.append(f"near a singularity (conditioning {cond_last:.2g})")
             if problems:
                 level, message = WARN, "; ".join(problems)
-            elif st.received == 0:
+            elif st.handled + st.dropped == 0:
                 level, message = OK, "waiting for leg_lengths"
             else:
                 level, message = OK, "tracking"
@@ -360,7 +362,7 @@ class FkService:
         """One line of totals, for the log at shutdown."""
         st = self.stats
         solve = _percentiles_ms(st.solve_s)
-        return (f"received {st.received + st.dropped}, solved {st.published}, rejected {st.rejected}, "
+        return (f"received {st.handled + st.dropped}, solved {st.published}, rejected {st.rejected}, "
                 f"dropped {st.dropped}, deadline misses {st.deadline_misses}, "
                 f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms")
 
