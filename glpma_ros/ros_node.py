@@ -16,7 +16,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -58,8 +58,7 @@ class FkNode(Node):
             default = Parameter.Type.DOUBLE_ARRAY if spec.type == P.DOUBLE_ARRAY and not spec.default \
                 else spec.default
             self.declare_parameter(spec.name, default, descriptor(spec))
-        values = {spec.name: _plain(self.get_parameter(spec.name).value) for spec in P.PARAMETERS}
-        values = {k: ([] if v is None and P.SPECS[k].type == P.DOUBLE_ARRAY else v) for k, v in values.items()}
+        values = {spec.name: self._value(spec) for spec in P.PARAMETERS}
         self.service = FkService(values, logger=self.get_logger(), node_name=self.get_name())
         self.get_logger().info(f"{self.service.describe()}; warming up the solvers")
         self.get_logger().info(f"warm-up done in {self.service.warm_up():.2f} s")
@@ -73,6 +72,13 @@ class FkNode(Node):
         self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info("ready")
+
+    def _value(self, spec: P.ParamSpec):
+        try:
+            value = self.get_parameter(spec.name).value
+        except ParameterUninitializedException:     # declared by type only, and not overridden
+            value = None
+        return spec.default if value is None else _plain(value)
 
     def _on_legs(self, msg: Float64MultiArray) -> None:
         self.loop.submit(list(msg.data), self.get_clock().now().nanoseconds)
