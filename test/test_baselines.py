@@ -1,0 +1,249 @@
+"""Baselines: simulated annealing and hybrid GA-SA (004), DE/rand/1/bin (003).
+
+Cold-start success with the refinement, 004's Table II protocol without it,
+DE's injection of the previous pose, exact evaluation counts (counted
+independently, inside the residual kernel), reproducibility, the SA
+temperature schedule and the registry's per-solver populations."""
+import functools
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+
+from glpma_ros import cli, solvers
+from glpma_ros.models import planar_3rpr
+from glpma_ros.models.planar_3rpr import Planar3RPR
+from glpma_ros.solvers import de, gasa, sa
+from glpma_ros.solvers.common import Termination
+from glpma_ros.solvers.driver import Problem
+from glpma_ros.solvers.protocols import TABLE2, published_row, table2_protocol
+
+from conftest import RPR_YAML
+
+BASELINES = ["sa", "gasa", "de"]
+
+
+@pytest.mark.parametrize("name", BASELINES)
+def test_baselines_solve_rpr_cold_with_refinement(rpr, name):
+    """001's cold protocol (U[-50, 50]^3, 10,000 evaluations) with the refinement on."""
+    legs = rpr.example_leg_lengths
+    for seed in range(5):
+        r = solvers.solve(name, rpr, legs, rng=seed)
+        assert r.status == "converged" and r.fun < 1e-20 and r.nfev <= 10_000, (seed, r)
+        assert np.max(np.abs(rpr.inverse_kinematics(r.x) - legs)) < 1e-9
+
+
+#: measured on 004's protocol, seeds 0..49 (see the report in the commit log):
+#: SA 50/50 at 1,200 +- 30 chains, GA-SA 50/50, DE 50/50.  Ten runs, all must succeed;
+#: SA's mean temperature steps must be near 004's 1,130 (a wrong schedule, b or
+#: acceptance rule moves it by far more than this band).
+TABLE2_RUNS_IN_TEST = 10
+SA_ITERATION_BAND = (900, 1500)
+
+
+@pytest.mark.parametrize("name", BASELINES)
+def test_004_protocol_reaches_stopping_rule(rpr, name):
+    res = table2_protocol(rpr, name, runs=TABLE2_RUNS_IN_TEST)
+    assert res.successes == TABLE2_RUNS_IN_TEST, res.fitness
+    assert all(f < 1e-4 for f in res.fitness)
+    if name == "sa":
+        assert SA_ITERATION_BAND[0] <= res.mean_iterations <= SA_ITERATION_BAND[1], res.iterations
+        assert res.published.iterations == 1130 and res.published.markov_chain == 20
+
+
+def test_published_table2_rows():
+    assert len(TABLE2) == 6
+    assert published_row("sa", 100).iterations == 1073
+    assert published_row("gasa").iterations == 18 and published_row("gasa").successes == 50
+    assert published_row("rcga").method == "GA (N-U)" and published_row("rcga").successes == 45
+    assert published_row("de") is None
+
+
+# -- DE ------------------------------------------------------------------------------------------
+
+def test_de_injects_previous_pose_as_first_individual(rpr, rpr_solutions):
+    center = rpr_solutions[1]
+    rng = np.random.default_rng(0)
+    pop = de.initial_de_population(rng, 30, 3, (-50.0, 50.0), center)
+    assert np.array_equal(pop[0], center)
+    assert np.all(np.abs(pop[1:]) <= 50.0) and np.ptp(pop[1:, 0]) > 50.0   # the rest uniform in the range
+    pop = de.initial_de_population(rng, 30, 3, (-50.0, 50.0), center, spread=1.0)
+    assert np.array_equal(pop[0], center) and np.abs(pop[1:] - center).max() < 10.0
+    # through solve: the injected exact solution is found by the initial population alone
+    f_center = rpr.fitness(center, rpr.example_leg_lengths)[0]   # the config's 9 decimals: ~1e-19
+    r = solvers.solve("de", rpr, rpr.example_leg_lengths, rng=0, polish=False, center=center,
+                      tolerance=2 * f_center)
+    assert r.status == "converged" and r.nfev == 30 and r.nit == 0
+    assert np.array_equal(r.x, rpr.canonical(center))
+
+
+def test_de_dither_ranges_and_selection(rpr):
+    """Greedy selection: no individual ever gets worse; F and CR within 003's ranges."""
+    rng = np.random.default_rng(4)
+    term = Termination(max_evals=10_000)
+    problem = Problem(rpr, rpr.example_leg_lengths)
+    pop = rng.uniform(-50, 50, (30, 3))
+    state = de.DEPopulation(problem, pop, problem.evaluate(pop, term), rng)
+    for _ in range(20):
+        before = state.fit.copy()
+        state.step(1, term)
+        assert np.all(state.fit <= before)
+    assert (de.F_LOW, de.F_HIGH, de.CR_LOW, de.CR_HIGH) == (0.5, 1.0, 0.8, 1.0)
+    with pytest.raises(ValueError):
+        de.DEPopulation(problem, pop[:3], problem.evaluate(pop[:3], term), rng)
+
+
+# -- SA ------------------------------------------------------------------------------------------
+
+def test_sa_temperature_and_neighbourhood_follow_the_documented_schedule(rpr):
+    rng = np.random.default_rng(0)
+    term = Termination(tolerance=1e-300, max_evals=100_000)
+    problem = Problem(rpr, rpr.example_leg_lengths)
+    pop = rng.uniform(-10, 10, (1, 3))
+    state = sa.SAState(problem, pop, problem.evaluate(pop, term), rng, width=20.0)
+    temps = [state.temperature]
+    for _ in range(50):
+        assert state.step(1, term) == 1
+        temps.append(state.temperature)
+    assert temps[0] == sa.T0 == 100.0
+    for k, t in enumerate(temps):
+        assert t == pytest.approx(100.0 * (1.0 - 0.01) ** k, rel=1e-12)
+    assert term.nfev == 1 + 50 * sa.CHAIN_LENGTH
+    b0 = np.full(3, 10.0)  # half the initial width
+    assert np.allclose(state.b0, b0)
+    assert np.allclose(sa.neighbour_width(b0, 1.0, 100.0), 1.0)
+
+
+@njit(cache=False)
+def _sphere_kernel(x, data, legs, out):
+    for i in range(x.shape[0]):
+        out[i] = x[i]
+
+
+def test_sa_metropolis_rule():
+    """Cold chains only go downhill; hot chains accept nearly every proposal."""
+    rng = np.random.default_rng(1)
+    data = (np.zeros(1),)
+    legs = np.zeros(1)
+    r, y = np.empty(3), np.empty(3)
+    x = np.full(3, 1.0)
+    f = best_f = 3.0
+    best = x.copy()
+    b = np.full(3, 0.5)
+    for _ in range(200):
+        f_new, best_f, e = sa.markov_chain(x, f, best, best_f, 1e-300, b, 20, 10**9, 0.0, rng,
+                                           _sphere_kernel, data, legs, r, y)
+        assert e == 20 and f_new <= f and best_f == f_new
+        f = f_new
+    x = np.zeros(3)
+    f = best_f = 0.0
+    moved = 0
+    for _ in range(200):
+        before = x.copy()
+        f, best_f, _ = sa.markov_chain(x, f, best, best_f, 1e12, b, 1, 10**9, 0.0, rng,
+                                       _sphere_kernel, data, legs, r, y)
+        moved += not np.array_equal(before, x)
+    assert moved == 200 and best_f == 0.0
+
+
+def test_gasa_lowers_initial_temperature_once_per_child(rpr):
+    rng = np.random.default_rng(0)
+    term = Termination(tolerance=1e-300, max_evals=10**9)
+    problem = Problem(rpr, rpr.example_leg_lengths)
+    pop = rng.uniform(-10, 10, (6, 3))
+    state = gasa.GASAPopulation(problem, pop, problem.evaluate(pop, term), rng, width=20.0, sa_iterations=5)
+    before = state.best()[1]
+    assert state.step(2, term) == 2
+    assert state.temperature == pytest.approx(gasa.T0 * 0.99 ** (2 * 5), rel=1e-12)  # 2 generations x 5 children
+    assert state.best()[1] <= before
+
+
+# -- shared properties -----------------------------------------------------------------------------
+
+@njit(cache=False)
+def _counting_kernel(x, data, legs, out):
+    base, platform, counter = data
+    counter[0] += 1
+    planar_3rpr.residual_kernel(x, (base, platform), legs, out)
+
+
+class CountingRPR(Planar3RPR):
+    """The seed 3-RPR whose residual kernel counts its own calls."""
+
+    def __init__(self, model):
+        super().__init__(model.base, model.platform, unit=model.unit)
+        self.counter = np.zeros(1, dtype=np.int64)
+        self.data = (self.base, self.platform, self.counter)
+
+    @property
+    def residual_kernel(self):
+        return _counting_kernel
+
+
+@pytest.mark.parametrize("name,cap", [("sa", 3_001), ("gasa", 50_000), ("de", 3_001)])
+def test_evaluations_counted_exactly(rpr, name, cap):
+    model = CountingRPR(rpr)
+    r = solvers.solve(name, model, rpr.example_leg_lengths, rng=3, polish=False, max_evals=cap, tolerance=1e-30)
+    assert r.status == "max_evals" and r.nfev == model.counter[0] and r.nfev <= cap
+    if name == "sa":
+        assert r.nfev == 1 + sa.CHAIN_LENGTH * r.nit
+    elif name == "de":
+        assert r.nfev == 30 * (1 + r.nit)
+    else:  # GA-SA spends the cap exactly, cutting its last generation short
+        assert r.nfev == cap
+    # and when converging mid-chain the count stops at the evaluation that got there
+    model.counter[0] = 0
+    r = solvers.solve(name, model, rpr.example_leg_lengths, rng=3, polish=False, init_range=(-10, 10),
+                      max_evals=20_000_000, tolerance=1e-4)
+    assert r.status == "converged" and r.nfev == model.counter[0]
+
+
+def _pure(name, model, seed, max_evals):
+    return solvers.solve(name, model, model.example_leg_lengths, rng=seed, polish=False, max_evals=max_evals)
+
+
+@pytest.mark.parametrize("name", BASELINES)
+def test_seeds_reproduce_and_best_is_monotone(rpr, name):
+    a, b, c = _pure(name, rpr, 7, 20_000), _pure(name, rpr, 7, 20_000), _pure(name, rpr, 8, 20_000)
+    assert np.array_equal(a.x, b.x) and a.nfev == b.nfev and a.fun == b.fun
+    assert not np.array_equal(a.x, c.x)
+    best = [f for _, f in a.history]
+    assert all(f2 <= f1 for f1, f2 in zip(best, best[1:]))
+    assert a.fun == pytest.approx(rpr.fitness(a.x, rpr.example_leg_lengths)[0], rel=1e-9)
+
+
+def test_registry_gives_each_baseline_its_papers_population(rpr, hexapod, monkeypatch):
+    seen = {}
+    for name in ["sa", "gasa", "de", "rcga", "glpma"]:
+        original = solvers.SOLVERS[name]
+
+        @functools.wraps(original)
+        def spy(model, legs, _name=name, **kw):
+            seen[_name, model.kind] = kw
+            return None
+
+        monkeypatch.setitem(solvers.SOLVERS, name, spy)
+        for model in (rpr, hexapod):
+            solvers.solve(name, model, model.example_leg_lengths)
+    assert seen["sa", "planar_3rpr"]["population"] == 1
+    assert seen["gasa", "planar_3rpr"]["population"] == 40
+    assert seen["de", "planar_3rpr"]["population"] == 30 and seen["de", "hexapod_66"]["population"] == 90
+    assert seen["rcga", "hexapod_66"]["population"] == 200 and "ls_interval" not in seen["rcga", "hexapod_66"]
+    assert seen["glpma", "hexapod_66"]["ls_intensity"] == 85
+    assert seen["de", "hexapod_66"]["max_evals"] == 500_000
+    assert "local_population" not in seen["de", "planar_3rpr"]
+
+
+def test_cli_offers_every_registered_solver():
+    parser = cli.build_parser()
+    for name in solvers.SOLVERS:
+        args = parser.parse_args(["solve", str(RPR_YAML), "--legs", "100", "120", "150", "--solver", name])
+        assert args.solver == name
+
+
+def test_hexapod_de_with_refinement(hexapod):
+    legs = hexapod.example_leg_lengths
+    r = solvers.solve("de", hexapod, legs, rng=0)
+    assert r.status == "converged" and r.fun < 1e-20 and r.nfev <= 500_000
+    assert math.isfinite(r.elapsed_s)
