@@ -184,28 +184,39 @@ class FkService:
                 f"solver {self.params['solver']}, budget {self.params['time_budget_ms']:g} ms, "
                 f"{'warm start from initial_pose' if self._initial_x is not None else 'cold start'}")
 
-    def _warm_up_legs(self) -> np.ndarray:
+    def _warm_up_variables(self) -> np.ndarray:
+        """A pose to warm up with: ``initial_pose``, or any pose clear of the base joints."""
         if self._initial_x is not None:
-            return self.model.inverse_kinematics(self._initial_x)
-        if getattr(self.model, "example_leg_lengths", None) is not None:
-            return np.asarray(self.model.example_leg_lengths, dtype=float)
-        x = self.model.variables_from_pose([0.0, 0.0, self.model.scale], [0.0, 0.0, 0.0, 1.0])
-        return self.model.inverse_kinematics(x)
+            return self._initial_x
+        s = self.model.scale
+        return self.model.variables_from_pose([0.25 * s, 0.25 * s, s], [0.0, 0.0, 0.0, 1.0])
 
-    def warm_up(self, solvers=P.SOLVER_CHOICES) -> float:
-        """Solve once with each solver so that Numba compiles before the first real input;
-        the warm-start state and the statistics are left untouched.  Returns the seconds spent."""
+    def warm_up(self, solvers=P.SOLVER_CHOICES, budget_ms: float = 50.0, max_tries: int = 5) -> float:
+        """Run every path of each solver -- cold and warm start, with and without the
+        refinement (without it the evolutionary loops run in the warm stages too) -- until it
+        runs within its budget, so that Numba has compiled everything before the first real
+        input.  The warm-start state and the statistics are left untouched.  Returns the
+        seconds spent."""
         t0 = time.perf_counter()
-        legs = self._warm_up_legs()
+        x = self._warm_up_variables()
+        # not exactly x's legs: a warm start must then search, not stop at its first individual
+        legs = self.model.inverse_kinematics(x) * (1.0 + 1e-3)
+        if self.model.leg_limits is not None:
+            legs = np.clip(legs, *self.model.leg_limits)
         with self._lock:
             for name in solvers:
-                values = dict(self.params, solver=name, time_budget_ms=max(self.params["time_budget_ms"], 50.0))
-                est = self._build_estimator(values, self._initial_x)
-                try:
-                    est.estimate(legs)
-                    est.estimate(legs)
-                except Exception as exc:  # noqa: BLE001 - a warm-up failure is reported, not fatal
-                    self.log.warning(f"warm-up with {name} failed: {exc}")
+                for start in (None, x):
+                    for polish in (True, False):
+                        values = dict(self.params, solver=name, time_budget_ms=budget_ms, polish=polish)
+                        for _ in range(max_tries):
+                            t = time.perf_counter()
+                            try:
+                                self._build_estimator(values, start).estimate(legs)
+                            except Exception as exc:  # noqa: BLE001 - reported, not fatal
+                                self.log.warning(f"warm-up with {name} failed: {exc}")
+                                break
+                            if time.perf_counter() - t < 3e-3 * budget_ms:
+                                break
         return time.perf_counter() - t0
 
     # -- inputs -------------------------------------------------------------------------------
