@@ -37,13 +37,22 @@ STAGE_SHARE = (0.4, 0.5, 1.0)
 CONTINUITY_FACTOR = 20.0
 #: smallest warm-start spread, relative to the geometry's scale
 MIN_SPREAD = 1e-6
+#: largest warm-start spread, relative to the scale (beyond it the cold stage's range is the better start)
+MAX_SPREAD = 10.0
 #: an unconverged fitness whose RMS leg residual exceeds this share of the scale
 #: means the legs have no real assembly (rather than too little time)
 NO_SOLUTION_RMS = 1e-6
+#: reciprocal condition number of the leg Jacobian below which a pose is near a
+#: singularity (assembly modes meet; the seed examples are at 0.02-0.13)
+NEAR_SINGULAR = 1e-3
+#: an unconverged best point near a singularity counts as "near singular" rather
+#: than "no solution" while its RMS residual is below this share of the scale
+NEAR_SINGULAR_RMS = 1e-2
 
 STATUS_CONVERGED = "converged"
 STATUS_NO_SOLUTION = "no_solution"
 STATUS_BUDGET = "budget_exhausted"
+STATUS_NEAR_SINGULAR = "near_singular"
 
 
 @dataclass
@@ -62,6 +71,10 @@ class Estimate:
     @property
     def converged(self) -> bool:
         return self.status == STATUS_CONVERGED
+
+    @property
+    def near_singular(self) -> bool:
+        return self.conditioning < NEAR_SINGULAR
 
 
 class Estimator:
@@ -119,7 +132,7 @@ class Estimator:
         stages = []
         if self.last_x is not None:
             movement = float(np.max(np.abs(legs - self.last_legs)))
-            spread = max(movement, MIN_SPREAD * model.scale)
+            spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
         for (stage, spread), share in zip(stages, STAGE_SHARE[-len(stages):] if len(stages) < 3 else STAGE_SHARE):
@@ -147,17 +160,21 @@ class Estimator:
         if candidates:
             _, result, stage = min(candidates, key=lambda c: c[0])
             self.last_x, self.last_legs = result.x, legs
+            cond = model.conditioning(result.x, legs)
+            note = f", near a singularity (conditioning {cond:.2g})" if cond < NEAR_SINGULAR else ""
             return Estimate(STATUS_CONVERGED, stage, result.x, model.pose(result.x), result.fun, evaluations,
-                            elapsed, model.conditioning(result.x, legs), self.solver,
-                            f"{stage} start, {result.message}")
+                            elapsed, cond, self.solver, f"{stage} start, {result.message}{note}")
         result, stage = best if best is not None else (None, stages[0][0])
         if result is None:
             return Estimate(STATUS_BUDGET, stage, None, None, math.inf, evaluations, elapsed, 0.0, self.solver,
                             "time budget exhausted before a search could start")
         rms = math.sqrt(result.fun / model.n_res) if math.isfinite(result.fun) else math.inf
-        if rms > NO_SOLUTION_RMS * model.scale:
+        cond = model.conditioning(result.x, legs) if np.all(np.isfinite(result.x)) else 0.0
+        if cond < NEAR_SINGULAR and rms < NEAR_SINGULAR_RMS * model.scale:
+            status, why = STATUS_NEAR_SINGULAR, (f"near a singularity: not converged (conditioning {cond:.2g}, "
+                                                 f"RMS residual {rms:.3g} {model.unit})")
+        elif rms > NO_SOLUTION_RMS * model.scale:
             status, why = STATUS_NO_SOLUTION, f"no real assembly found (RMS residual {rms:.3g} {model.unit})"
         else:
             status, why = STATUS_BUDGET, f"not converged within the budget (fitness {result.fun:.3g})"
-        cond = model.conditioning(result.x, legs) if np.all(np.isfinite(result.x)) else 0.0
         return Estimate(status, stage, result.x, None, result.fun, evaluations, elapsed, cond, self.solver, why)

@@ -45,7 +45,7 @@ def test_estimator_never_crashes(estimator, legs):
         assert str(exc) and "\n" not in str(exc)
         np.testing.assert_array_equal(estimator.last_x, before)   # state kept
         return
-    assert e.status in ("converged", "no_solution", "budget_exhausted")
+    assert e.status in ("converged", "no_solution", "budget_exhausted", "near_singular")
     assert (e.pose is not None) == e.converged
     if e.converged:
         assert np.all(np.isfinite(e.x)) and np.all(np.isfinite(e.pose.position))
