@@ -123,22 +123,32 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _delegated(command: str):
+    """Subcommands with parsers of their own (their options may start with ``--``)."""
+    if command == "node":
+        from .node_entry import main
+    elif command == "bench":
+        from .bench import main
+    elif command == "demo":
+        from .demo import main
+    else:
+        return None
+    return main
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
-    try:
-        if args.command == "node":
-            from .node_entry import main as node_main
-            return node_main(args.rest)
-        if args.command == "bench":
-            from .bench import main as bench_main
-            return bench_main(args.rest)
-        if args.command == "demo":
-            from .demo import main as demo_main
-            return demo_main(args.rest)
+        delegate = _delegated(argv[0]) if argv else None
+        if delegate is not None:
+            try:
+                return int(delegate(argv[1:]) or 0)
+            except SystemExit as exc:  # a subcommand's own argparse (--help, usage error)
+                return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as exc:
+            return int(exc.code or 0)
         return args.func(args)
     except GlpmaError as exc:
         return _fail(str(exc))

@@ -195,10 +195,13 @@ def match_poses(model, sent: list[Sent], poses: list, window: int = 8) -> list[t
 def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: float = 5.0, *,
         domain_id: int | None = None, qos_depth: int = 10, solution: int | None = None,
         amplitude: float = 1.0, connect_timeout_s: float = 30.0, settle_s: float = 0.3,
-        tail_s: float = 1.0, diagnostics_wait_s: float = 1.5, progress=None) -> dict:
+        tail_s: float = 1.0, diagnostics_wait_s: float = 1.5, progress=None, samples: bool = False) -> dict:
     """Drive the node for ``duration_s`` at ``rate_hz`` and return the summary (a JSON-able dict).
 
-    ``progress(i, n, summary_so_far)`` is called about once a second while sending, if given.
+    ``progress(i, n, summary_so_far)`` is called about once a second while sending, if given;
+    ``summary_so_far`` has ``poses_received``, ``latency_p50_ms`` and ``position_error_max_m``.
+    With ``samples=True`` the summary also holds the per-input series (``samples``: true and
+    estimated positions in metres, latency in ms) for plotting.
     After sending, waits up to ``tail_s`` for the last poses and up to ``diagnostics_wait_s``
     for a ``/diagnostics`` report of the node that covers every input (``node_diagnostics``).
     Raises :class:`TimeoutError` when no node answers within ``connect_timeout_s``."""
@@ -243,7 +246,10 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
             sent.append(Sent(send_ns, legs, position * mpu, quaternion))
             if progress is not None and time.perf_counter() >= next_progress:
                 next_progress += 1.0
-                progress(i + 1, n, {"poses_received": len(listener.poses)})
+                _, pos_err, _, latency = _compare(model, sent, list(listener.poses))
+                progress(i + 1, n, {"poses_received": len(listener.poses),
+                                    "latency_p50_ms": float(np.median(latency)) * 1e-6 if latency else math.nan,
+                                    "position_error_max_m": max(pos_err) if pos_err else math.nan})
         deadline = time.monotonic() + tail_s
         while time.monotonic() < deadline and len(listener.poses) < len(sent):
             time.sleep(0.01)
@@ -255,14 +261,9 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     finally:
         listener.close()
 
-    pairs = match_poses(model, sent, list(listener.poses))
-    pos_err, ang_err, latency = [], [], []
-    for i, (recv_ns, _, _, position_m, quaternion) in pairs:
-        pos_err.append(float(np.linalg.norm(position_m - sent[i].position_m)))
-        ang_err.append(quaternion_angle(quaternion, sent[i].quaternion))
-        latency.append(recv_ns - sent[i].send_ns)
+    pairs, pos_err, ang_err, latency = _compare(model, sent, list(listener.poses))
     frame_ids = sorted({p[2] for p in listener.poses})
-    return {
+    summary = {
         "manipulator": model.kind,
         "config": str(path),
         "solution": DEFAULT_SOLUTION[model.kind] if solution is None else int(solution),
@@ -278,6 +279,24 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         "latency_ms": _stats(latency, 1e-6),
         "node_diagnostics": listener.diagnostics,
     }
+    if samples:
+        summary["samples"] = {
+            "true_position_m": [[float(v) for v in s.position_m] for s in sent],
+            "estimated_position_m": [[float(v) for v in pose[3]] for _, pose in pairs],
+            "latency_ms": [v * 1e-6 for v in latency],
+        }
+    return summary
+
+
+def _compare(model, sent, poses):
+    """Matched pairs, and per pair the position error (m), orientation error (rad), latency (ns)."""
+    pairs = match_poses(model, sent, poses)
+    pos_err, ang_err, latency = [], [], []
+    for i, (recv_ns, _, _, position_m, quaternion) in pairs:
+        pos_err.append(float(np.linalg.norm(position_m - sent[i].position_m)))
+        ang_err.append(quaternion_angle(quaternion, sent[i].quaternion))
+        latency.append(recv_ns - sent[i].send_ns)
+    return pairs, pos_err, ang_err, latency
 
 
 def format_summary(s: dict) -> str:

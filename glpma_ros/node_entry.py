@@ -20,8 +20,24 @@ def rclpy_available() -> bool:
     return True
 
 
+def usage() -> str:
+    """``glpma-fk node --help``: the syntax and every declared parameter."""
+    from .params import PARAMETERS
+    lines = ["usage: glpma-fk node [--transport auto|rclpy|dds] [--ros-args -p NAME:=VALUE ... "
+             "--params-file FILE]", "", "parameters:"]
+    for spec in PARAMETERS:
+        default = spec.default if spec.default != [] else "[]"
+        extra = f" ({spec.constraints})" if spec.constraints else ""
+        lines.append(f"  {spec.name} ({spec.type}, default {default}): {spec.description}{extra}")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    head = argv[:argv.index("--ros-args")] if "--ros-args" in argv else argv
+    if "-h" in head or "--help" in head:
+        print(usage())
+        return 0
     transport, rest = split_transport(argv)
     if transport not in TRANSPORTS:
         print(f"glpma-fk node: error: --transport must be one of {', '.join(TRANSPORTS)}, got {transport!r}",
