@@ -82,6 +82,26 @@ def percentiles_ms(seconds) -> dict:
             "max": float(a.max()), "mean": float(a.mean())}
 
 
+def involuntary_switches() -> int:
+    """Involuntary context switches of this thread so far (Linux; 0 elsewhere).
+
+    A timed call during which this count grows was preempted by another process:
+    on a shared machine that, not the solver, explains most outliers."""
+    try:
+        import resource
+        who = getattr(resource, "RUSAGE_THREAD", resource.RUSAGE_SELF)
+        return int(resource.getrusage(who).ru_nivcsw)
+    except Exception:  # noqa: BLE001
+        return 0
+
+
+def load_average() -> str:
+    try:
+        return "/".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
 # -- formatting -------------------------------------------------------------------
 def fmt(v, digits=3, unit=""):
     if v is None or (isinstance(v, float) and not math.isfinite(v)):

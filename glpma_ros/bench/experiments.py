@@ -14,7 +14,7 @@ from tqdm import tqdm
 from .. import solvers
 from ..estimator import Estimator
 from ..solve_all import solve_all, wide_range
-from .common import Run, percentiles_ms
+from .common import Run, involuntary_switches, percentiles_ms
 from .papers import PUBLISHED
 from .peers import PEER_SOLVERS, SCIPY_VARIANTS, PeerMissing, ScipyWarm, available
 
@@ -139,6 +139,7 @@ class Tracking:
     starts: np.ndarray            # the warm start of each step (previous estimate)
     legs: np.ndarray
     truth: np.ndarray
+    preempted: np.ndarray         # the step was preempted by another process (involuntary context switch)
 
     @property
     def stats(self):
@@ -159,15 +160,17 @@ def tracking(sc, steps, budget_ms, progress) -> Tracking:
     for legs in legs_all[1:20]:
         est.estimate(legs)
     est = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)
-    lat, err, res, evals, starts = [], [], [], [], []
+    lat, err, res, evals, starts, pre = [], [], [], [], [], []
     statuses, stages = {}, {}
     gc.collect()
     for k in _bar(range(1, steps + 1), f"{sc.label} tracking", progress):
         legs = legs_all[k]
         starts.append(np.array(est.last_x, dtype=float))
+        c0 = involuntary_switches()
         t0 = time.perf_counter()
         e = est.estimate(legs)
         lat.append(time.perf_counter() - t0)
+        pre.append(involuntary_switches() > c0)
         statuses[e.status] = statuses.get(e.status, 0) + 1
         stages[e.start] = stages.get(e.start, 0) + 1
         evals.append(e.evaluations)
@@ -178,7 +181,7 @@ def tracking(sc, steps, budget_ms, progress) -> Tracking:
             err.append(math.inf)
             res.append(math.inf)
     return Tracking(steps, budget_ms, np.array(lat), np.array(err), np.array(res), statuses, stages,
-                    np.array(evals), np.array(starts), legs_all[1:], traj[1:])
+                    np.array(evals), np.array(starts), legs_all[1:], traj[1:], np.array(pre, dtype=bool))
 
 
 @dataclass
@@ -188,6 +191,7 @@ class ScipyRow:
     latency_s: np.ndarray = None
     leg_residual: np.ndarray = None
     nfev: np.ndarray = None
+    preempted: np.ndarray = None
     status: str = "run"
     note: str = ""
 
@@ -203,15 +207,17 @@ def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
         solver = ScipyWarm(model, method, jac)
         for k in range(min(10, len(trk.legs))):      # warm-up
             solver.solve(trk.starts[k], trk.legs[k])
-        lat, res, nfev = [], [], []
+        lat, res, nfev, pre = [], [], [], []
         gc.collect()
         for k in _bar(range(len(trk.legs)), f"{sc.label} scipy {method}/{jac}", progress):
+            c0 = involuntary_switches()
             t0 = time.perf_counter()
             x, n = solver.solve(trk.starts[k], trk.legs[k])
             lat.append(time.perf_counter() - t0)
+            pre.append(involuntary_switches() > c0)
             res.append(max_leg_residual(model, x, trk.legs[k]))
             nfev.append(n)
-        out.append(ScipyRow(method, jac, np.array(lat), np.array(res), np.array(nfev)))
+        out.append(ScipyRow(method, jac, np.array(lat), np.array(res), np.array(nfev), np.array(pre, dtype=bool)))
     return out
 
 
@@ -223,6 +229,8 @@ class DeadlineRow:
     budget_ms: float
     elapsed_s: np.ndarray
     short: str = ""
+    preempted: np.ndarray = None
+    stopped_early: bool = False
 
     @property
     def label(self):
@@ -235,6 +243,23 @@ class DeadlineRow:
 
 #: margin a solve may take beyond its budget and still count as on time
 DEADLINE_MARGIN_MS = 0.5
+#: a cell stops after this many solves if every one overran by more than STOP_OVERRUN_FACTOR x budget
+STOP_AFTER = 10
+STOP_OVERRUN_FACTOR = 10.0
+
+
+def _timed_cell(call, n, budget_ms, desc, progress):
+    """``n`` timed calls; returns (elapsed seconds, preempted flags, stopped early)."""
+    el, pre = [], []
+    for i in _bar(range(n), desc, progress):
+        c0 = involuntary_switches()
+        t0 = time.perf_counter()
+        call(i)
+        el.append(time.perf_counter() - t0)
+        pre.append(involuntary_switches() > c0)
+        if i + 1 == STOP_AFTER and n > STOP_AFTER and min(el) * 1e3 > (1.0 + STOP_OVERRUN_FACTOR) * budget_ms:
+            return np.array(el), np.array(pre, dtype=bool), True
+    return np.array(el), np.array(pre, dtype=bool), False
 
 
 def infeasible_legs(sc):
@@ -257,25 +282,22 @@ def deadlines(scenarios, budgets_ms, n, progress) -> list[DeadlineRow]:
             for solver in solvers.SOLVERS:
                 solvers.solve(solver, model, legs, rng=1, polish=polish, budget_s=0.002, max_evals=10**9)
                 for b in budgets_ms:
-                    el = []
-                    for seed in _bar(range(n), f"deadline {case[:30]} {solver} {b} ms", progress):
-                        t0 = time.perf_counter()
+                    def call(seed, solver=solver, legs=legs, polish=polish, b=b):
                         solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3,
                                       max_evals=10**9)
-                        el.append(time.perf_counter() - t0)
-                    rows.append(DeadlineRow(case, solver, b, np.array(el), short))
+                    el, pre, stopped = _timed_cell(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
+                    rows.append(DeadlineRow(case, solver, b, el, short, pre, stopped))
         # the estimator, cold, on legs without a solution: every stage runs until the deadline
         case = f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)"
         for b in budgets_ms:
             est = Estimator(model, time_budget_s=b / 1e3)
             est.estimate(infeasible_legs(sc))
-            el = []
-            for _ in _bar(range(n), f"deadline {case[:30]} {b} ms", progress):
+
+            def call(_, est=est, legs=infeasible_legs(sc)):
                 est.reset()
-                t0 = time.perf_counter()
-                est.estimate(infeasible_legs(sc))
-                el.append(time.perf_counter() - t0)
-            rows.append(DeadlineRow(case, "Estimator", b, np.array(el), f"{sc.label} infeasible, cold"))
+                est.estimate(legs)
+            el, pre, stopped = _timed_cell(call, n, b, f"deadline {sc.label} Estimator {b:g} ms", progress)
+            rows.append(DeadlineRow(case, "Estimator", b, el, f"{sc.label} infeasible, cold", pre, stopped))
     return rows
 
 

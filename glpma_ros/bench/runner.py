@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from .common import REPO_ROOT, command_line, git_revision, machine
+from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "dds")
 
@@ -95,24 +95,26 @@ def main(argv=None) -> int:
     res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
            "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
            "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
-           "figures": {}}
+           "figures": {}, "load": []}
     if args.markdown:
         args.markdown = args.markdown.resolve()
     out_dir = args.out.resolve()
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
 
-    def say(msg):
+    def say(msg, section=None):
+        if section:
+            res["load"].append((section, load_average()))
         print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     if "tables" in sections:
         for k, sc in scenarios.items():
-            say(f"{sc.label}: the papers' table, pure and default")
+            say(f"{sc.label}: the papers' table, pure and default", f"{sc.key} tables")
             res["tables"][k] = ex.paper_tables(sc, hex_runs if k == "hexapod" else runs, runs, progress)
     if "peers" in sections:
         peer_runs = counts["peer_runs"]
         for k, sc in scenarios.items():
-            say(f"{sc.label}: pure G3-PCX peers")
+            say(f"{sc.label}: pure G3-PCX peers", f"{sc.key} peers")
             if k == "hexapod":
                 if args.peer_hexapod_runs is not None:
                     by_peer = {n: args.peer_hexapod_runs for n in PEER_HEXAPOD_RUNS}
@@ -130,20 +132,20 @@ def main(argv=None) -> int:
             res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
     if "solve-all" in sections:
         for k, sc in scenarios.items():
-            say(f"{sc.label}: all solutions")
+            say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
             res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
                                                        progress)
     if "tracking" in sections:
         for k, sc in scenarios.items():
-            say(f"{sc.label}: warm tracking and scipy least_squares")
+            say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
             res["tracking"][k] = ex.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
             res["scipy"][k] = ex.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
-        say("deadline honouring")
+        say("deadline honouring", "deadline")
         res["deadline"] = ex.deadlines(list(scenarios.values()), args.budgets_ms, max(1, counts["deadline_solves"]),
                                        progress)
     if "dds" in sections:
-        say("DDS end to end")
+        say("DDS end to end", "dds")
         res["dds"] = ex.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
         if res["dds"].get("status") != "run":
             print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
