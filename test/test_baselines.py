@@ -26,9 +26,10 @@ from conftest import RPR_YAML
 BASELINES = ["sa", "gasa", "de"]
 
 #: compiled functions that take the residual kernel as an argument.  A kernel defined in
-#: this test module must not reach their on-disk caches: numba pickles the kernel's type
-#: into the cache index, other processes cannot rebuild it, and every later save of that
-#: index then fails ("underlying object has vanished").
+#: this test module must not reach an on-disk cache (population_fitness has one; the
+#: baselines' own kernels do not, see sa.KERNEL_JIT): numba pickles the kernel's type into
+#: the cache index, other processes cannot rebuild it, and every later save of that index
+#: then fails ("underlying object has vanished").
 KERNEL_TAKING = (base.population_fitness, sa.fitness_one, sa.markov_chain, sa.anneal, sa.sa_generations,
                  gasa.gasa_generations, de.de_generations)
 

@@ -36,6 +36,7 @@ from numba import njit
 from ..models.base import population_fitness
 from .common import initial_population
 from .driver import EvolutionaryState, run_evolution
+from .sa import KERNEL_JIT
 
 #: 003 Eq. 21 and text: "the range of the mutation scale factor F is [0.5, 1.0]"
 F_LOW, F_HIGH = 0.5, 1.0
@@ -47,7 +48,7 @@ POPULATION_PER_VARIABLE = 10
 MIN_POPULATION = 4
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**KERNEL_JIT)
 def de_generations(pop, fit, rng, n_generations, max_evals, tolerance, f_low, f_high, cr_low, cr_high,
                    kernel, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""

@@ -74,7 +74,7 @@ POPULATION = 40
 UNLIMITED = 2**62
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**sa.KERNEL_JIT)
 def gasa_generations(pop, fit, new, new_f, cum, progress, rng, n_generations, max_children, max_evals, tolerance,
                      temperature, t_ref, b_ref, sa_iterations, chain_length, cooling_rate, crossover_rate, sa_rate,
                      kernel, data, legs, n_res):

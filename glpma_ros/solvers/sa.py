@@ -63,8 +63,16 @@ NEIGHBOUR_FRACTION = 0.5
 #: 004 runs SA as a single-solution method
 POPULATION = 1
 
+#: compile options of the functions that take the model's residual kernel as an argument
+#: (here, in gasa and in de): no on-disk cache.  Numba keys such a cache entry by the kernel
+#: dispatcher's per-process identity, so the entry is never found again, the index grows by
+#: one entry per process, and once it holds more than numba's FUNCTION_CACHE_SIZE (128)
+#: entries every later save fails with "ReferenceError: underlying object has vanished"
+#: (measured with numba 0.68.1: NUMBA_DEBUG_CACHE shows "data saved", never "data loaded").
+KERNEL_JIT = {"cache": False, "error_model": "numpy"}
 
-@njit(cache=True, error_model="numpy")
+
+@njit(**KERNEL_JIT)
 def fitness_one(x, kernel, data, legs, r):
     """Fitness of one individual (``population_fitness`` for a single row;
     non-finite residuals give ``+inf``)."""
@@ -81,7 +89,7 @@ def neighbour_width(b0, temperature, t0):
     return b0 * math.sqrt(max(temperature, 0.0) / t0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**KERNEL_JIT)
 def markov_chain(x, f, best_x, best_f, temperature, b, chain_length, max_evals, tolerance, rng,
                  kernel, data, legs, r, y):
     """One Markov chain at ``temperature``: up to ``chain_length`` proposals
@@ -108,7 +116,7 @@ def markov_chain(x, f, best_x, best_f, temperature, b, chain_length, max_evals, 
     return f, best_f, evals
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**KERNEL_JIT)
 def anneal(x, f, best_x, best_f, temperature, t0, b0, n_chains, chain_length, cooling_rate, max_evals,
            tolerance, rng, kernel, data, legs, n_res):
     """``n_chains`` Markov chains from ``temperature``, cooling after each one
@@ -128,7 +136,7 @@ def anneal(x, f, best_x, best_f, temperature, t0, b0, n_chains, chain_length, co
     return f, best_f, evals, temperature
 
 
-@njit(cache=True, error_model="numpy")
+@njit(**KERNEL_JIT)
 def sa_generations(current, current_f, best, best_f, rng, n_generations, max_evals, tolerance, temperature,
                    t0, b0, chain_length, cooling_rate, kernel, data, legs, n_res):
     """Advance every chain by ``n_generations`` temperature steps (one Markov
