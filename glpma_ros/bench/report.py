@@ -434,7 +434,19 @@ def render(res, md_path) -> str:
         parts += deadline_section(res, md_path)
     if res.get("dds") is not None:
         parts += dds_section(res)
+    parts += kept_sections(md_path)
     return "\n".join(parts).rstrip() + "\n"
+
+
+def kept_sections(md_path) -> list[str]:
+    """Sections of the existing report that another command writes -- ``## Reliability``, by
+    ``glpma-fk stress`` (``glpma_ros/stress.py``) -- carried over unchanged."""
+    if not md_path or not os.path.exists(md_path):
+        return []
+    from ..stress import extract_section
+    with open(md_path, encoding="utf-8") as f:
+        lines = extract_section(f.read())
+    return [""] + lines if lines else []
 
 
 def timestamp() -> str:
