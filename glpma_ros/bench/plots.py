@@ -16,6 +16,10 @@ def color_for(solver, population):
     return EXTRA_COLORS.get((solver, population), COLORS[solver])
 
 
+#: a run's history needs this many points (median over runs) for a convergence curve
+MIN_HISTORY_POINTS = 4
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -26,10 +30,12 @@ def _plt():
 def success_curves(path: Path, title, max_evals, series) -> Path:
     """ECDF of evaluations to success and median best fitness vs evaluations.
 
-    ``series``: list of (label, color, linestyle, runs) where runs are ``common.Run``."""
+    ``series``: list of (label, color, linestyle, runs) where runs are ``common.Run``; dashed
+    series (the refined runs, which converge in their first compiled chunk) appear on the left only."""
     plt = _plt()
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
     grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
+    coarse = []
     for label, color, ls, runs in series:
         if not runs:
             continue
@@ -48,7 +54,12 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
             if r.success:  # a run stops at success: it stays below the threshold afterwards
                 best = np.where(grid >= r.nfev, np.minimum(best, r.fun), best)
             curves.append(best)
-        if curves:
+        points = np.median([len(r.history) for r in runs])
+        if ls == "--":
+            continue
+        if curves and points < MIN_HISTORY_POINTS:
+            coarse.append(label)
+        elif curves:
             arr = np.array(curves)
             with np.errstate(all="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -70,6 +81,9 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
     ax2.set_xlim(1, max_evals)
     ax2.grid(alpha=0.3)
     ax2.set_title("convergence (median over runs)")
+    if coarse:
+        ax2.text(0.02, 0.07, "not drawn (the whole run is one compiled chunk; no history):\n" + "\n".join(coarse),
+                 transform=ax2.transAxes, fontsize=7, va="bottom")
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -377,8 +377,9 @@ def figures_section(res, md_path) -> list[str]:
         return []
     out = ["## Success vs evaluations", "",
            "Left: share of runs below 1e-20 by evaluation count (exact: a run stops at success). Right: median "
-           "best fitness from `SolveResult.history` (one point per compiled chunk of generations, so the pure "
-           "RCGA/GLPMA curves are coarse) and the peers' best-so-far traces.", ""]
+           "best fitness of the pure runs from `SolveResult.history` (one point per compiled chunk of generations: a "
+           "3-RPR RCGA/GLPMA run is a single chunk, so those curves are not drawn) and the peers' best-so-far "
+           "traces; the default (refined) runs converge in their first chunk and appear on the left only.", ""]
     for _, path in figs:
         out += [f"![{os.path.basename(path)}]({_rel(path, md_path)})", ""]
     return out

@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=REPO_ROOT / "doc" / "bench", help="directory for the PNGs")
     p.add_argument("--markdown", type=Path, default=REPO_ROOT / "BENCHMARKS.md", help="report path")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.add_argument("--save-data", type=Path, default=None, help="also pickle the measurements to this file")
+    p.add_argument("--render", type=Path, default=None, metavar="PICKLE",
+                   help="run nothing: redraw the figures and rewrite the report from --save-data output")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -83,10 +86,22 @@ def main(argv=None) -> int:
         return int(exc.code or 0)
     os.environ.setdefault("MPLBACKEND", "Agg")
     from . import experiments as ex
-    from . import plots, report
-    from .scenarios import LATENCY_TARGET_MS, load
+    from . import report
+    from .scenarios import load
 
     t_start = time.perf_counter()
+
+    def say(msg, section=None):
+        if section:
+            res["load"].append((section, load_average()))
+        print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    if args.markdown:
+        args.markdown = args.markdown.resolve()
+    out_dir = args.out.resolve()
+    if args.render:
+        res = load_saved(args.render)
+        return finish(res, args, out_dir, say)
     sections = set(args.sections or SECTIONS)
     keys = args.only or ["3rpr", "hexapod"]
     progress = not args.no_progress
@@ -96,17 +111,6 @@ def main(argv=None) -> int:
            "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
            "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
            "figures": {}, "load": []}
-    if args.markdown:
-        args.markdown = args.markdown.resolve()
-    out_dir = args.out.resolve()
-    if not args.no_plots:
-        out_dir.mkdir(parents=True, exist_ok=True)
-
-    def say(msg, section=None):
-        if section:
-            res["load"].append((section, load_average()))
-        print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
-
     if "tables" in sections:
         for k, sc in scenarios.items():
             say(f"{sc.label}: the papers' table, pure and default", f"{sc.key} tables")
@@ -150,7 +154,45 @@ def main(argv=None) -> int:
         if res["dds"].get("status") != "run":
             print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
 
+    res["wall_s"] = time.perf_counter() - t_start
+    if args.save_data:
+        save(res, args.save_data)
+        say(f"saved the measurements to {args.save_data}")
+    return finish(res, args, out_dir, say)
+
+
+def save(res, path):
+    """Pickle the measurements; a part that cannot be pickled is left out with a notice."""
+    import pickle
+    data = dict(res)
+    data["scenarios"] = list(res["scenarios"])     # models hold compiled functions: reload by key
+    for key in list(data):
+        try:
+            pickle.dumps(data[key])
+        except Exception as exc:  # noqa: BLE001 - the report matters more than the pickle
+            print(f"bench: --save-data leaves out {key!r} ({type(exc).__name__}: {exc})", file=sys.stderr)
+            data[key] = {} if isinstance(data[key], dict) else []
+    Path(path).write_bytes(pickle.dumps(data))
+
+
+def load_saved(path):
+    import pickle
+
+    from .scenarios import load
+    res = pickle.loads(Path(path).read_bytes())
+    res["scenarios"] = {k: load(k) for k in res["scenarios"]}
+    res["figures"] = {}
+    return res
+
+
+def finish(res, args, out_dir, say) -> int:
+    """Figures and the report from the measurements."""
+    from . import experiments as ex
+    from . import plots, report
+    from .scenarios import LATENCY_TARGET_MS
+    scenarios = res["scenarios"]
     if not args.no_plots:
+        out_dir.mkdir(parents=True, exist_ok=True)
         say("figures")
         for k, sc in scenarios.items():
             series = []
@@ -175,7 +217,6 @@ def main(argv=None) -> int:
         if res["deadline"]:
             res["figures"]["deadline"] = plots.deadline_plot(out_dir / "deadline.png", res["deadline"],
                                                              ex.DEADLINE_MARGIN_MS)
-    res["wall_s"] = time.perf_counter() - t_start
     text = report.render(res, args.markdown)
     if args.markdown:
         args.markdown.parent.mkdir(parents=True, exist_ok=True)
