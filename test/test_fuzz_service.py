@@ -1,0 +1,142 @@
+"""Property-based fuzzing of the node's service (in process, no DDS): arbitrary arrays of leg
+lengths -- any length, NaN, inf, huge, tiny, negative, zero, denormal, empty, other dtypes and
+shapes, and near-valid legs that do converge -- into :meth:`FkService.handle`.
+
+For every input: no exception; either a pose or a one-line reason, never both; the reason names
+the cause (wrong count, not finite, not positive, or the estimator's status); a pose only for an
+input that converged, finite, unit quaternion, the input's stamp; the warm-start state unchanged
+by a rejection and moved to the estimate by a success; the counters add up.  The number of cases
+per kind is printed (``-s``) and asserted."""
+import math
+from collections import Counter
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from glpma_ros.estimator import STATUS_BUDGET, STATUS_NEAR_SINGULAR, STATUS_NO_SOLUTION
+from glpma_ros.service import FkService
+
+from conftest import RPR_YAML
+
+SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
+SEED_LEGS_M = np.array([0.100, 0.120, 0.150])
+STATUSES = (STATUS_NO_SOLUTION, STATUS_BUDGET, STATUS_NEAR_SINGULAR)
+
+CASES: Counter = Counter()
+
+special = st.sampled_from([0.0, -0.0, 5e-324, 1e-320, 2.2250738585072014e-308, 1e-300, 1e-12, 1e-9,
+                           1e300, 1.7976931348623157e308, 1e306, -1.0, -1e-300, -math.inf, math.inf, math.nan,
+                           0.05, 0.1, 0.12, 0.15, 0.25, 1.0, 1e3])
+anything = st.floats(allow_nan=True, allow_infinity=True, allow_subnormal=True)
+plausible = st.floats(min_value=0.01, max_value=0.4)
+element = st.one_of(anything, special, plausible)
+
+# near the seed legs: most of these converge, some are past the workspace (no_solution)
+near_valid = st.lists(st.floats(min_value=-0.05, max_value=0.05), min_size=3, max_size=3).map(
+    lambda d: list(SEED_LEGS_M * (1.0 + np.asarray(d))))
+float_lists = st.lists(element, min_size=0, max_size=9)
+numpy_arrays = hnp.arrays(dtype=st.sampled_from([np.float64, np.float32, np.float16, np.int64, np.int8]),
+                          shape=hnp.array_shapes(min_dims=0, max_dims=2, min_side=0, max_side=4))
+legs_inputs = st.one_of(float_lists, near_valid, near_valid, numpy_arrays,
+                        st.tuples(element, element, element).map(list))
+
+
+@pytest.fixture(scope="module")
+def service():
+    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X})
+    svc.warm_up(solvers=("glpma",))          # compiled before the time budgets count
+    return svc
+
+
+def expected_rejection(legs, metres_per_unit: float):
+    """The validation failure the input must be rejected for (``None``: the estimator decides)."""
+    arr = np.asarray(legs, dtype=float).reshape(-1)
+    if arr.size != 3:
+        return "expected 3 leg lengths"
+    with np.errstate(over="ignore", invalid="ignore"):
+        converted = arr / metres_per_unit           # the service works in the config's unit
+    if not np.all(np.isfinite(converted)):
+        return "leg lengths must be finite"
+    if np.any(converted <= 0.0):
+        return "leg lengths must be positive"
+    return None
+
+
+def _copy(x):
+    return None if x is None else np.array(x, dtype=float, copy=True)
+
+
+@settings(max_examples=1500, deadline=None)
+@given(legs=legs_inputs, stamp=st.integers(min_value=0, max_value=2**63 - 1))
+def test_handle_never_raises_and_names_every_rejection(service, legs, stamp):
+    st_ = service.stats
+    before = (st_.handled, st_.published, st_.rejected)
+    warm_before, last_before = _copy(service._warm_x), _copy(service.estimator.last_x)
+
+    out = service.handle(legs, stamp)            # must not raise
+
+    assert st_.handled == before[0] + 1
+    assert st_.published + st_.rejected == st_.handled
+    assert (out.pose is None) != (out.reason is None)
+    want = expected_rejection(legs, service.metres_per_unit)
+    if out.pose is None:
+        assert isinstance(out.reason, str) and out.reason.strip() and "\n" not in out.reason
+        assert st_.rejected == before[2] + 1
+        # state kept: a rejected input does not move the warm start
+        np.testing.assert_array_equal(service._warm_x, warm_before)
+        np.testing.assert_array_equal(service.estimator.last_x, last_before)
+        if want is not None:
+            assert out.reason.startswith(want), (legs, out.reason)
+            assert out.estimate is None
+            CASES[want] += 1
+        else:
+            # the estimator ran and did not converge: its status names the reason
+            assert out.estimate is not None and not out.estimate.converged
+            assert out.reason.split(":", 1)[0] in STATUSES, out.reason
+            CASES[f"not converged ({out.estimate.status})"] += 1
+        return
+    # a pose: only for a converged input, finite, unit quaternion, stamped with the input's stamp
+    assert want is None, (legs, want)
+    assert out.estimate is not None and out.estimate.converged
+    assert out.estimate.fitness < service.estimator.tolerance
+    assert out.pose.stamp_ns == stamp and out.pose.frame_id == service.frame_id
+    assert all(math.isfinite(v) for v in out.pose.position + out.pose.orientation)
+    assert abs(math.fsum(v * v for v in out.pose.orientation) - 1.0) < 1e-9
+    assert st_.published == before[1] + 1
+    np.testing.assert_array_equal(service._warm_x, out.estimate.x)
+    # the pose reproduces the legs it answers
+    model = service.model
+    legs_back = model.inverse_kinematics(out.estimate.x) * service.metres_per_unit
+    np.testing.assert_allclose(legs_back, np.asarray(legs, dtype=float).reshape(-1), rtol=0, atol=1e-9)
+    CASES["solved"] += 1
+
+
+def test_after_the_fuzzing_the_service_reports_and_tracks(service):
+    """Runs after the property test (file order): the counters add up on /diagnostics and the
+    service still tracks from its warm state."""
+    values = service.diagnostics().as_dict()
+    st_ = service.stats
+    assert int(values["inputs received"]) == st_.handled + st_.dropped
+    assert int(values["inputs solved"]) + int(values["inputs rejected"]) == st_.handled
+    reasons = sum(int(v) for k, v in values.items() if k.startswith("rejected: "))
+    assert reasons == st_.rejected
+    # track on from wherever the fuzzing left the warm state
+    x = service._warm_x
+    legs = service.model.inverse_kinematics(x) * service.metres_per_unit * (1.0 + 1e-5)
+    ok, _ = service.set_parameters({"time_budget_ms": 20.0})              # robustness, not timing
+    assert ok
+    out = service.handle(legs, 1)
+    assert out.pose is not None, out.reason
+    assert out.estimate.start == "warm"
+
+
+def test_report_cases(capsys):
+    with capsys.disabled():
+        print(f"\nservice fuzz cases: {sum(CASES.values())} ({dict(sorted(CASES.items()))})")
+    assert sum(CASES.values()) >= 1000
+    for kind in ("expected 3 leg lengths", "leg lengths must be finite", "leg lengths must be positive", "solved"):
+        assert CASES[kind] >= 20, CASES
+    assert sum(n for k, n in CASES.items() if k.startswith("not converged")) >= 20, CASES
