@@ -16,7 +16,7 @@ def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
     md = out / "BENCH.md"
     rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
-               "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--solve-all-runs", "20",
+               "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma", "--solve-all-runs", "20",
                "--dds-steps", "20", "--no-progress", "--out", str(out), "--markdown", str(md)])
     assert rc == 0
     return out, md.read_text()
@@ -54,3 +54,4 @@ def test_polished_rows_converge_and_figures_exist(report):
 def test_bad_arguments_return_status_2(capsys):
     assert main(["--only", "nonsense"]) == 2
     assert main(["--runs", "-1"]) == 2
+    assert main(["--deadline-solvers", "nonsense"]) == 2

@@ -269,8 +269,9 @@ def infeasible_legs(sc):
     return np.full(6, 100.0)
 
 
-def deadlines(scenarios, budgets_ms, n, progress) -> list[DeadlineRow]:
+def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRow]:
     rows = []
+    names = list(names or solvers.SOLVERS)
     for sc in scenarios:
         model = sc.model
         cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible_legs(sc),
@@ -279,7 +280,7 @@ def deadlines(scenarios, budgets_ms, n, progress) -> list[DeadlineRow]:
             cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
                              sc.legs, False))
         for case, short, legs, polish in cases:
-            for solver in solvers.SOLVERS:
+            for solver in names:
                 solvers.solve(solver, model, legs, rng=1, polish=polish, budget_s=0.002, max_evals=10**9)
                 for b in budgets_ms:
                     def call(seed, solver=solver, legs=legs, polish=polish, b=b):

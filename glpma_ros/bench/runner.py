@@ -50,6 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
     p.add_argument("--deadline-solves", type=int, help="solves per deadline cell (default 100; --quick 20)")
     p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
+    p.add_argument("--deadline-solvers", nargs="+", default=None, metavar="SOLVER",
+                   help="solvers of the deadline section (default: every registered solver)")
     p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     p.add_argument("--solve-all-repeats", type=int, help="solve_all repetitions with seeds 0.. (default 5)")
     p.add_argument("--dds-steps", type=int, help="messages of the DDS end-to-end run (default 1000)")
@@ -79,6 +81,11 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         counts = {name: _count(args, name) for name in DEFAULTS}
+        from .. import solvers
+        unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
+        if unknown:
+            raise SystemExit(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
+                             f"choose from {', '.join(solvers.SOLVERS)}")
     except SystemExit as exc:           # usage errors and --help: a status, not an exception
         if isinstance(exc.code, str):
             print(f"error: {exc.code}", file=sys.stderr)
@@ -147,7 +154,7 @@ def main(argv=None) -> int:
     if "deadline" in sections:
         say("deadline honouring", "deadline")
         res["deadline"] = ex.deadlines(list(scenarios.values()), args.budgets_ms, max(1, counts["deadline_solves"]),
-                                       progress)
+                                       progress, args.deadline_solvers)
     if "dds" in sections:
         say("DDS end to end", "dds")
         res["dds"] = ex.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
