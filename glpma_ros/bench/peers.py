@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from ..models.base import population_fitness
+from ..models.kernels import population_fitness
 from .common import SUCCESS_TOLERANCE, Run
 
 #: pymoo needs bounds (its PM mutation scales with them): this many init half-widths
@@ -46,7 +46,7 @@ class CountingFitness:
     """The model's fitness, counting evaluations in call order."""
 
     def __init__(self, model, legs, tolerance=SUCCESS_TOLERANCE, max_evals=None):
-        self.kernel, self.data, self.n_res = model.residual_kernel, model.data, model.n_res
+        self.kind, self.data, self.n_res = model.kind_id, model.data, model.n_res
         self.legs = np.ascontiguousarray(legs, dtype=float)
         self.tolerance = tolerance
         self.max_evals = max_evals
@@ -70,12 +70,12 @@ class CountingFitness:
 
     def one(self, x) -> float:
         X = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(1, -1))
-        F = population_fitness(X, self.kernel, self.data, self.legs, self.n_res)
+        F = population_fitness(X, self.kind, self.data, self.legs, self.n_res)
         self._record(F)
         return float(F[0])
 
     def many(self, X) -> np.ndarray:
-        F = population_fitness(np.ascontiguousarray(X, dtype=float), self.kernel, self.data, self.legs, self.n_res)
+        F = population_fitness(np.ascontiguousarray(X, dtype=float), self.kind, self.data, self.legs, self.n_res)
         self._record(F)
         return F
 

@@ -1,4 +1,5 @@
 """Manipulator models: geometry, residuals, inverse kinematics, poses."""
+from . import kernels
 from .base import Manipulator, Pose
 from .hexapod_66 import Hexapod66
 from .planar_3rpr import Planar3RPR

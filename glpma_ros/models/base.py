@@ -6,8 +6,9 @@ A model turns the forward-kinematics problem into minimisation (Chandra & Rollan
 the fitness.  Each model provides
 
 * ``residual_kernel(x, data, legs, out)`` -- a Numba-compiled function that fills
-  ``out`` with the residuals of one individual; the solvers call it inside their
-  compiled loops so a whole population is evaluated without Python overhead;
+  ``out`` with the residuals of one individual, dispatched by ``kind_id`` in
+  :mod:`.kernels`; the solvers call it inside their compiled loops so a whole
+  population is evaluated without Python overhead;
 * a *pose parameterisation* used by the Levenberg-Marquardt refinement and by
   warm starts: ``pose_state(x)``, ``pose_residuals_jacobian(state, legs)``,
   ``pose_retract(state, step)`` and ``pose_variables(state)``;
@@ -21,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
-
 from ..errors import InputError
 
 
@@ -37,32 +36,6 @@ class Pose:
     def as_dict(self) -> dict:
         return {"position": [float(v) for v in self.position],
                 "orientation": [float(v) for v in self.orientation]}
-
-
-@njit(cache=True, error_model="numpy")
-def population_residuals(X, residual_kernel, data, legs, n_res):
-    """Residual vectors of every row of ``X`` (one compiled loop)."""
-    m = X.shape[0]
-    out = np.empty((m, n_res))
-    for i in range(m):
-        residual_kernel(X[i], data, legs, out[i])
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def population_fitness(X, residual_kernel, data, legs, n_res):
-    """Fitness (sum of squared residuals) of every row of ``X``; a row whose
-    residuals are not finite (degenerate individual) gets ``+inf``."""
-    m = X.shape[0]
-    f = np.empty(m)
-    r = np.empty(n_res)
-    for i in range(m):
-        residual_kernel(X[i], data, legs, r)
-        s = 0.0
-        for k in range(n_res):
-            s += r[k] * r[k]
-        f[i] = s if np.isfinite(s) else np.inf
-    return f
 
 
 class Manipulator:
@@ -84,19 +57,25 @@ class Manipulator:
     data: tuple = ()
 
     # -- evaluation --------------------------------------------------------
-    @property
-    def residual_kernel(self):  # pragma: no cover - set per subclass
-        raise NotImplementedError
+    kind_id: int = -1   # selects the compiled residual kernel (models.kernels)
+
+    def _make_data(self, first, second, third=None) -> tuple:
+        """The uniform data tuple of the compiled kernels: two matrices, a vector
+        and the residual-evaluation counter."""
+        third = np.zeros(0) if third is None else third
+        self.evaluation_counter = np.zeros(1, dtype=np.int64)
+        return (np.ascontiguousarray(first, dtype=float), np.ascontiguousarray(second, dtype=float),
+                np.ascontiguousarray(third, dtype=float), self.evaluation_counter)
 
     def residuals(self, X, legs) -> np.ndarray:
-        X2 = np.atleast_2d(np.asarray(X, dtype=float))
-        return population_residuals(X2, self.residual_kernel, self.data,
-                                    np.asarray(legs, dtype=float), self.n_res)
+        from .kernels import population_residuals
+        X2 = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
+        return population_residuals(X2, self.kind_id, self.data, np.asarray(legs, dtype=float), self.n_res)
 
     def fitness(self, X, legs) -> np.ndarray:
-        X2 = np.atleast_2d(np.asarray(X, dtype=float))
-        return population_fitness(X2, self.residual_kernel, self.data,
-                                  np.asarray(legs, dtype=float), self.n_res)
+        from .kernels import population_fitness
+        X2 = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
+        return population_fitness(X2, self.kind_id, self.data, np.asarray(legs, dtype=float), self.n_res)
 
     # -- validation --------------------------------------------------------
     def check_legs(self, legs) -> np.ndarray:

@@ -29,7 +29,7 @@ PAIRS = ((0, 1), (0, 2), (1, 2))
 
 @njit(cache=True, error_model="numpy")
 def residual_kernel(x, data, legs, out):
-    base, abc, d0sq = data
+    base, abc, d0sq = data[0], data[1], data[2]
     e1x = x[3] - x[0]
     e1y = x[4] - x[1]
     e1z = x[5] - x[2]
@@ -122,6 +122,7 @@ class Hexapod66(Manipulator):
     n_res = 9
     n_pose = 6
     variable_names = ("x1", "y1", "z1", "x2", "y2", "z2", "x3", "y3", "z3")
+    kind_id = 1  # models.kernels.KIND_HEXAPOD_66
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
         self.base = np.ascontiguousarray(base, dtype=float)
@@ -130,13 +131,9 @@ class Hexapod66(Manipulator):
         self.leg_limits = leg_limits
         self.abc = np.ascontiguousarray(frame_coefficients(self.platform))
         self.d0sq = np.array([float(np.sum((self.platform[j] - self.platform[i]) ** 2)) for i, j in PAIRS])
-        self.data = (self.base, self.abc, self.d0sq)
+        self.data = self._make_data(self.base, self.abc, self.d0sq)
         self.scale = float(max(np.ptp(self.base, axis=0).max(), np.ptp(self.platform, axis=0).max()))
         self.pose_column_scale = np.array([1.0, 1.0, 1.0, 1.0 / self.scale, 1.0 / self.scale, 1.0 / self.scale])
-
-    @property
-    def residual_kernel(self):
-        return residual_kernel
 
     # -- conversions ----------------------------------------------------------
     def pose_state(self, x):

@@ -19,7 +19,7 @@ from .base import Manipulator, Pose
 
 @njit(cache=True, error_model="numpy")
 def residual_kernel(x, data, legs, out):
-    base, platform = data
+    base, platform = data[0], data[1]
     c = math.cos(x[2])
     s = math.sin(x[2])
     for i in range(3):
@@ -35,19 +35,16 @@ class Planar3RPR(Manipulator):
     n_res = 3
     n_pose = 3
     variable_names = ("x", "y", "theta")
+    kind_id = 0  # models.kernels.KIND_PLANAR_3RPR
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
         self.base = np.ascontiguousarray(base, dtype=float)
         self.platform = np.ascontiguousarray(platform, dtype=float)
         self.unit = unit
         self.leg_limits = leg_limits
-        self.data = (self.base, self.platform)
+        self.data = self._make_data(self.base, self.platform)
         self.scale = float(max(np.ptp(self.base, axis=0).max(), np.ptp(self.platform, axis=0).max()))
         self.pose_column_scale = np.array([1.0, 1.0, 1.0 / self.scale])
-
-    @property
-    def residual_kernel(self):
-        return residual_kernel
 
     def joints(self, x) -> np.ndarray:
         """Platform joints B_i in the base frame, shape (3, 2)."""

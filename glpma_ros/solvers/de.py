@@ -33,10 +33,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..models.base import population_fitness
+from ..models.kernels import population_fitness
 from .common import initial_population
 from .driver import EvolutionaryState, run_evolution
-from .sa import KERNEL_JIT
 
 #: 003 Eq. 21 and text: "the range of the mutation scale factor F is [0.5, 1.0]"
 F_LOW, F_HIGH = 0.5, 1.0
@@ -48,9 +47,9 @@ POPULATION_PER_VARIABLE = 10
 MIN_POPULATION = 4
 
 
-@njit(**KERNEL_JIT)
+@njit(cache=True, error_model="numpy")
 def de_generations(pop, fit, rng, n_generations, max_evals, tolerance, f_low, f_high, cr_low, cr_high,
-                   kernel, data, legs, n_res):
+                   kind, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
     N, n = pop.shape
     trial = np.empty_like(pop)
@@ -77,7 +76,7 @@ def de_generations(pop, fit, rng, n_generations, max_evals, tolerance, f_low, f_
                     trial[i, j] = pop[r0, j] + F * (pop[r1, j] - pop[r2, j])
                 else:
                     trial[i, j] = pop[i, j]
-        trial_f = population_fitness(trial, kernel, data, legs, n_res)
+        trial_f = population_fitness(trial, kind, data, legs, n_res)
         evals += N
         for i in range(N):
             if trial_f[i] <= fit[i]:
@@ -101,7 +100,7 @@ class DEPopulation(EvolutionaryState):
     def advance(self, n_generations, max_evals, tolerance):
         p = self.problem
         return de_generations(self.pop, self.fit, self.rng, n_generations, max_evals, tolerance,
-                              self.f_low, self.f_high, self.cr_low, self.cr_high, p.kernel, p.data, p.legs, p.n_res)
+                              self.f_low, self.f_high, self.cr_low, self.cr_high, p.kind, p.data, p.legs, p.n_res)
 
 
 def default_population(model) -> int:

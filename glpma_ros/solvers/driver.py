@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from ..models.base import population_fitness
+from ..models.kernels import population_fitness
 from . import refine
 from .common import CONVERGED, SolveResult, Termination
 
@@ -27,13 +27,13 @@ class Problem:
     def __init__(self, model, legs):
         self.model = model
         self.legs = np.ascontiguousarray(legs, dtype=float)
-        self.kernel = model.residual_kernel
+        self.kind = model.kind_id
         self.data = model.data
         self.n_res = model.n_res
 
     def evaluate(self, X, term: Termination) -> np.ndarray:
         term.nfev += len(X)
-        return population_fitness(np.ascontiguousarray(X), self.kernel, self.data, self.legs, self.n_res)
+        return population_fitness(np.ascontiguousarray(X), self.kind, self.data, self.legs, self.n_res)
 
 
 class EvolutionaryState:

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..models.base import population_fitness
+from ..models.kernels import population_fitness
 from .common import initial_population
 from .driver import EvolutionaryState, run_evolution
 
@@ -100,7 +100,7 @@ def _population_spread(pop):
 
 @njit(cache=True, error_model="numpy")
 def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
-                      mu, lam, r, sigma_zeta, sigma_eta, kernel, data, legs, n_res):
+                      mu, lam, r, sigma_zeta, sigma_eta, kind, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
     N, n = pop.shape
     idx = np.empty(mu, dtype=np.int64)
@@ -126,7 +126,7 @@ def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
         for k in range(mu):
             parents[k] = pop[idx[k]]
         children = pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop)
-        child_f = population_fitness(children, kernel, data, legs, n_res)
+        child_f = population_fitness(children, kind, data, legs, n_res)
         evals += lam
         # r distinct random members compete with the children for their slots
         k = 0
@@ -175,7 +175,7 @@ class G3PCXPopulation(EvolutionaryState):
         p = self.problem
         return g3pcx_generations(self.pop, self.fit, self.rng, n_generations, max_evals, tolerance,
                                  self.mu, self.lam, self.r, self.sigma_zeta, self.sigma_eta,
-                                 p.kernel, p.data, p.legs, p.n_res)
+                                 p.kind, p.data, p.legs, p.n_res)
 
 
 def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,

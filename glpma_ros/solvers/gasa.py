@@ -53,6 +53,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..models.kernels import fitness_one
+
 from . import sa
 from .common import initial_population
 from .driver import EvolutionaryState, run_evolution
@@ -74,10 +76,10 @@ POPULATION = 40
 UNLIMITED = 2**62
 
 
-@njit(**sa.KERNEL_JIT)
+@njit(cache=True, error_model="numpy")
 def gasa_generations(pop, fit, new, new_f, cum, progress, rng, n_generations, max_children, max_evals, tolerance,
                      temperature, t_ref, b_ref, sa_iterations, chain_length, cooling_rate, crossover_rate, sa_rate,
-                     kernel, data, legs, n_res):
+                     kind, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place, child by child.
 
     ``new``/``new_f`` hold the generation in progress and ``progress[0]`` the
@@ -107,7 +109,7 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, rng, n_generations, ma
         b = _roulette(cum, rng)
         if rng.random() < crossover_rate and a != b:
             wright_crossover(pop, fit, a, b, rng, child)
-            cf = sa.fitness_one(child, kernel, data, legs, r)
+            cf = fitness_one(child, kind, data, legs, r)
             evals += 1
         else:
             child[:] = pop[a]
@@ -116,7 +118,7 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, rng, n_generations, ma
             child_best[:] = child
             _, cf, e, _ = sa.anneal(child, cf, child_best, cf, temperature, t_ref, b_ref, sa_iterations,
                                     chain_length, cooling_rate, max_evals - evals, tolerance, rng,
-                                    kernel, data, legs, n_res)
+                                    kind, data, legs, n_res)
             evals += e
             child[:] = child_best
         temperature *= 1.0 - cooling_rate  # Algorithm 1 step 6
@@ -188,7 +190,7 @@ class GASAPopulation(EvolutionaryState):
         gens, evals, self.temperature = gasa_generations(
             self.pop, self.fit, self.new, self.new_f, self.cum, self.progress, self.rng, n_generations,
             max_children, max_evals, tolerance, self.temperature, sa.T0, self.b_ref, self.sa_iterations,
-            self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate, p.kernel, p.data, p.legs,
+            self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate, p.kind, p.data, p.legs,
             p.n_res)
         return gens, evals
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..models.base import population_fitness
+from ..models.kernels import population_fitness
 from .common import initial_population
 from .driver import EvolutionaryState, run_evolution
 
@@ -73,7 +73,7 @@ def wright_crossover(pop, fit, a, b, rng, out):
 
 @njit(cache=True, error_model="numpy")
 def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generation, last_generation,
-                     crossover_rate, mutation_rate, mutation_b, width, kernel, data, legs, n_res):
+                     crossover_rate, mutation_rate, mutation_b, width, kind, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
     N, n = pop.shape
     new = np.empty_like(pop)
@@ -117,7 +117,7 @@ def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generat
                 if changed[i]:
                     idx[m] = i
                     m += 1
-            f_new = population_fitness(new[idx], kernel, data, legs, n_res)
+            f_new = population_fitness(new[idx], kind, data, legs, n_res)
             for q in range(m):
                 new_f[idx[q]] = f_new[q]
             evals += m
@@ -144,7 +144,7 @@ class RCGAPopulation(EvolutionaryState):
         gens, evals = rcga_generations(self.pop, self.fit, self.rng, n_generations, max_evals, tolerance,
                                        float(self.generation), self.last_generation, self.crossover_rate,
                                        self.mutation_rate, self.mutation_b, self.width,
-                                       p.kernel, p.data, p.legs, p.n_res)
+                                       p.kind, p.data, p.legs, p.n_res)
         self.generation += gens
         return gens, evals
 

@@ -47,6 +47,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..models.kernels import fitness_one
+
 from .common import initial_population
 from .driver import EvolutionaryState, run_evolution
 from .rcga import mutation_width
@@ -63,35 +65,15 @@ NEIGHBOUR_FRACTION = 0.5
 #: 004 runs SA as a single-solution method
 POPULATION = 1
 
-#: compile options of the functions that take the model's residual kernel as an argument
-#: (here, in gasa and in de): no on-disk cache.  Numba keys such a cache entry by the kernel
-#: dispatcher's per-process identity, so the entry is never found again, the index grows by
-#: one entry per process, and once it holds more than numba's FUNCTION_CACHE_SIZE (128)
-#: entries every later save fails with "ReferenceError: underlying object has vanished"
-#: (measured with numba 0.68.1: NUMBA_DEBUG_CACHE shows "data saved", never "data loaded").
-KERNEL_JIT = {"cache": False, "error_model": "numpy"}
-
-
-@njit(**KERNEL_JIT)
-def fitness_one(x, kernel, data, legs, r):
-    """Fitness of one individual (``population_fitness`` for a single row;
-    non-finite residuals give ``+inf``)."""
-    kernel(x, data, legs, r)
-    s = 0.0
-    for k in range(r.shape[0]):
-        s += r[k] * r[k]
-    return s if np.isfinite(s) else np.inf
-
-
 @njit(cache=True, error_model="numpy")
 def neighbour_width(b0, temperature, t0):
     """``b(T) = b0 sqrt(T / T0)`` per variable."""
     return b0 * math.sqrt(max(temperature, 0.0) / t0)
 
 
-@njit(**KERNEL_JIT)
+@njit(cache=True, error_model="numpy")
 def markov_chain(x, f, best_x, best_f, temperature, b, chain_length, max_evals, tolerance, rng,
-                 kernel, data, legs, r, y):
+                 kind, data, legs, r, y):
     """One Markov chain at ``temperature``: up to ``chain_length`` proposals
     ``y = x + U[-b, b]`` (per variable), Metropolis acceptance.  ``x`` and
     ``best_x`` are updated in place; ``r`` and ``y`` are scratch arrays.
@@ -104,7 +86,7 @@ def markov_chain(x, f, best_x, best_f, temperature, b, chain_length, max_evals, 
             break
         for q in range(n):
             y[q] = x[q] + b[q] * (2.0 * rng.random() - 1.0)
-        fy = fitness_one(y, kernel, data, legs, r)
+        fy = fitness_one(y, kind, data, legs, r)
         evals += 1
         delta = fy - f
         if delta <= 0.0 or rng.random() < math.exp(-delta / temperature):
@@ -116,9 +98,9 @@ def markov_chain(x, f, best_x, best_f, temperature, b, chain_length, max_evals, 
     return f, best_f, evals
 
 
-@njit(**KERNEL_JIT)
+@njit(cache=True, error_model="numpy")
 def anneal(x, f, best_x, best_f, temperature, t0, b0, n_chains, chain_length, cooling_rate, max_evals,
-           tolerance, rng, kernel, data, legs, n_res):
+           tolerance, rng, kind, data, legs, n_res):
     """``n_chains`` Markov chains from ``temperature``, cooling after each one
     (004 Algorithm 1's SA operator).  Returns ``(f, best_f, evaluations,
     temperature after the last chain)``; ``x``/``best_x`` updated in place."""
@@ -130,15 +112,15 @@ def anneal(x, f, best_x, best_f, temperature, t0, b0, n_chains, chain_length, co
             break
         b = neighbour_width(b0, temperature, t0)
         f, best_f, e = markov_chain(x, f, best_x, best_f, temperature, b, chain_length, max_evals - evals,
-                                    tolerance, rng, kernel, data, legs, r, y)
+                                    tolerance, rng, kind, data, legs, r, y)
         evals += e
         temperature *= 1.0 - cooling_rate
     return f, best_f, evals, temperature
 
 
-@njit(**KERNEL_JIT)
+@njit(cache=True, error_model="numpy")
 def sa_generations(current, current_f, best, best_f, rng, n_generations, max_evals, tolerance, temperature,
-                   t0, b0, chain_length, cooling_rate, kernel, data, legs, n_res):
+                   t0, b0, chain_length, cooling_rate, kind, data, legs, n_res):
     """Advance every chain by ``n_generations`` temperature steps (one Markov
     chain each).  ``current``/``best`` rows are the chains' states and best
     visited points, updated in place.  Returns (generations, evaluations,
@@ -153,7 +135,7 @@ def sa_generations(current, current_f, best, best_f, rng, n_generations, max_eva
         b = neighbour_width(b0, temperature, t0)
         for p in range(P):
             f, bf, e = markov_chain(current[p], current_f[p], best[p], best_f[p], temperature, b, chain_length,
-                                    max_evals - evals, tolerance, rng, kernel, data, legs, r, y)
+                                    max_evals - evals, tolerance, rng, kind, data, legs, r, y)
             current_f[p] = f
             best_f[p] = bf
             evals += e
@@ -201,7 +183,7 @@ class SAState(EvolutionaryState):
         gens, evals, self.temperature = sa_generations(
             self.current, self.current_fit, self.pop, self.fit, self.rng, n_generations, max_evals, tolerance,
             self.temperature, self.t0, self.b0, self.chain_length, self.cooling_rate,
-            p.kernel, p.data, p.legs, p.n_res)
+            p.kind, p.data, p.legs, p.n_res)
         return gens, evals
 
 
