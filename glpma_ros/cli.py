@@ -117,7 +117,8 @@ def build_parser() -> argparse.ArgumentParser:
     a.set_defaults(func=cmd_solve_all)
     for name, helptext in (("node", "run the estimator node (rclpy or Cyclone DDS)"),
                            ("bench", "reproduce the papers' tables against peers; writes BENCHMARKS.md"),
-                           ("demo", "node + mock controller over DDS, live progress, summary and figure")):
+                           ("demo", "node + mock controller over DDS, live progress, summary and figure"),
+                           ("stress", "reliability: overload, burst, restarts, deadlines against a real node")):
         q = sub.add_parser(name, help=helptext, add_help=False)
         q.add_argument("rest", nargs=argparse.REMAINDER)
     return p
@@ -131,6 +132,8 @@ def _delegated(command: str):
         from .bench import main
     elif command == "demo":
         from .demo import main
+    elif command == "stress":
+        from .stress import main
     else:
         return None
     return main
