@@ -346,6 +346,7 @@ class Session:
         self.plan = Plan(values["manipulator_config"])
         self.model = self.plan.model
         self.log_dir = Path(log_dir or tempfile.mkdtemp(prefix="glpma_stress_"))
+        self.log_dir.mkdir(parents=True, exist_ok=True)
         self.node = NodeProcess(self.ros_args, node_environment(self.domain_id), self.log_dir)
         self.controller: Controller | None = None
         self.t = 0.0                    # trajectory time
