@@ -1,8 +1,9 @@
 """Topics, QoS and endpoints as a ROS 2 Jazzy node on ``rmw_cyclonedds_cpp`` has them.
 
-ROS topic ``name`` travels as DDS topic ``rt/name``; each reader and writer
-carries ``typehash=<RIHS01 hash>;`` as USER_DATA.  QoS: reliable, keep-last
-(depth), volatile -- the ROS default profile.
+ROS topic ``name`` travels as DDS topic ``rt/name`` (a private ``~/name`` of node
+``glpma_fk`` as ``rt/glpma_fk/name``); each reader and writer carries
+``typehash=<RIHS01 hash>;`` as USER_DATA.  QoS: reliable, keep-last (depth), volatile
+-- the ROS default profile -- or transient-local for a latched topic (``~/assembly_modes``).
 """
 from __future__ import annotations
 
@@ -19,13 +20,24 @@ from cyclonedds.util import duration
 from .messages import type_hash
 
 LEG_LENGTHS = "leg_lengths"
+JOINT_STATES = "joint_states"
 POSE_ESTIMATE = "pose_estimate"
 DIAGNOSTICS = "/diagnostics"
+ASSEMBLY_MODES = "~/assembly_modes"
+REQUEST_ASSEMBLY_MODES = "~/request_assembly_modes"
 
 
-def dds_topic_name(ros_name: str) -> str:
-    """``leg_lengths`` or ``/leg_lengths`` -> ``rt/leg_lengths`` (the node has no namespace)."""
-    return "rt/" + ros_name.lstrip("/")
+def expand_topic_name(ros_name: str, node_name: str) -> str:
+    """A topic name relative to a node without namespace: ``~/x`` -> ``node_name/x``, ``/x`` -> ``x``."""
+    if ros_name.startswith("~"):
+        return f"{node_name}/{ros_name[1:].lstrip('/')}"
+    return ros_name.lstrip("/")
+
+
+def dds_topic_name(ros_name: str, node_name: str = "glpma_fk") -> str:
+    """``leg_lengths`` or ``/leg_lengths`` -> ``rt/leg_lengths``; ``~/assembly_modes`` ->
+    ``rt/glpma_fk/assembly_modes`` (the node has no namespace)."""
+    return "rt/" + expand_topic_name(ros_name, node_name)
 
 
 def domain_id_from_env() -> int:
@@ -42,12 +54,12 @@ def domain_id_from_env() -> int:
     return value
 
 
-def ros_qos(msg_type, depth: int) -> Qos:
-    """Reliable, keep-last(depth), volatile, with the type hash in USER_DATA."""
+def ros_qos(msg_type, depth: int, transient_local: bool = False) -> Qos:
+    """Reliable, keep-last(depth), volatile (or transient-local), with the type hash in USER_DATA."""
     return Qos(
         Policy.Reliability.Reliable(duration(milliseconds=100)),
         Policy.History.KeepLast(int(depth)),
-        Policy.Durability.Volatile,
+        Policy.Durability.TransientLocal if transient_local else Policy.Durability.Volatile,
         Policy.Userdata(f"typehash={type_hash(msg_type)};".encode()),
     )
 
@@ -66,11 +78,13 @@ class Participant:
             self._topics[name] = Topic(self.dp, name, msg_type)
         return self._topics[name]
 
-    def writer(self, ros_name: str, msg_type, depth: int = 10) -> DataWriter:
-        return DataWriter(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth))
+    def writer(self, ros_name: str, msg_type, depth: int = 10, transient_local: bool = False) -> DataWriter:
+        """``ros_name`` as :func:`dds_topic_name` takes it (``~/x`` is private to ``glpma_fk``;
+        expand it with :func:`expand_topic_name` for another node name)."""
+        return DataWriter(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth, transient_local))
 
-    def reader(self, ros_name: str, msg_type, depth: int = 10) -> DataReader:
-        return DataReader(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth))
+    def reader(self, ros_name: str, msg_type, depth: int = 10, transient_local: bool = False) -> DataReader:
+        return DataReader(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth, transient_local))
 
 
 def wait_for_match(endpoints, timeout_s: float, poll_s: float = 0.02) -> bool:

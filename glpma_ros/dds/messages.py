@@ -10,10 +10,11 @@ so that ``PoseStamped()`` is a valid message, as in rclpy.
 from dataclasses import dataclass, field
 
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import byte, float64, int32, sequence, uint32
+from cyclonedds.idl.types import byte, float64, int32, sequence, uint8, uint32
 
-# RIHS01 type hashes of the Jazzy definitions (CONTRACT.md); rmw_cyclonedds_cpp
-# expects them in every endpoint's USER_DATA as ``typehash=<hash>;``.
+# RIHS01 type hashes of the Jazzy definitions (CONTRACT.md; std_msgs/msg/Empty computed by
+# glpma_ros/dds/rihs.py, which reproduces the contract's five, and checked in the tests);
+# rmw_cyclonedds_cpp expects them in every endpoint's USER_DATA as ``typehash=<hash>;``.
 TYPE_HASHES = {
     "std_msgs/msg/Float64MultiArray":
         "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
@@ -25,6 +26,8 @@ TYPE_HASHES = {
         "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
     "geometry_msgs/msg/PoseArray":
         "RIHS01_af0cc36d190e104d546d168d6b39df04fa4b4ccecf59cb4c9ed328d3d5004aa0",
+    "std_msgs/msg/Empty":
+        "RIHS01_20b625256f32d5dbc0d04fee44f43c41e51c70d3502f84b4a08e7a9c26a96312",
 }
 
 
@@ -44,6 +47,12 @@ class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
 
 
 # -- std_msgs -------------------------------------------------------------------------
+@dataclass
+class Empty(IdlStruct, typename="std_msgs::msg::dds_::Empty_"):
+    # an IDL struct needs a member: rosidl adds this one to every empty message
+    structure_needs_at_least_one_member: uint8 = 0
+
+
 @dataclass
 class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
     stamp: Time = field(default_factory=Time)
@@ -148,6 +157,7 @@ ROS_TYPE_NAMES = {
     DiagnosticArray: "diagnostic_msgs/msg/DiagnosticArray",
     JointState: "sensor_msgs/msg/JointState",
     PoseArray: "geometry_msgs/msg/PoseArray",
+    Empty: "std_msgs/msg/Empty",
 }
 
 
