@@ -24,17 +24,25 @@ from typing import Any
 import yaml
 
 from .errors import InputError
+from .solvers import SOLVERS
 
 NODE_NAME = "glpma_fk"
-SOLVER_CHOICES = ("glpma", "g3pcx", "rcga")
+#: every registered solver: the papers' G3-PCX, RCGA, GLPMA and the baselines SA, GA-SA, DE
+SOLVER_CHOICES = tuple(SOLVERS)
+#: what the node subscribes to: ``leg_lengths`` (std_msgs/Float64MultiArray) or
+#: ``joint_states`` (sensor_msgs/JointState, legs picked by ``joint_names``)
+INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE = "float64_multi_array", "joint_state"
+INPUT_TYPES = (INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE)
 
-STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY = "string", "double", "integer", "bool", "double_array"
+STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY = (
+    "string", "double", "integer", "bool", "double_array", "string_array")
+ARRAY_TYPES = (DOUBLE_ARRAY, STRING_ARRAY)
 
 
 @dataclass(frozen=True)
 class ParamSpec:
     name: str
-    type: str                      # one of STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY
+    type: str                      # one of STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY
     default: Any
     description: str
     range: tuple | None = None     # inclusive (min, max) for numbers
@@ -60,7 +68,19 @@ PARAMETERS = (
     ParamSpec("manipulator_config", STRING, "planar_3rpr_seed",
               "Manipulator YAML: a path, or the name of a shipped config (planar_3rpr_seed, hexapod_66_rolland)",
               read_only=True),
-    ParamSpec("solver", STRING, "glpma", "Evolutionary solver", choices=SOLVER_CHOICES),
+    ParamSpec("solver", STRING, "glpma",
+              "Evolutionary solver: glpma, g3pcx, rcga (the papers'), or the baselines sa, gasa, de",
+              choices=SOLVER_CHOICES),
+    ParamSpec("input_type", STRING, INPUT_FLOAT64_MULTI_ARRAY,
+              "Input topic and type: float64_multi_array = leg_lengths (std_msgs/Float64MultiArray, legs in "
+              "config order); joint_state = joint_states (sensor_msgs/JointState, legs picked by joint_names, "
+              "pose stamped with the message's header.stamp)", choices=INPUT_TYPES, read_only=True),
+    ParamSpec("joint_names", STRING_ARRAY, [],
+              "input_type joint_state: names of the legs' prismatic joints in the config's leg order "
+              "(empty = leg_1 .. leg_n); other joints in the message are ignored"),
+    ParamSpec("assembly_modes_runs", INTEGER, 200,
+              "Independent searches of one ~/request_assembly_modes (solve_all runs; more finds rare modes)",
+              range=(1, 100000)),
     ParamSpec("time_budget_ms", DOUBLE, 2.0, "Hard time budget of one solve (ms)", range=(0.0, 60000.0),
               min_exclusive=True),
     ParamSpec("tolerance", DOUBLE, 1e-20,
@@ -96,7 +116,7 @@ MIN_POPULATION = 4
 
 
 def defaults() -> dict:
-    return {spec.name: (list(spec.default) if spec.type == DOUBLE_ARRAY else spec.default)
+    return {spec.name: (list(spec.default) if spec.type in ARRAY_TYPES else spec.default)
             for spec in PARAMETERS}
 
 
@@ -122,6 +142,15 @@ def coerce(name: str, value):
         if not isinstance(value, bool):
             raise InputError(f"parameter '{name}' must be true or false, got {value!r}")
         return value
+    if t == STRING_ARRAY:
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise InputError(f"parameter '{name}' must be a list of strings, got {value!r}")
+        out = list(value)
+        if any(not v.strip() for v in out):
+            raise InputError(f"parameter '{name}' must not contain empty names")
+        if len(set(out)) != len(out):
+            raise InputError(f"parameter '{name}' must not contain a name twice")
+        return out
     if t == DOUBLE_ARRAY:
         if not isinstance(value, (list, tuple)) or not all(_is_number(v) for v in value):
             raise InputError(f"parameter '{name}' must be a list of numbers, got {value!r}")
@@ -238,6 +267,8 @@ def _typed_value(name: str, value, text: str | None = None):
     if spec is not None and spec.type == STRING:
         if not isinstance(value, str) and text is not None:
             return text
+        return value
+    if spec is not None and spec.type == STRING_ARRAY:
         return value
     return _fix_yaml_number(value)
 

@@ -3,7 +3,8 @@
 A thin adapter: parameters are declared from :mod:`glpma_ros.params` (with
 descriptions and ranges), changes are validated and applied by
 :class:`~glpma_ros.service.FkService`, inputs go through the shared
-:class:`~glpma_ros.service.SolveLoop` (newest input only), and messages are
+:class:`~glpma_ros.service.SolveLoop` (newest input only), assembly-modes requests
+through :class:`~glpma_ros.service.AssemblyModesLoop`, and messages are
 converted here.  Importable only where rclpy is.
 """
 from __future__ import annotations
@@ -13,7 +14,7 @@ import sys
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
@@ -21,15 +22,19 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64MultiArray
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Empty, Float64MultiArray
 
 from . import params as P
 from .errors import GlpmaError
-from .service import FkService, SolveLoop
+from .service import AssemblyModesLoop, FkService, SolveLoop
 
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
-             P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY}
+             P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
+             P.STRING_ARRAY: ParameterType.PARAMETER_STRING_ARRAY}
+#: how an array parameter without default is declared (an empty list has no inferable type)
+ARRAY_PARAMETER_TYPES = {P.DOUBLE_ARRAY: Parameter.Type.DOUBLE_ARRAY, P.STRING_ARRAY: Parameter.Type.STRING_ARRAY}
 
 
 def descriptor(spec: P.ParamSpec) -> ParameterDescriptor:
@@ -55,7 +60,7 @@ class FkNode(Node):
         super().__init__(P.NODE_NAME, **node_kwargs)
         for spec in P.PARAMETERS:
             # an empty array has no inferable type: declare the type without a default
-            default = Parameter.Type.DOUBLE_ARRAY if spec.type == P.DOUBLE_ARRAY and not spec.default \
+            default = ARRAY_PARAMETER_TYPES[spec.type] if spec.type in P.ARRAY_TYPES and not spec.default \
                 else spec.default
             self.declare_parameter(spec.name, default, descriptor(spec))
         values = {spec.name: self._value(spec) for spec in P.PARAMETERS}
@@ -67,8 +72,16 @@ class FkNode(Node):
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
         self.pose_pub = self.create_publisher(PoseStamped, "pose_estimate", qos)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
+        latched = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.modes_pub = self.create_publisher(PoseArray, "~/assembly_modes", latched)
         self.loop = SolveLoop(self.service, self._publish_pose).start()
-        self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
+        self.modes = AssemblyModesLoop(self.service, self._publish_modes).start()
+        if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
+            self.create_subscription(JointState, "joint_states", self._on_joint_state, qos)
+        else:
+            self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
+        self.create_subscription(Empty, "~/request_assembly_modes", self._on_request_modes, qos)
         self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info("ready")
@@ -82,6 +95,25 @@ class FkNode(Node):
 
     def _on_legs(self, msg: Float64MultiArray) -> None:
         self.loop.submit(list(msg.data), self.get_clock().now().nanoseconds)
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        stamp = msg.header.stamp
+        self.loop.submit_joint_state(list(msg.name), list(msg.position),
+                                     stamp.sec * 1_000_000_000 + stamp.nanosec)
+
+    def _on_request_modes(self, _msg: Empty) -> None:
+        self.modes.request(self.get_clock().now().nanoseconds)
+
+    def _publish_modes(self, modes) -> None:
+        msg = PoseArray()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(modes.stamp_ns, 1_000_000_000)
+        msg.header.frame_id = modes.frame_id
+        for position, orientation in modes.poses:
+            pose = Pose()
+            pose.position.x, pose.position.y, pose.position.z = position
+            pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = orientation
+            msg.poses.append(pose)
+        self.modes_pub.publish(msg)
 
     def _publish_pose(self, pose) -> None:
         msg = PoseStamped()
@@ -107,6 +139,7 @@ class FkNode(Node):
 
     def destroy_node(self):
         self.loop.stop()
+        self.modes.stop()
         self.get_logger().info(f"stopped: {self.service.summary()}")
         return super().destroy_node()
 

@@ -9,8 +9,13 @@ threading both transports share: the newest pending input is solved, an input
 replaced before it was picked up counts as dropped.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
-``SolveLoop.submit(msg.data, arrival_ns)`` in, ``publish(PoseOutput)`` out,
-``service.diagnostics()`` every ``diagnostics_period_s``.
+``SolveLoop.submit(msg.data, arrival_ns)`` (``input_type`` float64_multi_array) or
+``SolveLoop.submit_joint_state(msg.name, msg.position, msg.header.stamp)`` (``joint_state``) in,
+``publish(PoseOutput)`` out, ``service.diagnostics()`` every ``diagnostics_period_s``, and
+``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
+``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
+received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
+(:mod:`glpma_ros.modes_worker`), so that the real-time solve loop keeps its latency.
 """
 from __future__ import annotations
 
@@ -39,6 +44,15 @@ NEAR_SINGULAR = 1e-4
 LOG_THROTTLE_S = 1.0
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3   # diagnostic_msgs/DiagnosticStatus levels
+#: ``last_input`` argument: the last input received so far
+CURRENT = object()
+#: solvers warmed up at start (with the configured one): the papers' real-time solvers
+WARM_UP_SOLVERS = ("glpma", "g3pcx", "rcga")
+
+
+def default_joint_names(n_legs: int) -> list:
+    """``leg_1`` .. ``leg_n``: the joint names when parameter ``joint_names`` is empty."""
+    return [f"leg_{i + 1}" for i in range(n_legs)]
 
 
 @dataclass(frozen=True)
@@ -49,6 +63,26 @@ class PoseOutput:
     frame_id: str
     position: tuple
     orientation: tuple
+
+
+@dataclass(frozen=True)
+class JointStateInput:
+    """A ``sensor_msgs/JointState`` as far as the node reads it: joint names and positions (metres)."""
+
+    names: tuple
+    positions: tuple
+
+
+@dataclass(frozen=True)
+class PoseArrayOutput:
+    """Every real assembly mode of one input: ``poses`` = ((x, y, z) metres, (qx, qy, qz, qw)) each,
+    ``stamp_ns`` = time of the request, ``input_stamp_ns`` = stamp of the input they solve."""
+
+    stamp_ns: int
+    frame_id: str
+    poses: tuple
+    input_stamp_ns: int = 0
+    elapsed_s: float = 0.0
 
 
 @dataclass
@@ -112,6 +146,10 @@ class Statistics:
         self.handled = self.published = self.rejected = self.dropped = self.deadline_misses = 0
         self.dropped_reported = 0     # dropped count at the last diagnostics report
         self.reasons: Counter = Counter()
+        # ~/request_assembly_modes: requests taken, answered, failed, merged into a later one
+        self.modes_requests = self.modes_published = self.modes_failed = self.modes_coalesced = 0
+        self.modes_last = ""
+        self.modes_last_failure = ""
         self.starts: Counter = Counter()
         self.solve_s: deque = deque(maxlen=WINDOW)
         self.latency_s: deque = deque(maxlen=WINDOW)
@@ -140,7 +178,8 @@ class FkService:
         values = P.defaults()
         for name, value in (parameters or {}).items():
             values[name] = P.coerce(name, value)
-        self.model = load_manipulator(resolve_config(values["manipulator_config"]))
+        self.config_path = resolve_config(values["manipulator_config"])
+        self.model = load_manipulator(self.config_path)
         self.metres_per_unit = float(self.model.metres_per_unit)
         self._initial_x = self._initial_variables(values["initial_pose"])
         # the estimator's warm-start state, mirrored so that a rebuilt estimator can keep it
@@ -148,9 +187,13 @@ class FkService:
         self.estimator = self._build_estimator(values, self._warm_x)
         self.params = values
         self.stats = Statistics()
+        self._check_joint_names(values["joint_names"])
         self._throttle = LogThrottle()
         self._lock = threading.RLock()          # estimator, parameters, statistics
         self._drop_lock = threading.Lock()      # the dropped counters only
+        self._modes_lock = threading.Lock()     # the assembly-modes counters only
+        self._warmed: set = set()               # solvers warm_up() has run
+        self._last_input = None                 # (input, stamp_ns) last received, for ~/assembly_modes
 
     # -- construction --------------------------------------------------------------------
     def _initial_variables(self, initial_pose):
@@ -160,6 +203,12 @@ class FkService:
             return self.model.check_variables(initial_pose)
         except InputError as exc:
             raise InputError(f"parameter 'initial_pose': {exc}") from None
+
+    def _check_joint_names(self, names) -> None:
+        if names and len(names) != self.model.n_legs:
+            raise InputError(f"parameter 'joint_names' must name the {self.model.n_legs} legs in order "
+                             f"(or be empty for {', '.join(default_joint_names(self.model.n_legs))}), "
+                             f"got {len(names)} names")
 
     def _build_estimator(self, values: dict, warm_x) -> Estimator:
         def opt(name):           # 0 = the papers' setting
@@ -178,10 +227,23 @@ class FkService:
     def frame_id(self) -> str:
         return self.params["frame_id"]
 
+    @property
+    def input_type(self) -> str:
+        return self.params["input_type"]
+
+    @property
+    def joint_names(self) -> list:
+        """The legs' joint names in leg order (``joint_names``, or ``leg_1`` .. ``leg_n``)."""
+        return list(self.params["joint_names"]) or default_joint_names(self.model.n_legs)
+
     def describe(self) -> str:
         m = self.model
+        if self.input_type == P.INPUT_JOINT_STATE:
+            source = f"input joint_states ({', '.join(self.joint_names)})"
+        else:
+            source = "input leg_lengths"
         return (f"{m.kind} ({Path(str(getattr(m, 'source', ''))).name}, {m.n_legs} legs, config unit {m.unit}), "
-                f"solver {self.params['solver']}, budget {self.params['time_budget_ms']:g} ms, "
+                f"{source}, solver {self.params['solver']}, budget {self.params['time_budget_ms']:g} ms, "
                 f"{'warm start from initial_pose' if self._initial_x is not None else 'cold start'}")
 
     def _warm_up_variables(self) -> np.ndarray:
@@ -191,44 +253,88 @@ class FkService:
         s = self.model.scale
         return self.model.variables_from_pose([0.25 * s, 0.25 * s, s], [0.0, 0.0, 0.0, 1.0])
 
-    def warm_up(self, solvers=P.SOLVER_CHOICES, budget_ms: float = 50.0, max_tries: int = 5) -> float:
+    def warm_up(self, solvers=None, budget_ms: float = 50.0, max_tries: int = 5) -> float:
         """Run every path of each solver -- cold and warm start, with and without the
         refinement (without it the evolutionary loops run in the warm stages too) -- until it
         runs within its budget, so that Numba has compiled everything before the first real
-        input.  The warm-start state and the statistics are left untouched.  Returns the
-        seconds spent."""
+        input.  ``solvers``: default :data:`WARM_UP_SOLVERS` and the configured one; a switch
+        to another solver at runtime warms that one up first (:meth:`set_parameters`).
+        The warm-start state and the statistics are left untouched (the service lock is not
+        held: inputs are solved meanwhile).  Returns the seconds spent."""
         t0 = time.perf_counter()
+        with self._lock:
+            params = dict(self.params)
+        if solvers is None:
+            solvers = tuple(dict.fromkeys((*WARM_UP_SOLVERS, params["solver"])))
         x = self._warm_up_variables()
         # not exactly x's legs: a warm start must then search, not stop at its first individual
         legs = self.model.inverse_kinematics(x) * (1.0 + 1e-3)
         if self.model.leg_limits is not None:
             legs = np.clip(legs, *self.model.leg_limits)
-        with self._lock:
-            for name in solvers:
-                for start in (None, x):
-                    for polish in (True, False):
-                        values = dict(self.params, solver=name, time_budget_ms=budget_ms, polish=polish)
-                        for _ in range(max_tries):
-                            t = time.perf_counter()
-                            try:
-                                self._build_estimator(values, start).estimate(legs)
-                            except Exception as exc:  # noqa: BLE001 - reported, not fatal
-                                self.log.warning(f"warm-up with {name} failed: {exc}")
-                                break
-                            if time.perf_counter() - t < 3e-3 * budget_ms:
-                                break
+        for name in solvers:
+            for start in (None, x):
+                for polish in (True, False):
+                    values = dict(params, solver=name, time_budget_ms=budget_ms, polish=polish)
+                    for _ in range(max_tries):
+                        t = time.perf_counter()
+                        try:
+                            self._build_estimator(values, start).estimate(legs)
+                        except Exception as exc:  # noqa: BLE001 - reported, not fatal
+                            self.log.warning(f"warm-up with {name} failed: {exc}")
+                            break
+                        if time.perf_counter() - t < 3e-3 * budget_ms:
+                            break
+            self._warmed.add(name)
         return time.perf_counter() - t0
 
     # -- inputs -------------------------------------------------------------------------------
+    def legs_from_joint_state(self, names, positions) -> list:
+        """The leg lengths (metres, leg order) in a JointState's ``names`` / ``positions``: each
+        leg by its name in :attr:`joint_names`, in any order; other joints are ignored.
+        :class:`InputError` with the reason when a leg is missing or named twice, or when there
+        are not as many positions as names."""
+        names, positions = list(names), list(positions)
+        if len(names) != len(positions):
+            raise InputError(f"joint_states has {len(names)} names but {len(positions)} positions")
+        index: dict = {}
+        for i, name in enumerate(names):
+            index.setdefault(name, []).append(i)
+        legs = []
+        for leg in self.joint_names:
+            found = index.get(leg)
+            if not found:
+                raise InputError(f"joint_states has no joint '{leg}'")
+            if len(found) > 1:
+                raise InputError(f"joint_states names joint '{leg}' {len(found)} times")
+            legs.append(positions[found[0]])
+        return legs
+
+    def _legs_m(self, legs_m):
+        """An input (leg lengths in metres, or a :class:`JointStateInput`) as leg lengths in metres."""
+        if isinstance(legs_m, JointStateInput):
+            return self.legs_from_joint_state(legs_m.names, legs_m.positions)
+        return legs_m
+
+    def handle_joint_state(self, names, positions, stamp_ns: int, arrival: float | None = None) -> Outcome:
+        """Solve one ``sensor_msgs/JointState``: ``names``, ``positions`` (metres) and its
+        ``header.stamp`` (ns), which goes on the pose.  Same path as :meth:`handle`."""
+        return self.handle(JointStateInput(tuple(names), tuple(positions)), stamp_ns, arrival)
+
+    def note_input(self, legs_m, stamp_ns: int) -> None:
+        """Remember the last input received (whatever becomes of it), for ~/assembly_modes."""
+        self._last_input = (legs_m, int(stamp_ns))
+
     def handle(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
-        """Solve one input.  ``legs_m``: leg lengths in metres; ``stamp_ns``: its arrival time
-        (the pose's header.stamp); ``arrival``: ``time.perf_counter()`` at arrival, for the
+        """Solve one input.  ``legs_m``: leg lengths in metres, or a :class:`JointStateInput`;
+        ``stamp_ns``: the pose's header.stamp (the arrival time of a leg_lengths message, the
+        header.stamp of a JointState); ``arrival``: ``time.perf_counter()`` at arrival, for the
         latency and the deadline (default: now).  Never raises."""
         arrival = time.perf_counter() if arrival is None else arrival
         with self._lock:
             st = self.stats
             st.handled += 1
             try:
+                legs_m = self._legs_m(legs_m)
                 with np.errstate(over="ignore", invalid="ignore"):
                     legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
                 estimate = self.estimator.estimate(legs)
@@ -279,11 +385,87 @@ class FkService:
         with self._drop_lock:
             self.stats.dropped += count
 
+    # -- every assembly mode -------------------------------------------------------------------
+    def assembly_modes_input(self, last_input=CURRENT) -> tuple:
+        """``(legs in the config's unit, input stamp_ns, runs, seed)`` of the last input received
+        (or of ``last_input`` = (input, stamp_ns), None = nothing received); :class:`InputError`
+        when there is none or it is not a valid set of leg lengths."""
+        last_input = self._last_input if last_input is CURRENT else last_input
+        if last_input is None:
+            source = "joint_states" if self.input_type == P.INPUT_JOINT_STATE else "leg_lengths"
+            raise InputError(f"no input received yet on {source}")
+        raw, stamp_ns = last_input
+        try:
+            legs_m = self._legs_m(raw)
+            with np.errstate(over="ignore", invalid="ignore"):
+                legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
+            legs = self.model.check_legs(legs)
+        except InputError as exc:
+            raise InputError(f"the last input is invalid: {exc}") from None
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"the last input is invalid: {exc}") from None
+        with self._lock:
+            runs, seed = self.params["assembly_modes_runs"], self.params["seed"]
+        return legs, stamp_ns, runs, seed
+
+    def assembly_modes(self, stamp_ns: int, last_input=CURRENT, solve=None) -> PoseArrayOutput:
+        """Every real assembly mode of the last input received (or ``last_input``), stamped
+        ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed)`` returns the solver
+        variables of each mode (default: :func:`~glpma_ros.solve_all.solve_all` in this thread;
+        the node passes a :class:`~glpma_ros.modes_worker.ModesWorker`).  Does not hold the
+        service lock while solving.  :class:`InputError` with the reason on failure."""
+        t0 = time.perf_counter()
+        legs, input_stamp_ns, runs, seed = self.assembly_modes_input(last_input)
+        if solve is None:
+            solve = self._solve_all_here
+        xs = solve(legs, runs, seed)
+        poses = []
+        for x in xs:
+            pose = self.model.pose(np.asarray(x, dtype=float))
+            poses.append((tuple(float(v) * self.metres_per_unit for v in pose.position),
+                          tuple(float(v) for v in pose.orientation)))
+        with self._lock:
+            frame_id = self.frame_id
+        return PoseArrayOutput(int(stamp_ns), frame_id, tuple(poses), int(input_stamp_ns),
+                               time.perf_counter() - t0)
+
+    def modes_worker(self):
+        """A :class:`~glpma_ros.modes_worker.ModesWorker` (not started) for this manipulator."""
+        from .modes_worker import ModesWorker
+        return ModesWorker(self.config_path, warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
+
+    def _solve_all_here(self, legs, runs, seed) -> list:
+        from .solve_all import solve_all
+        return [s.x for s in solve_all(self.model, legs, runs=runs, seed=seed).solutions]
+
+    def note_assembly_modes(self, result: PoseArrayOutput | None = None, failure: str | None = None,
+                            coalesced: int = 0) -> None:
+        """Count a request: answered with ``result``, failed with ``failure``, or ``coalesced``
+        requests merged into the next computation."""
+        with self._modes_lock:
+            st = self.stats
+            st.modes_coalesced += coalesced
+            if result is not None:
+                st.modes_requests += 1
+                st.modes_published += 1
+                st.modes_last = f"{len(result.poses)} modes in {result.elapsed_s:.3g} s"
+            elif failure is not None:
+                st.modes_requests += 1
+                st.modes_failed += 1
+                st.modes_last_failure = failure
+                st.period["modes_failed"] += 1
+
     # -- parameters -----------------------------------------------------------------------------
     def set_parameters(self, changes: dict) -> tuple[bool, str]:
         """Apply ``changes`` (name -> value) atomically.  Returns ``(True, "")`` or
         ``(False, reason)``; on failure nothing changes.  The warm-start state survives every
-        change except a new ``initial_pose``, which restarts tracking from it."""
+        change except a new ``initial_pose``, which restarts tracking from it.  A solver that
+        was not warmed up yet is warmed up first (Numba loads or compiles it; seconds), without
+        holding up the solve loop."""
+        solver = changes.get("solver")
+        if isinstance(solver, str) and solver in P.SOLVER_CHOICES and solver not in self._warmed:
+            self.log.info(f"warming up solver {solver} before switching to it")
+            self.warm_up(solvers=(solver,))
         with self._lock:
             values = dict(self.params)
             try:
@@ -293,6 +475,7 @@ class FkService:
                         raise InputError(f"parameter '{name}' is read-only while the node runs "
                                          f"(restart the node to change it)")
                     values[name] = value
+                self._check_joint_names(values["joint_names"])
                 initial_x = self._initial_variables(values["initial_pose"])
                 warm_x = initial_x if values["initial_pose"] != self.params["initial_pose"] else self._warm_x
                 estimator = self._build_estimator(values, warm_x)
@@ -318,7 +501,17 @@ class FkService:
             latency = _percentiles_ms(st.latency_s)
             last = st.last_estimate
             cond_last = last.conditioning if last is not None else math.nan
+            with self._modes_lock:
+                modes = [("assembly modes requests", st.modes_requests),
+                         ("assembly modes published", st.modes_published),
+                         ("assembly modes failed", st.modes_failed),
+                         ("assembly modes coalesced", st.modes_coalesced),
+                         ("assembly modes last", st.modes_last or "none")]
+                if st.modes_last_failure:
+                    modes.append(("assembly modes last failure", st.modes_last_failure))
             values = [
+                ("input", "joint_states (" + ", ".join(self.joint_names) + ")"
+                 if self.input_type == P.INPUT_JOINT_STATE else "leg_lengths"),
                 ("inputs received", st.handled + st.dropped),
                 ("inputs solved", st.published),
                 ("inputs rejected", st.rejected),
@@ -347,6 +540,7 @@ class FkService:
                 ("manipulator", f"{self.model.kind} ({self.model.unit})"),
                 ("frame_id", self.frame_id),
             ]
+            values += modes
             values += [(f"rejected: {reason}", n) for reason, n in st.reasons.most_common()]
             if st.last_reason:
                 values.append(("last rejection", st.last_reason))
@@ -357,12 +551,15 @@ class FkService:
                 problems.append(f"{period['deadline_misses']} deadline misses")
             if period["dropped"]:
                 problems.append(f"{period['dropped']} inputs dropped")
+            if period["modes_failed"]:
+                problems.append(f"{period['modes_failed']} assembly-modes requests failed")
             if last is not None and last.converged and cond_last < NEAR_SINGULAR:
                 problems.append(f"near a singularity (conditioning {cond_last:.2g})")
             if problems:
                 level, message = WARN, "; ".join(problems)
             elif st.handled + st.dropped == 0:
-                level, message = OK, "waiting for leg_lengths"
+                level, message = OK, ("waiting for joint_states" if self.input_type == P.INPUT_JOINT_STATE
+                                      else "waiting for leg_lengths")
             else:
                 level, message = OK, "tracking"
             return DiagnosticReport(level, f"{self.node_name}: forward kinematics", message,
@@ -423,9 +620,16 @@ class SolveLoop:
         return self
 
     def submit(self, legs_m, stamp_ns: int) -> None:
-        """Called by the transport on arrival of leg lengths (metres)."""
-        if self.mailbox.put((legs_m, int(stamp_ns), time.perf_counter())):
+        """Called by the transport on arrival of leg lengths (metres), ``stamp_ns`` = arrival time."""
+        arrival = time.perf_counter()
+        self.service.note_input(legs_m, stamp_ns)
+        if self.mailbox.put((legs_m, int(stamp_ns), arrival)):
             self.service.note_dropped(1)
+
+    def submit_joint_state(self, names, positions, stamp_ns: int) -> None:
+        """Called by the transport on arrival of a JointState, ``stamp_ns`` = its header.stamp.
+        The legs are picked out by the solver thread (a rejection is counted there)."""
+        self.submit(JointStateInput(tuple(names), tuple(positions)), stamp_ns)
 
     def _run(self) -> None:
         while not self._stop.is_set():
@@ -442,4 +646,66 @@ class SolveLoop:
     def stop(self, timeout: float = 2.0) -> None:
         self._stop.set()
         self.mailbox.close()
+        self._thread.join(timeout)
+
+
+class AssemblyModesLoop:
+    """The thread both transports use for ``~/request_assembly_modes``: each request takes the
+    last input received at that moment; the newest pending request is computed (by ``solve``,
+    normally a :class:`~glpma_ros.modes_worker.ModesWorker` process, so that the solve loop
+    keeps its latency) and its :class:`PoseArrayOutput` published.  A request arriving while
+    another waits replaces it (counted as coalesced); one arriving during a computation is
+    answered by a computation of its own afterwards."""
+
+    def __init__(self, service: FkService, publish, solve=None, name: str = "glpma_fk-assembly-modes"):
+        """``solve(legs, runs, seed)``: default a new :class:`~glpma_ros.modes_worker.ModesWorker`
+        (started by :meth:`start`, stopped by :meth:`stop`)."""
+        self.service = service
+        self.publish = publish
+        self._owned = solve is None
+        self.solve = service.modes_worker() if solve is None else solve
+        self.mailbox = LatestInput()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> "AssemblyModesLoop":
+        if self._owned:
+            self.solve.start()          # the child warms up while the node does
+        self._thread.start()
+        return self
+
+    def request(self, stamp_ns: int) -> None:
+        """Called by the transport on arrival of a request, ``stamp_ns`` = its arrival time."""
+        if self.mailbox.put((int(stamp_ns), self.service._last_input)):
+            self.service.note_assembly_modes(coalesced=1)
+
+    def _run(self) -> None:
+        log = self.service.log
+        while not self._stop.is_set():
+            item = self.mailbox.get(timeout=0.1)
+            if item is None:
+                continue
+            stamp_ns, last_input = item
+            try:
+                result = self.service.assembly_modes(stamp_ns, last_input, solve=self.solve)
+            except InputError as exc:
+                self.service.note_assembly_modes(failure=str(exc))
+                log.warning(f"assembly modes not computed: {exc}")
+                continue
+            except Exception as exc:  # noqa: BLE001 - the node must survive anything
+                self.service.note_assembly_modes(failure=f"internal error: {exc}")
+                log.error(f"assembly modes failed: {exc!r}")
+                continue
+            self.service.note_assembly_modes(result)
+            log.info(f"assembly modes: {len(result.poses)} real assembly modes in {result.elapsed_s:.3f} s")
+            try:
+                self.publish(result)
+            except Exception as exc:  # noqa: BLE001
+                log.error(f"publishing the assembly modes failed: {exc!r}")
+
+    def stop(self, timeout: float = 2.0) -> None:
+        self._stop.set()
+        self.mailbox.close()
+        if self._owned:
+            self.solve.close()
         self._thread.join(timeout)

@@ -2,9 +2,12 @@
 
 Same topics, types, QoS and parameters as the rclpy node (``ros_node.py``);
 both run :class:`~glpma_ros.service.FkService` through
-:class:`~glpma_ros.service.SolveLoop`.  Threads: a reader thread takes leg
-lengths as they arrive and keeps only the newest pending input; the solver
-thread solves it and publishes the pose; the main thread publishes
+:class:`~glpma_ros.service.SolveLoop` and
+:class:`~glpma_ros.service.AssemblyModesLoop`.  Threads: a reader thread takes leg
+lengths (or joint states) and assembly-modes requests as they arrive and keeps only the
+newest pending input; the solver thread solves it and publishes the pose; the
+assembly-modes thread hands requests to its worker process and publishes the
+PoseArray; the main thread publishes
 ``/diagnostics`` every ``diagnostics_period_s`` and handles signals (SIGINT and
 SIGTERM stop the node, SIGHUP re-reads the ``--ros-args`` parameters, i.e. the
 params files, and applies the changed ones).
@@ -26,10 +29,10 @@ from cyclonedds.util import duration
 
 from .. import params as P
 from ..errors import GlpmaError, InputError
-from ..service import FkService, SolveLoop
+from ..service import AssemblyModesLoop, FkService, SolveLoop
 from . import endpoints
-from .messages import (DiagnosticArray, DiagnosticStatus, Float64MultiArray, Header, KeyValue, Point, Pose,
-                       PoseStamped, Quaternion, Time)
+from .messages import (DiagnosticArray, DiagnosticStatus, Empty, Float64MultiArray, Header, JointState, KeyValue,
+                       Point, Pose, PoseArray, PoseStamped, Quaternion, Time)
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
 #: samples taken per read; the newest is solved, the others count as dropped
@@ -44,6 +47,13 @@ def pose_message(pose) -> PoseStamped:
                        pose=Pose(position=Point(x, y, z), orientation=Quaternion(qx, qy, qz, qw)))
 
 
+def pose_array_message(modes) -> PoseArray:
+    """:class:`~glpma_ros.service.PoseArrayOutput` -> ``geometry_msgs/PoseArray``."""
+    return PoseArray(header=Header(stamp=Time.from_ns(modes.stamp_ns), frame_id=modes.frame_id),
+                     poses=[Pose(position=Point(*position), orientation=Quaternion(*orientation))
+                            for position, orientation in modes.poses])
+
+
 def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
     """:class:`~glpma_ros.service.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
     status = DiagnosticStatus(level=report.level, name=report.name, message=report.message,
@@ -55,53 +65,89 @@ def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
 class DdsNode:
     """Endpoints and threads around one :class:`FkService`."""
 
-    def __init__(self, service: FkService, participant: endpoints.Participant, remaps: dict | None = None):
+    def __init__(self, service: FkService, participant: endpoints.Participant, remaps: dict | None = None,
+                 modes_solve=None):
+        """``modes_solve``: how assembly modes are computed (default: a worker process)."""
         self.service = service
         self.participant = participant
         depth = service.params["qos_depth"]
         remaps = remaps or {}
 
         def topic(name):
-            return remaps.get(name, remaps.get(name.lstrip("/"), remaps.get("/" + name.lstrip("/"), name)))
+            name = remaps.get(name, remaps.get(name.lstrip("/"), remaps.get("/" + name.lstrip("/"), name)))
+            return endpoints.expand_topic_name(name, service.node_name)
 
-        self.topics = {name: topic(name) for name in (endpoints.LEG_LENGTHS, endpoints.POSE_ESTIMATE,
-                                                       endpoints.DIAGNOSTICS)}
+        self.joint_state = service.input_type == P.INPUT_JOINT_STATE
+        self.input_name = endpoints.JOINT_STATES if self.joint_state else endpoints.LEG_LENGTHS
+        self.topics = {name: topic(name) for name in (self.input_name, endpoints.POSE_ESTIMATE,
+                                                       endpoints.DIAGNOSTICS, endpoints.ASSEMBLY_MODES,
+                                                       endpoints.REQUEST_ASSEMBLY_MODES)}
         self.pose_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE], PoseStamped, depth)
         self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray, depth)
-        self.legs_reader = participant.reader(self.topics[endpoints.LEG_LENGTHS], Float64MultiArray, depth)
+        # latched: a late subscriber gets the last answer
+        self.modes_writer = participant.writer(self.topics[endpoints.ASSEMBLY_MODES], PoseArray, 1,
+                                               transient_local=True)
+        self.input_reader = participant.reader(self.topics[self.input_name],
+                                               JointState if self.joint_state else Float64MultiArray, depth)
+        self.request_reader = participant.reader(self.topics[endpoints.REQUEST_ASSEMBLY_MODES], Empty, depth)
         self.loop = SolveLoop(service, self._publish_pose)
+        self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
         self._stop = threading.Event()
         self._guard = GuardCondition(participant.dp)
         self._waitset = WaitSet(participant.dp)
-        self._waitset.attach(ReadCondition(self.legs_reader, SampleState.Any | ViewState.Any | InstanceState.Any))
+        any_state = SampleState.Any | ViewState.Any | InstanceState.Any
+        self._waitset.attach(ReadCondition(self.input_reader, any_state))
+        self._waitset.attach(ReadCondition(self.request_reader, any_state))
         self._waitset.attach(self._guard)
         self._reader_thread = threading.Thread(target=self._read_loop, name="glpma_fk-reader", daemon=True)
 
     def start(self) -> "DdsNode":
         self.loop.start()
+        self.modes.start()
         self._reader_thread.start()
         return self
 
     # -- data path -------------------------------------------------------------------------
     def _read_loop(self) -> None:
-        log = self.service.log
         while not self._stop.is_set():
             self._waitset.wait(duration(milliseconds=200))
-            try:
-                samples = self.legs_reader.take(TAKE_BATCH)
-            except Exception as exc:  # noqa: BLE001 - e.g. a sample that does not deserialize
-                log.warning(f"could not take leg_lengths: {exc}")
-                continue
-            arrival_ns = time.time_ns()
-            valid = [s for s in samples if isinstance(s, Float64MultiArray)]
-            if not valid:
-                continue
-            if len(valid) > 1:
-                self.service.note_dropped(len(valid) - 1)
-            self.loop.submit(list(valid[-1].data), arrival_ns)
+            self._take_inputs()
+            self._take_requests()
+
+    def _take_inputs(self) -> None:
+        try:
+            samples = self.input_reader.take(TAKE_BATCH)
+        except Exception as exc:  # noqa: BLE001 - e.g. a sample that does not deserialize
+            self.service.log.warning(f"could not take {self.input_name}: {exc}")
+            return
+        arrival_ns = time.time_ns()
+        valid = [s for s in samples if isinstance(s, (JointState if self.joint_state else Float64MultiArray))]
+        if not valid:
+            return
+        if len(valid) > 1:
+            self.service.note_dropped(len(valid) - 1)
+        newest = valid[-1]
+        if self.joint_state:
+            self.loop.submit_joint_state(list(newest.name), list(newest.position), newest.header.stamp.to_ns())
+        else:
+            self.loop.submit(list(newest.data), arrival_ns)
+
+    def _take_requests(self) -> None:
+        try:
+            requests = [s for s in self.request_reader.take(TAKE_BATCH) if isinstance(s, Empty)]
+        except Exception as exc:  # noqa: BLE001
+            self.service.log.warning(f"could not take request_assembly_modes: {exc}")
+            return
+        if requests:
+            if len(requests) > 1:
+                self.service.note_assembly_modes(coalesced=len(requests) - 1)
+            self.modes.request(time.time_ns())
 
     def _publish_pose(self, pose) -> None:
         self.pose_writer.write(pose_message(pose))
+
+    def _publish_modes(self, modes) -> None:
+        self.modes_writer.write(pose_array_message(modes))
 
     def publish_diagnostics(self) -> None:
         self.diag_writer.write(diagnostic_message(self.service.diagnostics(), time.time_ns()))
@@ -130,6 +176,7 @@ class DdsNode:
         self._guard.set(True)
         self._reader_thread.join(2.0)
         self.loop.stop()
+        self.modes.stop()
 
 
 class ParameterReload:

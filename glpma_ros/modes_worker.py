@@ -1,0 +1,170 @@
+"""Every real assembly mode, computed in a child process.
+
+:func:`~glpma_ros.solve_all.solve_all` runs hundreds of compiled searches (0.1-1 s).  The
+compiled kernels hold the GIL for a whole chunk of generations, so in a thread of the node
+they would hold up the real-time solve loop for milliseconds at a time (measured: pose
+latency p99 from 4 to 8 ms, max 12 ms, inputs dropped, for a hexapod solve_all next to a
+3-RPR stream at 200 Hz).  :class:`ModesWorker` runs them in a child process instead
+(a fresh interpreter, ``python -m glpma_ros.modes_worker``: nothing of the node is forked
+or re-imported), at a lower scheduling priority (``nice`` +5), so that on a multi-core
+machine the solve loop does not notice.
+
+The child is started with the node, loads the manipulator and runs a small ``solve_all``
+so that Numba's cache is loaded before the first request; it exits at the end of its
+stdin (the node closes it, or dies) and ignores SIGINT (Ctrl-C in a terminal reaches the
+whole process group; the node shuts it down itself).
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+#: scheduling priority of the child relative to the node (higher = yields more)
+NICE = 5
+#: runs of the warm-up solve_all in the child
+WARM_UP_RUNS = 2
+
+
+def _reply(out, kind: str, payload) -> None:
+    out.write(json.dumps([kind, payload]) + "\n")
+    out.flush()
+
+
+def child_main(argv=None) -> int:
+    """The child: ``python -m glpma_ros.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
+    per line on stdin (``[legs, runs, seed]``), one JSON reply per line on stdout
+    (``["ok", [x, ...]]``, ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
+    argv = sys.argv[1:] if argv is None else argv
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        os.nice(int(argv[1]))
+    except OSError:
+        pass
+    out = sys.stdout
+    sys.stdout = sys.stderr          # nothing but replies on the pipe
+    from .config import load_manipulator
+    from .solve_all import solve_all
+    model = load_manipulator(argv[0])
+    if len(argv) > 2:
+        try:
+            solve_all(model, np.asarray(json.loads(argv[2]), dtype=float), runs=WARM_UP_RUNS, seed=0)
+        except Exception:  # noqa: BLE001 - a failed warm-up only costs time later
+            pass
+    _reply(out, "ready", None)
+    for line in sys.stdin:
+        try:
+            legs, runs, seed = json.loads(line)
+            result = solve_all(model, np.asarray(legs, dtype=float), runs=int(runs), seed=int(seed))
+            _reply(out, "ok", [np.asarray(s.x, dtype=float).tolist() for s in result.solutions])
+        except InputError as exc:
+            _reply(out, "input_error", str(exc))
+        except Exception as exc:  # noqa: BLE001 - reported to the node, the child lives on
+            _reply(out, "error", f"{type(exc).__name__}: {exc}")
+    return 0
+
+
+class ModesWorker:
+    """``worker(legs, runs, seed)`` -> the solver variables of every real assembly mode of
+    ``legs`` (config unit), computed by ``solve_all`` in a child process
+    (``python -m glpma_ros.modes_worker``).  The child is (re)started on demand;
+    :meth:`close` stops it."""
+
+    def __init__(self, config_path, warm_legs=None, nice: int = NICE):
+        self.config_path = str(Path(config_path).resolve())
+        self.warm_legs = None if warm_legs is None else [float(v) for v in warm_legs]
+        self.nice = int(nice)
+        self._lock = threading.Lock()
+        self._proc: subprocess.Popen | None = None
+        self._ready = False
+
+    def start(self) -> "ModesWorker":
+        with self._lock:
+            self._ensure_started()
+        return self
+
+    def _ensure_started(self) -> None:
+        if self._proc is not None and self._proc.poll() is None:
+            return
+        self._shutdown()
+        package_root = str(Path(__file__).resolve().parents[1])
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH", "")) if p)
+        args = [sys.executable, "-m", "glpma_ros.modes_worker", self.config_path, str(self.nice)]
+        if self.warm_legs is not None:
+            args.append(json.dumps(self.warm_legs))
+        self._proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True,
+                                      bufsize=1)
+        self._ready = False
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    def _read(self):
+        line = self._proc.stdout.readline()
+        if not line:
+            raise EOFError
+        return json.loads(line)
+
+    def __call__(self, legs, runs: int, seed: int) -> list:
+        with self._lock:
+            self._ensure_started()
+            try:
+                if not self._ready:
+                    kind, _ = self._read()      # "ready": loaded and warmed up
+                    self._ready = True
+                self._proc.stdin.write(json.dumps([[float(v) for v in legs], int(runs), int(seed)]) + "\n")
+                self._proc.stdin.flush()
+                kind, payload = self._read()
+            except (EOFError, OSError, ValueError):
+                self._shutdown()
+                raise RuntimeError("the assembly-modes worker process died (restarted on the next request)") \
+                    from None
+        if kind == "ok":
+            return [np.asarray(x, dtype=float) for x in payload]
+        if kind == "input_error":
+            raise InputError(payload)
+        raise RuntimeError(payload)
+
+    def _shutdown(self, timeout: float = 2.0) -> None:
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        try:
+            proc.stdin.close()          # EOF: the child exits
+        except OSError:
+            pass
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.terminate()
+            try:
+                proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+    def close(self) -> None:
+        """Stop the child (waits up to a few seconds for a computation in progress)."""
+        if self._lock.acquire(timeout=5.0):
+            try:
+                self._shutdown()
+            finally:
+                self._lock.release()
+        elif self._proc is not None:         # a computation is hanging: do not wait for it
+            self._proc.kill()
+
+
+if __name__ == "__main__":
+    sys.exit(child_main())
