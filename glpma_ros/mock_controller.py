@@ -9,14 +9,22 @@ to ``pose_estimate`` and compares every pose with the truth:
 * hexapod: a helix of the platform origin with a rotation about (and a tilt of)
   the vertical, around one of the config's ``published_solutions``.
 
+With ``input_type="joint_state"`` (``--input joint_state``) it publishes
+``sensor_msgs/JointState`` on ``joint_states`` instead: the legs under ``joint_names``
+(default ``leg_1`` .. ``leg_n``) mixed with a few other joints (:data:`EXTRA_JOINTS`), in
+a new random order in every message, ``header.stamp`` = the send time -- the node's
+``input_type:=joint_state`` must pick the legs out by name.
+
 A pose is matched to the input it answers by its ``header.stamp`` (the arrival
-time of that input at the node, on the same clock when both run on one machine),
-the leg lengths of the pose telling apart neighbouring inputs.  The summary has
+time of that input at the node, on the same clock when both run on one machine; the
+JointState's own stamp for joint_state input), the leg lengths of the pose telling
+apart neighbouring inputs.  The summary has
 the tracking error (metres, radians), the end-to-end latency (input sent -> pose
 received) p50/p99/max, inputs sent and poses received.
 
 Command line: ``python -m glpma_ros.mock_controller --config planar_3rpr_seed --rate 200
---duration 5 [--json]``; as a library: :func:`run` returns the summary.
+--duration 5 [--input joint_state [--joint-names A B C]] [--json]``; as a library: :func:`run`
+returns the summary.
 """
 from __future__ import annotations
 
@@ -40,6 +48,9 @@ DEFAULT_SOLUTION = {"planar_3rpr": 0,      # real_solutions[0], the one of 001 T
                     "hexapod_66": 10}      # platform above the base, centred, well conditioned
 #: seconds per loop / helix turn
 PERIOD_S = 4.0
+#: other joints of the robot sent with the legs in a JointState (name, position)
+EXTRA_JOINTS = (("gripper_finger", 0.02), ("wrist_roll", -0.7), ("base_yaw", 1.3))
+INPUT_TYPES = ("float64_multi_array", "joint_state")
 
 
 # -- trajectories --------------------------------------------------------------------------------
@@ -195,7 +206,8 @@ def match_poses(model, sent: list[Sent], poses: list, window: int = 8) -> list[t
 def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: float = 5.0, *,
         domain_id: int | None = None, qos_depth: int = 10, solution: int | None = None,
         amplitude: float = 1.0, connect_timeout_s: float = 30.0, settle_s: float = 0.3,
-        tail_s: float = 1.0, diagnostics_wait_s: float = 1.5, progress=None, samples: bool = False) -> dict:
+        tail_s: float = 1.0, diagnostics_wait_s: float = 1.5, progress=None, samples: bool = False,
+        input_type: str = "float64_multi_array", joint_names=None) -> dict:
     """Drive the node for ``duration_s`` at ``rate_hz`` and return the summary (a JSON-able dict).
 
     ``progress(i, n, summary_so_far)`` is called about once a second while sending, if given;
@@ -204,19 +216,32 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     estimated positions in metres, latency in ms) for plotting.
     After sending, waits up to ``tail_s`` for the last poses and up to ``diagnostics_wait_s``
     for a ``/diagnostics`` report of the node that covers every input (``node_diagnostics``).
+    ``input_type``: ``float64_multi_array`` (``leg_lengths``) or ``joint_state`` (``joint_states``,
+    legs under ``joint_names`` among :data:`EXTRA_JOINTS`, shuffled, stamped with the send time).
     Raises :class:`TimeoutError` when no node answers within ``connect_timeout_s``."""
     from .dds import endpoints
-    from .dds.messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
+    from .dds.messages import (Float64MultiArray, Header, JointState, MultiArrayDimension, MultiArrayLayout,
+                               Time)
 
+    if input_type not in INPUT_TYPES:
+        raise ValueError(f"input_type must be one of {', '.join(INPUT_TYPES)}, got {input_type!r}")
     path = resolve_config(config)
     doc = load_document(path)
     model = model_from_dict(doc, str(path))
     mpu = model.metres_per_unit
     p0, R0 = start_pose(model, doc, solution)
     pose_at = trajectory(model, p0, R0, amplitude)
+    joint_state = input_type == "joint_state"
+    names = list(joint_names) if joint_names else [f"leg_{i + 1}" for i in range(model.n_legs)]
+    if len(names) != model.n_legs:
+        raise ValueError(f"joint_names must name the {model.n_legs} legs, got {len(names)} names")
+    shuffle = np.random.default_rng(0)
 
     participant = endpoints.Participant(domain_id)
-    writer = participant.writer(endpoints.LEG_LENGTHS, Float64MultiArray, qos_depth)
+    if joint_state:
+        writer = participant.writer(endpoints.JOINT_STATES, JointState, qos_depth)
+    else:
+        writer = participant.writer(endpoints.LEG_LENGTHS, Float64MultiArray, qos_depth)
     listener = PoseListener(participant, qos_depth)
     try:
         if not endpoints.wait_for_match([writer, listener.reader], connect_timeout_s):
@@ -240,8 +265,15 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
             position, R = pose_at(i * period)
             quaternion = quaternion_from_matrix(R)
             legs = legs_for(model, position, quaternion)
-            msg = Float64MultiArray(layout=layout, data=[float(v) * mpu for v in legs])
-            send_ns = time.time_ns()
+            if joint_state:
+                joints = list(zip(names, (float(v) * mpu for v in legs))) + list(EXTRA_JOINTS)
+                order = shuffle.permutation(len(joints))
+                send_ns = time.time_ns()
+                msg = JointState(header=Header(stamp=Time.from_ns(send_ns), frame_id=""),
+                                 name=[joints[k][0] for k in order], position=[joints[k][1] for k in order])
+            else:
+                msg = Float64MultiArray(layout=layout, data=[float(v) * mpu for v in legs])
+                send_ns = time.time_ns()
             writer.write(msg)
             sent.append(Sent(send_ns, legs, position * mpu, quaternion))
             if progress is not None and time.perf_counter() >= next_progress:
@@ -267,6 +299,7 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         "manipulator": model.kind,
         "config": str(path),
         "solution": DEFAULT_SOLUTION[model.kind] if solution is None else int(solution),
+        "input_type": input_type,
         "rate_hz": rate_hz,
         "duration_s": duration_s,
         "inputs_sent": len(sent),
@@ -326,6 +359,11 @@ def main(argv=None) -> int:
                         help="index of the config's known solution to move around")
     parser.add_argument("--amplitude", type=float, default=1.0, help="scale of the motion (default 1)")
     parser.add_argument("--qos-depth", type=int, default=10)
+    parser.add_argument("--input", choices=INPUT_TYPES, default="float64_multi_array",
+                        help="publish leg_lengths (default) or joint_states (legs among other joints, "
+                             "shuffled; run the node with input_type:=joint_state)")
+    parser.add_argument("--joint-names", nargs="+", default=None, metavar="NAME",
+                        help="--input joint_state: the legs' joint names in leg order (default leg_1 .. leg_n)")
     parser.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for the node")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     args = parser.parse_args(argv)
@@ -339,7 +377,8 @@ def main(argv=None) -> int:
     try:
         summary = run(args.config, args.rate, args.duration, solution=args.solution, amplitude=args.amplitude,
                       qos_depth=args.qos_depth, connect_timeout_s=args.timeout,
-                      progress=None if args.json else progress)
+                      progress=None if args.json else progress, input_type=args.input,
+                      joint_names=args.joint_names)
     except (GlpmaError, TimeoutError, ValueError) as exc:
         print(f"mock_controller: error: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, GlpmaError) else 1
