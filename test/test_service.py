@@ -43,7 +43,7 @@ def service():
 def test_every_contract_parameter_is_declared_with_a_description():
     for name in ("manipulator_config", "solver", "time_budget_ms", "tolerance", "frame_id", "initial_pose"):
         assert name in P.SPECS and P.SPECS[name].description
-    assert P.SPECS["solver"].choices == ("glpma", "g3pcx", "rcga")
+    assert P.SPECS["solver"].choices == ("glpma", "g3pcx", "rcga", "sa", "gasa", "de")
     assert P.defaults()["initial_pose"] == []
 
 
@@ -89,7 +89,7 @@ def test_ros_args_errors_are_one_line(argv, message):
 
 
 @pytest.mark.parametrize("name, value, message", [
-    ("solver", "cmaes", "one of glpma, g3pcx, rcga"),
+    ("solver", "cmaes", "one of glpma, g3pcx, rcga, sa, gasa, de"),
     ("time_budget_ms", 0.0, "> 0"),
     ("time_budget_ms", "fast", "must be a number"),
     ("tolerance", -1.0, "> 0"),
