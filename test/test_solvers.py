@@ -1,6 +1,7 @@
 """Solvers: cold-start success with the default configuration, properties of the
 pure algorithms (PCX distribution, elitism, monotone best, exact evaluation
 counts, reproducibility) and the deadline."""
+import resource
 import time
 
 import numpy as np
@@ -126,20 +127,31 @@ def test_glpma_local_population_persists_between_local_searches(rpr):
     assert meme_best <= local.best()[1] or np.isclose(meme_best, local.best()[1])
 
 
+def _involuntary_switches() -> int:
+    return resource.getrusage(resource.RUSAGE_THREAD).ru_nivcsw
+
+
 @pytest.mark.parametrize("budget_ms", [1.0, 2.0, 5.0])
 def test_deadline_is_honoured(hexapod, budget_ms):
     """Pure cold G3-PCX on the hexapod cannot converge in a few ms; it must stop
-    at the deadline.  Stated margin: the median run returns within the budget
-    plus 1 ms, every run within the budget plus 50 ms (a preempted process on a
-    loaded 2-core machine; the benchmark measures the real distribution)."""
+    at the deadline.  Stated margin: every run that the OS did not preempt
+    (no involuntary context switch during the solve: a preempted process cannot
+    see any clock) returns within the budget plus 0.5 ms.  Preempted runs are
+    counted, not judged; the benchmark reports the full distribution."""
     solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=0, polish=False, max_evals=1000)  # compile
     over = []
-    for seed in range(30):
+    preempted = 0
+    for seed in range(40):
+        switches = _involuntary_switches()
         t0 = time.perf_counter()
         r = solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=seed, polish=False,
                           budget_s=budget_ms / 1e3)
         wall = time.perf_counter() - t0
         assert r.status == "budget_exhausted"
-        over.append(wall * 1e3 - budget_ms)
-    assert np.median(over) <= 1.0, over
-    assert max(over) <= 50.0, over
+        if _involuntary_switches() != switches:
+            preempted += 1
+        else:
+            over.append(wall * 1e3 - budget_ms)
+    if len(over) < 10:
+        pytest.skip(f"machine too loaded to judge: {preempted} of 40 solves preempted")
+    assert max(over) <= 0.5, (over, preempted)

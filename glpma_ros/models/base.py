@@ -56,6 +56,13 @@ class Manipulator:
     pose_column_scale: np.ndarray  # makes the pose Jacobian's columns commensurate
     data: tuple = ()
 
+    def __init__(self, base, platform, unit="mm", leg_limits=None):
+        self.base = np.ascontiguousarray(base, dtype=float)
+        self.platform = np.ascontiguousarray(platform, dtype=float)
+        self.unit = unit
+        self.leg_limits = leg_limits
+        self.scale = float(max(np.ptp(self.base, axis=0).max(), np.ptp(self.platform, axis=0).max()))
+
     # -- evaluation --------------------------------------------------------
     kind_id: int = -1   # selects the compiled residual kernel (models.kernels)
 

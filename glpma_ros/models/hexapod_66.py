@@ -125,14 +125,10 @@ class Hexapod66(Manipulator):
     kind_id = 1  # models.kernels.KIND_HEXAPOD_66
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
-        self.base = np.ascontiguousarray(base, dtype=float)
-        self.platform = np.ascontiguousarray(platform, dtype=float)
-        self.unit = unit
-        self.leg_limits = leg_limits
+        super().__init__(base, platform, unit, leg_limits)
         self.abc = np.ascontiguousarray(frame_coefficients(self.platform))
         self.d0sq = np.array([float(np.sum((self.platform[j] - self.platform[i]) ** 2)) for i, j in PAIRS])
         self.data = self._make_data(self.base, self.abc, self.d0sq)
-        self.scale = float(max(np.ptp(self.base, axis=0).max(), np.ptp(self.platform, axis=0).max()))
         self.pose_column_scale = np.array([1.0, 1.0, 1.0, 1.0 / self.scale, 1.0 / self.scale, 1.0 / self.scale])
 
     # -- conversions ----------------------------------------------------------

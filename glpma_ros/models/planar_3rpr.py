@@ -38,12 +38,8 @@ class Planar3RPR(Manipulator):
     kind_id = 0  # models.kernels.KIND_PLANAR_3RPR
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
-        self.base = np.ascontiguousarray(base, dtype=float)
-        self.platform = np.ascontiguousarray(platform, dtype=float)
-        self.unit = unit
-        self.leg_limits = leg_limits
+        super().__init__(base, platform, unit, leg_limits)
         self.data = self._make_data(self.base, self.platform)
-        self.scale = float(max(np.ptp(self.base, axis=0).max(), np.ptp(self.platform, axis=0).max()))
         self.pose_column_scale = np.array([1.0, 1.0, 1.0 / self.scale])
 
     def joints(self, x) -> np.ndarray:

@@ -99,6 +99,22 @@ def _population_spread(pop):
 
 
 @njit(cache=True, error_model="numpy")
+def _draw_distinct(rng, N, out, start):
+    """Fill ``out[start:]`` with population indices drawn at random, all
+    different from each other and from ``out[:start]``."""
+    k = start
+    while k < out.shape[0]:
+        c = rng.integers(0, N)
+        fresh = True
+        for q in range(k):
+            if out[q] == c:
+                fresh = False
+        if fresh:
+            out[k] = c
+            k += 1
+
+
+@njit(cache=True, error_model="numpy")
 def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
                       mu, lam, r, sigma_zeta, sigma_eta, kind, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
@@ -113,32 +129,14 @@ def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
     evals = 0
     while gens < n_generations and evals + lam <= max_evals and fit[best] >= tolerance:
         idx[0] = best
-        k = 1
-        while k < mu:
-            c = rng.integers(0, N)
-            fresh = True
-            for q in range(k):
-                if idx[q] == c:
-                    fresh = False
-            if fresh:
-                idx[k] = c
-                k += 1
+        _draw_distinct(rng, N, idx, 1)
         for k in range(mu):
             parents[k] = pop[idx[k]]
         children = pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop)
         child_f = population_fitness(children, kind, data, legs, n_res)
         evals += lam
         # r distinct random members compete with the children for their slots
-        k = 0
-        while k < r:
-            c = rng.integers(0, N)
-            fresh = True
-            for q in range(k):
-                if slots[q] == c:
-                    fresh = False
-            if fresh:
-                slots[k] = c
-                k += 1
+        _draw_distinct(rng, N, slots, 0)
         for k in range(r):
             pool[k] = pop[slots[k]]
             pool_f[k] = fit[slots[k]]
