@@ -91,3 +91,28 @@ def test_node_restart_mid_trajectory_cold_then_warm(session, capsys):
     check(res, session)
     assert res["first_report"]["starts"]["cold"] >= 1
     assert res["final"]["last start"] == "warm"
+
+
+# -- the Reliability section of BENCHMARKS.md (no node needed) ------------------------------------------
+
+def test_reliability_section_is_replaced_in_place_and_kept_by_the_bench(tmp_path):
+    from glpma_ros.bench import report
+    text = "# Benchmarks\n\nintro\n\n## Deadline honouring\n\nd\n\n## DDS end to end\n\ne\n"
+    once = stress.splice_section(text, ["## Reliability", "", "first"])
+    assert once.startswith(text.rstrip()) and once.rstrip().endswith("first")
+    twice = stress.splice_section(once, ["## Reliability", "", "second"])
+    assert "first" not in twice and twice.count("## Reliability") == 1
+    middle = "# B\n\n## Reliability\n\nold\n\n## Later\n\nl\n"
+    assert stress.splice_section(middle, ["## Reliability", "", "new"]) == "# B\n\n## Reliability\n\nnew\n\n## Later\n\nl\n"
+    md = tmp_path / "BENCHMARKS.md"
+    md.write_text(twice)
+    assert report.kept_sections(md) == ["", "## Reliability", "", "second"]
+    assert report.kept_sections(tmp_path / "missing.md") == []
+
+
+@pytest.mark.parametrize("argv", [["--duration", "0"], ["--burst", "0"], ["--rate", "nan"], ["--domain", "300"],
+                                  ["--params-file", "/nonexistent.yaml"], ["--bogus"]])
+def test_stress_usage_errors_are_status_2_and_one_line(argv, capsys):
+    assert stress.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "error" in err[0]
