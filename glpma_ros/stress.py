@@ -301,20 +301,55 @@ def _ms_stats(values_ms) -> dict:
     return {"p50": float(np.percentile(a, 50)), "p99": float(np.percentile(a, 99)), "max": float(a.max())}
 
 
-def analyse(model, sent: list, poses: list, window: int = 8) -> dict:
+#: inputs written before a pose's stamp among which its input is looked for (a burst has thousands
+#: in flight when the node's reader thread takes a sample)
+MATCH_WINDOW = 4096
+
+
+def match(model, sent: list, poses: list, window: int = MATCH_WINDOW) -> list:
+    """``[(input index, pose, max leg residual in the config's unit)]``: each pose paired with the
+    input whose legs it reproduces best among the ``window`` written before its stamp (the input's
+    arrival at the node) and the next one; each input at most once."""
+    from .mock_controller import legs_for
+    if not sent:
+        return []
+    send_ns = np.array([s.send_ns for s in sent], dtype=np.int64)
+    legs_all = np.array([s.legs for s in sent], dtype=float)
+    taken = np.zeros(len(sent), dtype=bool)
+    mpu = float(model.metres_per_unit)
+    out = []
+    for pose in poses:
+        j = int(np.searchsorted(send_ns, pose[1], side="right")) - 1
+        lo, hi = max(0, j - window), min(len(sent), j + 2)
+        if lo >= hi:
+            continue
+        try:
+            legs = legs_for(model, pose[3] / mpu, pose[4])
+            diff = np.max(np.abs(legs_all[lo:hi] - legs), axis=1)
+        except Exception:  # noqa: BLE001 - a garbage pose: the nearest by time
+            diff = np.abs(np.arange(lo, hi) - j).astype(float) + 1e300
+        free = ~taken[lo:hi]
+        if not free.any():
+            continue
+        diff = np.where(free, np.nan_to_num(diff, nan=np.inf), np.inf)
+        k = int(np.argmin(diff))
+        if not free[k]:                 # every free candidate is non-finite: a garbage pose
+            k = int(np.flatnonzero(free)[-1])
+        taken[lo + k] = True
+        out.append((lo + k, pose, float(diff[k])))
+    return sorted(out, key=lambda t: t[0])
+
+
+def analyse(model, sent: list, poses: list) -> dict:
     """Match poses to inputs; latency (write -> pose received, ms), how well each pose reproduces
     its input's legs (m), and whether it is the trajectory's assembly mode."""
-    from .mock_controller import legs_for, match_poses
-    pairs = match_poses(model, sent, poses, window)
+    matched = match(model, sent, poses)
+    pairs = [(i, pose) for i, pose, _ in matched]
     mpu = float(model.metres_per_unit)
     latency, residual, on_mode, first = [], [], 0, None
-    for i, (recv_ns, _, _, position_m, q) in pairs:
+    for (i, (recv_ns, _, _, position_m, q)), (_, _, res) in zip(pairs, matched):
         latency.append((recv_ns - sent[i].send_ns) * 1e-6)
-        try:
-            legs = legs_for(model, position_m / mpu, q)
-            residual.append(float(np.max(np.abs(legs - sent[i].legs))) * mpu)
-        except Exception:  # noqa: BLE001 - a garbage pose
-            residual.append(math.inf)
+        residual.append(res * mpu)
         on_mode += float(np.linalg.norm(position_m - sent[i].position_m)) <= RESIDUAL_MAX_M
         first = i if first is None else min(first, i)
     return {"poses": len(poses), "matched": len(pairs), "latency_ms": _ms_stats(latency),
@@ -406,7 +441,7 @@ class Session:
                "late_sends": late, **counts, "lost_in_transport": len(sent) - counts["received"],
                "rss_before_mb": rss0 / 1024, "rss_after_mb": rss1 / 1024, "rss_growth_mb": (rss1 - rss0) / 1024,
                "node_latency_ms": _node_latency(after), "starts": _diff(starts(after), starts(before))}
-        a = analyse(self.model, sent, poses, window=8 if rate_hz else 64)
+        a = analyse(self.model, sent, poses)
         res.update(poses=a["poses"], matched=a["matched"], latency_ms=a["latency_ms"],
                    residual_max_m=a["residual_max_m"], on_trajectory_mode=a["on_trajectory_mode"])
         res["checks"] = {
