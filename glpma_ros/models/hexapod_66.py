@@ -59,6 +59,16 @@ def residual_kernel(x, data, legs, out):
     out[8] = d0sq[2] - (e3x * e3x + e3y * e3y + e3z * e3z)
 
 
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of two (n, 3) arrays (``np.cross`` without its
+    generic-axis overhead, which dominates at this size)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def frame_coefficients(platform: np.ndarray) -> np.ndarray:
     """(a_j, b_j, c_j) of every platform joint in the frame built on CB1, CB2, CB3."""
     v1 = platform[1] - platform[0]
@@ -164,7 +174,7 @@ class Hexapod66(Manipulator):
         e = p + w - self.base
         n = np.sqrt((e * e).sum(axis=1))
         u = e / n[:, None]
-        J = np.hstack((u, np.cross(w, u)))          # d r_j / d(p, omega)
+        J = np.hstack((u, cross_rows(w, u)))        # d r_j / d(p, omega)
         return n - legs, J
 
     def pose_retract(self, state, step):
@@ -179,4 +189,6 @@ class Hexapod66(Manipulator):
         return np.array(x, dtype=float)
 
     def distance(self, x1, x2) -> float:
-        return float(np.max(np.linalg.norm(self.joints(x1) - self.joints(x2), axis=1)))
+        """Largest distance between the platform joints B1, B2, B3 (the variables)."""
+        d = (np.asarray(x1, dtype=float) - np.asarray(x2, dtype=float)).reshape(3, 3)
+        return float(np.sqrt((d * d).sum(axis=1).max()))

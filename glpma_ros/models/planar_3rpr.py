@@ -69,9 +69,10 @@ class Planar3RPR(Manipulator):
         rot = self.platform @ np.array([[c, s], [-s, c]])          # R(theta) CB_i, rows
         e = state[:2] + rot - self.base
         n = np.sqrt((e * e).sum(axis=1))
-        u = e / n[:, None]
-        drot = np.column_stack((-rot[:, 1], rot[:, 0]))            # d/dtheta of R CB_i
-        J = np.column_stack((u, (u * drot).sum(axis=1)))
+        J = np.empty((3, 3))
+        J[:, :2] = e / n[:, None]                                  # unit leg vectors u_i
+        # d/dtheta of R CB_i is (-(R CB_i)_y, (R CB_i)_x)
+        J[:, 2] = J[:, 1] * rot[:, 0] - J[:, 0] * rot[:, 1]
         return n - legs, J
 
     def pose_retract(self, state, step):

@@ -12,6 +12,9 @@ SOLVERS = {"glpma": glpma.solve, "g3pcx": g3pcx.solve, "rcga": rcga.solve,
 DEFAULT_POPULATION = {"sa": sa.default_population, "gasa": gasa.default_population,
                       "de": de.default_population}
 
+#: the keyword arguments each solver takes
+_KEYWORDS = {name: frozenset(inspect.signature(f).parameters) for name, f in SOLVERS.items()}
+
 #: the papers' population sizes per manipulator (Chandra & Rolland 2014, section 5)
 PAPER_SETTINGS = {
     "planar_3rpr": {"population": 100, "local_population": 100, "ls_interval": 5, "ls_intensity": 1,
@@ -27,9 +30,7 @@ def solve(name, model, legs, **kwargs):
         raise ValueError(f"unknown solver {name!r}; choose one of {', '.join(SOLVERS)}")
     settings = dict(PAPER_SETTINGS[model.kind])
     # keep only the settings the solver names (GLPMA-only keys go to GLPMA alone)
-    named = inspect.signature(SOLVERS[name]).parameters
-    settings = {k: v for k, v in settings.items()
-                if k in named}
+    settings = {k: v for k, v in settings.items() if k in _KEYWORDS[name]}
     if name in DEFAULT_POPULATION:
         settings["population"] = DEFAULT_POPULATION[name](model)
     settings.update({k: v for k, v in kwargs.items() if v is not None})

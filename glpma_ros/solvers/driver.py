@@ -69,15 +69,31 @@ class EvolutionaryState:
         return int(gens)
 
 
-def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish):
-    """Run ``make_state(problem, term)``'s population to termination."""
+def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center=None):
+    """Run ``make_state(problem, term)``'s population to termination.
+
+    A warm start's first individual is the previous estimate ``center``: with the
+    refinement on it is polished before the rest of the population is drawn, and
+    when that converges the population is never needed (the node's usual case).
+    """
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s)
     problem = Problem(model, legs)
-    state = make_state(problem, term)
     history = []
     nit = 0
     polished = False
     last_polish_f = np.inf
+    warm = None
+    if polish and center is not None:
+        warm = refine.polish(model, np.asarray(center, dtype=float), problem.legs, rng, tolerance=tolerance,
+                             max_iter=POLISH_MAX_ITER, deadline=term.deadline)
+        term.nfev += warm[2]
+        if warm[1] < tolerance:
+            history.append((term.nfev, warm[1]))
+            return _result(name, model, warm[0], warm[1], term, nit, True, history)
+    state = make_state(problem, term)
+    if warm is not None and warm[1] < state.best()[1]:
+        state.inject(warm[0], warm[1])
+        last_polish_f = warm[1]
     seconds_per_gen = None
     x, f = state.best()
     while True:
@@ -109,10 +125,15 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()
+    return _result(name, model, x, f, term, nit, polished, history)
+
+
+MESSAGES = {"converged": "fitness below tolerance", "budget_exhausted": "time budget exhausted",
+            "max_evals": "evaluation cap reached"}
+
+
+def _result(name, model, x, f, term, nit, polished, history) -> SolveResult:
     status = term.final_status(f)
     return SolveResult(x=model.canonical(x), fun=f, nfev=term.nfev, nit=nit, elapsed_s=term.elapsed(),
                        status=status, solver=name, polished=polished and status == CONVERGED,
-                       history=history,
-                       message={"converged": "fitness below tolerance",
-                                "budget_exhausted": "time budget exhausted",
-                                "max_evals": "evaluation cap reached"}[status])
+                       history=history, message=MESSAGES[status])

@@ -40,7 +40,8 @@ def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadli
     if not np.isfinite(f):
         return np.asarray(x0, dtype=float), np.inf, nfev, 0
     A = J.T @ J
-    lam = LAMBDA_INIT * float(np.max(np.diag(A)))
+    n = A.shape[0]
+    lam = LAMBDA_INIT * float(A.diagonal().max())
     rejections = 0
     below_tol_steps = 0
     it = 0
@@ -48,9 +49,10 @@ def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadli
         if deadline is not None and time.perf_counter() >= deadline:
             break
         g = J.T @ r
-        diag = np.maximum(np.diag(A), 1e-300)
+        damped = A.copy()
+        damped.flat[::n + 1] += lam * np.maximum(A.diagonal(), 1e-300)   # Marquardt's scaling
         try:
-            step = np.linalg.solve(A + lam * np.diag(diag), -g)
+            step = np.linalg.solve(damped, -g)
         except np.linalg.LinAlgError:
             lam *= LAMBDA_UP
             rejections += 1
