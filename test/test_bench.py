@@ -55,3 +55,13 @@ def test_bad_arguments_return_status_2(capsys):
     assert main(["--only", "nonsense"]) == 2
     assert main(["--runs", "-1"]) == 2
     assert main(["--deadline-solvers", "nonsense"]) == 2
+
+
+def test_report_keeps_sections_other_tools_wrote(tmp_path):
+    from glpma_ros.bench.report import kept_sections
+    md = tmp_path / "BENCHMARKS.md"
+    md.write_text("# Benchmarks\n\nold preamble\n\n## Summary\n\nold summary\n\n## Reliability\n\n### overload\n\n"
+                  "| a | b |\n\n## Deadline honouring\n\nold deadline table\n\n## Other tool\n\nx\n")
+    assert kept_sections(md) == ["", "## Reliability", "", "### overload", "", "| a | b |", "", "## Other tool", "",
+                                 "x"]
+    assert kept_sections(tmp_path / "missing.md") == []

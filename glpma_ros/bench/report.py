@@ -439,14 +439,38 @@ def render(res, md_path) -> str:
     return "\n".join(parts).rstrip() + "\n"
 
 
+#: the sections this report writes (heading prefixes); any other "## " section already in the
+#: file (``## Reliability`` from ``glpma-fk stress``) is carried over, after ours
+OWN_HEADINGS = ("## Summary", "## The papers' tables", "## Success vs evaluations", "## Pure G3-PCX against",
+                "## Why the papers' pure G3-PCX", "## All real assembly modes", "## Warm tracking latency",
+                "## Warm solve against", "## Deadline honouring", "## DDS end to end")
+
+
+def foreign_sections(text: str) -> list[str]:
+    """The lines of every ``## `` section of ``text`` that this report does not write."""
+    kept, current = [], None
+    for line in text.splitlines():
+        if line.startswith("## "):
+            current = None if line.startswith(OWN_HEADINGS) else [line]
+            if current is not None:
+                kept.append(current)
+        elif current is not None:
+            current.append(line)
+    out = []
+    for sec in kept:
+        while sec and not sec[-1].strip():
+            sec.pop()
+        out += ([""] if out else []) + sec
+    return out
+
+
 def kept_sections(md_path) -> list[str]:
     """Sections of the existing report that another command writes -- ``## Reliability``, by
     ``glpma-fk stress`` (``glpma_ros/stress.py``) -- carried over unchanged."""
     if not md_path or not os.path.exists(md_path):
         return []
-    from ..stress import extract_section
     with open(md_path, encoding="utf-8") as f:
-        lines = extract_section(f.read())
+        lines = foreign_sections(f.read())
     return [""] + lines if lines else []
 
 
