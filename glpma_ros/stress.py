@@ -217,12 +217,13 @@ class Controller:
     def message(self, legs):
         return self._msg(layout=self._layout, data=[float(v) * self.mpu for v in legs])
 
-    def send(self, plan: Plan, t0: float, n: int, rate_hz: float | None, stop: threading.Event | None = None):
-        """Write ``n`` samples of ``plan`` from trajectory time ``t0`` (1 / rate_hz apart in trajectory
-        time); paced at ``rate_hz`` in wall time, or as fast as possible when ``rate_hz`` is None (the
-        messages are then prepared beforehand).  Returns ([Sent], late sends)."""
+    def send(self, plan: Plan, t0: float, n: int, rate_hz: float | None, stop: threading.Event | None = None,
+             dt: float | None = None):
+        """Write ``n`` samples of ``plan`` from trajectory time ``t0``, ``dt`` apart in trajectory time
+        (default 1 / rate_hz); paced at ``rate_hz`` in wall time, or as fast as possible when ``rate_hz``
+        is None (the messages are then prepared beforehand).  Returns ([Sent], late sends)."""
         from .mock_controller import Sent
-        dt = 1.0 / (rate_hz or RATE_HZ)
+        dt = dt or 1.0 / (rate_hz or RATE_HZ)
         sent, late = [], 0
         if rate_hz is None:
             samples = [plan.sample(t0 + i * dt) for i in range(n)]
@@ -236,10 +237,10 @@ class Controller:
         for i in range(n):
             if stop is not None and stop.is_set():
                 break
-            delay = start + i * dt - time.perf_counter()
+            delay = start + i / rate_hz - time.perf_counter()
             if delay > 0:
                 time.sleep(delay)
-            elif delay < -dt:
+            elif delay < -1.0 / rate_hz:
                 late += 1
             legs, pos, q = plan.sample(t0 + i * dt)
             msg = self.message(legs)
@@ -302,8 +303,10 @@ def _ms_stats(values_ms) -> dict:
 
 
 #: inputs written before a pose's stamp among which its input is looked for (a burst has thousands
-#: in flight when the node's reader thread takes a sample)
+#: in flight when the node's reader thread takes a sample) ...
 MATCH_WINDOW = 4096
+#: ... and written at most this long before it (the trajectory repeats its legs every loop)
+MATCH_WINDOW_NS = 1_000_000_000
 
 
 def match(model, sent: list, poses: list, window: int = MATCH_WINDOW) -> list:
@@ -320,7 +323,8 @@ def match(model, sent: list, poses: list, window: int = MATCH_WINDOW) -> list:
     out = []
     for pose in poses:
         j = int(np.searchsorted(send_ns, pose[1], side="right")) - 1
-        lo, hi = max(0, j - window), min(len(sent), j + 2)
+        lo = max(0, j - window, int(np.searchsorted(send_ns, pose[1] - MATCH_WINDOW_NS)))
+        hi = min(len(sent), j + 2)
         if lo >= hi:
             continue
         try:
@@ -332,8 +336,10 @@ def match(model, sent: list, poses: list, window: int = MATCH_WINDOW) -> list:
         if not free.any():
             continue
         diff = np.where(free, np.nan_to_num(diff, nan=np.inf), np.inf)
-        k = int(np.argmin(diff))
-        if not free[k]:                 # every free candidate is non-finite: a garbage pose
+        best = float(np.min(diff))
+        if math.isfinite(best):         # the latest of equally good candidates (the node solves the newest)
+            k = int(np.flatnonzero(diff <= best + 1e-9 * model.scale)[-1])
+        else:                           # every free candidate is non-finite: a garbage pose
             k = int(np.flatnonzero(free)[-1])
         taken[lo + k] = True
         out.append((lo + k, pose, float(diff[k])))
@@ -409,9 +415,9 @@ class Session:
             self.controller = None
         self.node.stop()
 
-    def send(self, n: int, rate_hz: float | None, plan: Plan | None = None, stop=None):
-        dt = 1.0 / (rate_hz or RATE_HZ)
-        sent, late = self.controller.send(plan or self.plan, self.t, n, rate_hz, stop)
+    def send(self, n: int, rate_hz: float | None, plan: Plan | None = None, stop=None, dt: float | None = None):
+        dt = dt or 1.0 / (rate_hz or RATE_HZ)
+        sent, late = self.controller.send(plan or self.plan, self.t, n, rate_hz, stop, dt)
         self.t += len(sent) * dt
         return sent, late
 
@@ -421,7 +427,8 @@ class Session:
         return self.controller.diagnostics_after(time.time_ns() if after_ns is None else after_ns, 15.0)
 
     # -- (a) and (b): overload and burst ------------------------------------------------------------
-    def flood(self, name: str, n: int, rate_hz: float | None, warmup_s: float = WARMUP_S) -> dict:
+    def flood(self, name: str, n: int, rate_hz: float | None, warmup_s: float = WARMUP_S,
+              dt: float | None = None) -> dict:
         ctl = self.controller
         if warmup_s > 0:
             self.send(int(warmup_s * (rate_hz or RATE_HZ)), rate_hz or RATE_HZ)
@@ -430,7 +437,7 @@ class Session:
         k0 = len(ctl.listener.poses)
         self.say(f"{name}: {n} inputs " + (f"at {rate_hz:g} Hz" if rate_hz else "as fast as possible"))
         t0 = time.perf_counter()
-        sent, late = self.send(n, rate_hz)
+        sent, late = self.send(n, rate_hz, dt=dt)
         send_s = time.perf_counter() - t0
         after = self.settle(sent[-1].send_ns)
         time.sleep(0.2)
@@ -464,7 +471,10 @@ class Session:
         return res
 
     def burst(self, n: int) -> dict:
-        return self.flood("burst", n, None, warmup_s=0.0)
+        # within less than half a loop of the trajectory, so that no two inputs of the burst have the
+        # same legs (the pose <-> input matching goes by the legs)
+        from .mock_controller import PERIOD_S
+        return self.flood("burst", n, None, warmup_s=0.0, dt=min(1.0 / RATE_HZ, 0.4 * PERIOD_S / n))
 
     # -- (c) restarts and a jump ----------------------------------------------------------------------
     def controller_restart(self, phase_s: float) -> dict:
@@ -525,7 +535,8 @@ class Session:
         st = _diff(starts(after), starts(before))
         jump = float(np.max(np.abs(jump_legs - last_legs)))
         step = float(np.max(np.abs(sent_a[-1].legs - sent_a[-2].legs)))
-        res = {"to_solution": other.solution, "jump_legs_max": jump, "step_legs_max": step, "jump_relative": jump / self.model.scale,
+        res = {"to_solution": other.solution, "jump_legs_max": jump, "step_legs_max": step,
+               "jump_relative": jump / self.model.scale,
                "unit": self.model.unit, "inputs": len(sent), **counts, "starts": st,
                "inputs_until_first_pose": a["first_answered"], "first_pose_latency_ms": a["first_latency_ms"],
                "poses_on_requested_mode": a["on_trajectory_mode"], "poses": a["matched"],
@@ -636,45 +647,63 @@ def _warm_up(est, legs, budget_ms: float, reset: bool, quiet: int = 20, max_call
 
 def deadlines(model, budgets_ms=DEADLINE_BUDGETS_MS, n: int = 10_000, seed_x=None, say=None) -> list[dict]:
     """``n`` Estimator solves per budget and case on legs without a real assembly and without an
-    evaluation cap: each runs until its deadline (after a warm-up until the solves run on time).  Cases: cold (state reset before each solve), warm (a warm state the failures keep,
-    so the warm, widened and cold stages all run)."""
-    from .bench.common import involuntary_switches
-    from .estimator import Estimator
+    evaluation cap: each runs until its deadline (after a warm-up until the solves run on time).
+    Cases: cold (state reset before each solve), warm (a warm state the failures keep, so the warm,
+    widened and cold stages all run).  Each call is flagged when another process preempted it or
+    Python's garbage collector ran during it."""
     legs = infeasible_legs(model)
     rows = []
-    for case in ("cold", "warm"):
-        for b in budgets_ms:
-            if say:
-                say(f"deadline: {n} Estimator solves, {case}, {b:g} ms")
-            # no evaluation cap: only the deadline stops a search
-            est = Estimator(model, time_budget_s=b * 1e-3, initial_pose=seed_x if case == "warm" else None,
-                            max_evals=10**9)
-            _warm_up(est, legs, b, reset=case == "cold")
-            gc.collect()
-            elapsed = np.empty(n)
-            preempted = np.zeros(n, dtype=bool)
-            statuses = {}
-            for k in range(n):
-                if case == "cold":
-                    est.reset()
-                c0 = involuntary_switches()
-                t0 = time.perf_counter()
-                e = est.estimate(legs)
-                elapsed[k] = time.perf_counter() - t0
-                preempted[k] = involuntary_switches() > c0
-                statuses[e.status] = statuses.get(e.status, 0) + 1
-            over = elapsed * 1e3 - b
-            quiet = over[~preempted]
-            rows.append({"case": case, "budget_ms": b, "solves": n,
-                         "on_time_pct": 100.0 * float(np.mean(over <= DEADLINE_MARGIN_MS)),
-                         "elapsed_p50_ms": float(np.percentile(elapsed, 50) * 1e3),
-                         "elapsed_p99_ms": float(np.percentile(elapsed, 99) * 1e3),
-                         "worst_overrun_ms": float(over.max()), "preempted": int(preempted.sum()),
-                         "on_time_not_preempted_pct": 100.0 * float(np.mean(quiet <= DEADLINE_MARGIN_MS))
-                         if quiet.size else None,
-                         "worst_overrun_not_preempted_ms": float(quiet.max()) if quiet.size else None,
-                         "statuses": statuses})
+    collections = [0]
+
+    def on_gc(phase, info):
+        if phase == "start":
+            collections[0] += 1
+
+    gc.callbacks.append(on_gc)
+    try:
+        for case in ("cold", "warm"):
+            for b in budgets_ms:
+                rows.append(_deadline_cell(model, legs, case, b, n, seed_x, collections, say))
+    finally:
+        gc.callbacks.remove(on_gc)
     return rows
+
+
+def _deadline_cell(model, legs, case: str, b: float, n: int, seed_x, collections: list, say) -> dict:
+    from .bench.common import involuntary_switches
+    from .estimator import Estimator
+    if say:
+        say(f"deadline: {n} Estimator solves, {case}, {b:g} ms")
+    # no evaluation cap: only the deadline stops a search
+    est = Estimator(model, time_budget_s=b * 1e-3, initial_pose=seed_x if case == "warm" else None,
+                    max_evals=10**9)
+    _warm_up(est, legs, b, reset=case == "cold")
+    gc.collect()
+    elapsed = np.empty(n)
+    preempted = np.zeros(n, dtype=bool)
+    collected = np.zeros(n, dtype=bool)
+    statuses = {}
+    for k in range(n):
+        if case == "cold":
+            est.reset()
+        c0, g0 = involuntary_switches(), collections[0]
+        t0 = time.perf_counter()
+        e = est.estimate(legs)
+        elapsed[k] = time.perf_counter() - t0
+        preempted[k] = involuntary_switches() > c0
+        collected[k] = collections[0] > g0
+        statuses[e.status] = statuses.get(e.status, 0) + 1
+    over = elapsed * 1e3 - b
+    quiet = over[~(preempted | collected)]
+    return {"case": case, "budget_ms": b, "solves": n,
+            "on_time_pct": 100.0 * float(np.mean(over <= DEADLINE_MARGIN_MS)),
+            "elapsed_p50_ms": float(np.percentile(elapsed, 50) * 1e3),
+            "elapsed_p99_ms": float(np.percentile(elapsed, 99) * 1e3),
+            "worst_overrun_ms": float(over.max()), "preempted": int(preempted.sum()),
+            "gc": int(collected.sum()),
+            "on_time_undisturbed_pct": 100.0 * float(np.mean(quiet <= DEADLINE_MARGIN_MS)) if quiet.size else None,
+            "worst_overrun_undisturbed_ms": float(quiet.max()) if quiet.size else None,
+            "statuses": statuses}
 
 
 # -- the whole run ---------------------------------------------------------------------------------------
@@ -817,7 +846,8 @@ def _restart_rows(secs: dict) -> list[list[str]]:
         s = secs["node_restart"]
         fr, fi = s["first_report"], s["final"]
         rows.append(["node restart (SIGINT mid-trajectory, started again)",
-                     f"exit status {s['exit_status']}; back in {s['downtime_s']:.1f} s (start-up {s['startup_s']:.1f} s, "
+                     f"exit status {s['exit_status']}; back in {s['downtime_s']:.1f} s "
+                     f"(start-up {s['startup_s']:.1f} s, "
                      f"first pose {_f(s['first_pose_after_ready_s'])} s after ready); first report with an answer: "
                      + ("starts warm/widened/cold {warm}/{widened}/{cold}".format(**fr["starts"])
                         if fr["starts"] else "none")
@@ -841,13 +871,14 @@ def _deadline_rows(rows) -> list[list[str]]:
         return "—" if v is None else f"{v:+.3f}"
     return [[r["case"], f"{r['budget_ms']:g}", f"{r['solves']:,}", pct(r["on_time_pct"]),
              f"{r['elapsed_p50_ms']:.3f}", f"{r['elapsed_p99_ms']:.3f}", ms(r["worst_overrun_ms"]),
-             f"{r['preempted']:,}", pct(r["on_time_not_preempted_pct"]), ms(r["worst_overrun_not_preempted_ms"]),
+             f"{r['preempted']:,}", f"{r.get('gc', 0):,}", pct(r.get("on_time_undisturbed_pct")),
+             ms(r.get("worst_overrun_undisturbed_ms")),
              ", ".join(f"{k} {v}" for k, v in sorted(r["statuses"].items()))] for r in rows]
 
 
 DEADLINE_HEAD = ["start", "budget ms", "solves", f"within budget + {DEADLINE_MARGIN_MS} ms", "p50 elapsed ms",
-                 "p99 elapsed ms", "worst overrun ms", "preempted", "within, not preempted",
-                 "worst overrun, not preempted", "statuses"]
+                 "p99 elapsed ms", "worst overrun ms", "preempted", "GC ran", "within, undisturbed",
+                 "worst overrun, undisturbed", "statuses"]
 
 
 def _text_table(head, rows) -> str:
@@ -863,8 +894,9 @@ def format_table(res: dict) -> str:
     secs = res["sections"]
     out = []
     if "node" in res:
+        startup = ", ".join(f"{v:.1f}" for v in res["node"].get("startup_s", []))
         out.append(f"node: {res['node']['manipulator']}, budget {res['node']['time_budget_ms']:g} ms, "
-                   f"qos depth {res['node']['qos_depth']}, start-up {', '.join(f'{s:.1f}' for s in res['node'].get('startup_s', []))} s")
+                   f"qos depth {res['node']['qos_depth']}, start-up {startup} s")
     if "overload" in secs or "burst" in secs:
         head, rows = _flood_rows(secs)
         out += ["", _text_table(head, rows)]
@@ -936,8 +968,9 @@ def reliability_section(res: dict) -> list[str]:
                 "its deadline (after a warm-up until 20 solves in a row are on time: Numba compiles on first use); "
                 "*cold*: state reset before each solve; *warm*: a warm state (which failures keep), so the warm, "
                 "widened and cold stages all run. Elapsed = wall clock around `Estimator.estimate`; *preempted* = "
-                "calls during which the thread had an involuntary context switch (another process took the CPU), "
-                "which on a shared machine explains most overruns.", "",
+                "calls during which the thread had an involuntary context switch (another process took the CPU); "
+                "*GC ran* = calls during which Python's garbage collector ran; *undisturbed* = neither. On a "
+                "shared machine these explain most overruns.", "",
                 _md_table(DEADLINE_HEAD, _deadline_rows(d["rows"])), ""]
     return out
 
