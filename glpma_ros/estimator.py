@@ -42,6 +42,8 @@ MAX_SPREAD = 10.0
 #: an unconverged fitness whose RMS leg residual exceeds this share of the scale
 #: means the legs have no real assembly (rather than too little time)
 NO_SOLUTION_RMS = 1e-6
+#: |J^T r| / (|J| |r|) below which the best point is a stationary point of the fitness
+STATIONARY = 1e-2
 #: reciprocal condition number of the leg Jacobian below which a pose is near a
 #: singularity (assembly modes meet; the seed examples are at 0.02-0.13)
 NEAR_SINGULAR = 1e-3
@@ -113,6 +115,17 @@ class Estimator:
     def has_warm_state(self) -> bool:
         return self.last_x is not None
 
+    def _stationary(self, x, legs) -> bool:
+        """The residual is orthogonal to the Jacobian's range at ``x``: a local
+        minimum with a nonzero residual (no real assembly there), not a search
+        that merely ran out of time."""
+        if not np.all(np.isfinite(x)):
+            return False
+        r, J = self.model.pose_residuals_jacobian(self.model.pose_state(x), legs)
+        J = J * self.model.pose_column_scale
+        denominator = float(np.linalg.norm(J) * np.linalg.norm(r))
+        return denominator > 0 and float(np.linalg.norm(J.T @ r)) <= STATIONARY * denominator
+
     # -- solving ------------------------------------------------------------------
     def _run(self, legs, deadline, **init):
         budget = max(deadline - time.perf_counter(), 0.0)
@@ -173,7 +186,8 @@ class Estimator:
         if cond < NEAR_SINGULAR and rms < NEAR_SINGULAR_RMS * model.scale:
             status, why = STATUS_NEAR_SINGULAR, (f"near a singularity: not converged (conditioning {cond:.2g}, "
                                                  f"RMS residual {rms:.3g} {model.unit})")
-        elif rms > NO_SOLUTION_RMS * model.scale:
+        elif rms > NO_SOLUTION_RMS * model.scale and any(
+                self._stationary(x, legs) for x in (result.x, result.refined_x) if x is not None):
             status, why = STATUS_NO_SOLUTION, f"no real assembly found (RMS residual {rms:.3g} {model.unit})"
         else:
             status, why = STATUS_BUDGET, f"not converged within the budget (fitness {result.fun:.3g})"

@@ -34,6 +34,7 @@ class SolveResult:
     polished: bool = False      # the refinement produced the final x
     message: str = ""
     history: list = field(default_factory=list)  # (nfev, best fitness) per chunk
+    refined_x: np.ndarray | None = None  # best point the refinement reached (None: it did not run)
 
     @property
     def success(self) -> bool:

@@ -82,14 +82,16 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     nit = 0
     polished = False
     last_polish_f = np.inf
+    refined = None              # best refinement result (a stationary point unless cut short)
     warm = None
     if polish and center is not None:
         warm = refine.polish(model, np.asarray(center, dtype=float), problem.legs, rng, tolerance=tolerance,
                              max_iter=POLISH_MAX_ITER, deadline=term.deadline)
         term.nfev += warm[2]
+        refined = warm[:2]
         if warm[1] < tolerance:
             history.append((term.nfev, warm[1]))
-            return _result(name, model, warm[0], warm[1], term, nit, True, history)
+            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined)
     state = make_state(problem, term)
     if warm is not None and warm[1] < state.best()[1]:
         state.inject(warm[0], warm[1])
@@ -103,6 +105,8 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             xp, fp, n = refine.polish(model, x, problem.legs, rng, tolerance=tolerance,
                                       max_iter=POLISH_MAX_ITER, deadline=term.deadline)
             term.nfev += n
+            if refined is None or fp < refined[1]:
+                refined = (xp, fp)
             if fp < f:
                 state.inject(xp, fp)
                 x, f, polished = xp, fp, True
@@ -125,15 +129,16 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()
-    return _result(name, model, x, f, term, nit, polished, history)
+    return _result(name, model, x, f, term, nit, polished, history, refined)
 
 
 MESSAGES = {"converged": "fitness below tolerance", "budget_exhausted": "time budget exhausted",
             "max_evals": "evaluation cap reached"}
 
 
-def _result(name, model, x, f, term, nit, polished, history) -> SolveResult:
+def _result(name, model, x, f, term, nit, polished, history, refined=None) -> SolveResult:
     status = term.final_status(f)
     return SolveResult(x=model.canonical(x), fun=f, nfev=term.nfev, nit=nit, elapsed_s=term.elapsed(),
                        status=status, solver=name, polished=polished and status == CONVERGED,
-                       history=history, message=MESSAGES[status])
+                       history=history, message=MESSAGES[status],
+                       refined_x=None if refined is None else refined[0])

@@ -36,7 +36,8 @@ def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadli
     state = model.pose_state(x0)
     r, J = model.pose_residuals_jacobian(state, legs)
     nfev = 1
-    f = float(r @ r)
+    with np.errstate(over="ignore", invalid="ignore"):   # huge legs: an infinite fitness, reported as such
+        f = float(r @ r)
     if not np.isfinite(f):
         return np.asarray(x0, dtype=float), np.inf, nfev, 0
     A = J.T @ J
