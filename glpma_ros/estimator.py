@@ -121,10 +121,12 @@ class Estimator:
         that merely ran out of time."""
         if not np.all(np.isfinite(x)):
             return False
-        r, J = self.model.pose_residuals_jacobian(self.model.pose_state(x), legs)
-        J = J * self.model.pose_column_scale
-        denominator = float(np.linalg.norm(J) * np.linalg.norm(r))
-        return denominator > 0 and float(np.linalg.norm(J.T @ r)) <= STATIONARY * denominator
+        with np.errstate(over="ignore", invalid="ignore"):   # huge legs: not decidable, not stationary
+            r, J = self.model.pose_residuals_jacobian(self.model.pose_state(x), legs)
+            J = J * self.model.pose_column_scale
+            denominator = float(np.linalg.norm(J) * np.linalg.norm(r))
+            gradient = float(np.linalg.norm(J.T @ r))
+        return math.isfinite(denominator) and denominator > 0 and gradient <= STATIONARY * denominator
 
     # -- solving ------------------------------------------------------------------
     def _run(self, legs, deadline, **init):

@@ -324,6 +324,18 @@ class FkService:
         """Remember the last input received (whatever becomes of it), for ~/assembly_modes."""
         self._last_input = (legs_m, int(stamp_ns))
 
+    def _config_unit(self, raw) -> np.ndarray:
+        """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit."""
+        try:
+            legs_m = np.asarray(self._legs_m(raw), dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError("leg lengths are not numbers") from None
+        with np.errstate(over="ignore", invalid="ignore"):
+            legs = legs_m / self.metres_per_unit
+        if legs.size == self.model.n_legs and np.all(np.isfinite(legs_m)) and not np.all(np.isfinite(legs)):
+            raise InputError(f"leg lengths too large to express in {self.model.unit}")
+        return legs
+
     def handle(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
         """Solve one input.  ``legs_m``: leg lengths in metres, or a :class:`JointStateInput`;
         ``stamp_ns``: the pose's header.stamp (the arrival time of a leg_lengths message, the
@@ -334,10 +346,7 @@ class FkService:
             st = self.stats
             st.handled += 1
             try:
-                legs_m = self._legs_m(legs_m)
-                with np.errstate(over="ignore", invalid="ignore"):
-                    legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
-                estimate = self.estimator.estimate(legs)
+                estimate = self.estimator.estimate(self._config_unit(legs_m))
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
             except Exception as exc:  # noqa: BLE001 - the node must survive anything
@@ -396,10 +405,7 @@ class FkService:
             raise InputError(f"no input received yet on {source}")
         raw, stamp_ns = last_input
         try:
-            legs_m = self._legs_m(raw)
-            with np.errstate(over="ignore", invalid="ignore"):
-                legs = np.asarray(legs_m, dtype=float).reshape(-1) / self.metres_per_unit
-            legs = self.model.check_legs(legs)
+            legs = self.model.check_legs(self._config_unit(raw))
         except InputError as exc:
             raise InputError(f"the last input is invalid: {exc}") from None
         except (TypeError, ValueError) as exc:

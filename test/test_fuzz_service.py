@@ -58,8 +58,10 @@ def expected_rejection(legs, metres_per_unit: float):
         return "expected 3 leg lengths"
     with np.errstate(over="ignore", invalid="ignore"):
         converted = arr / metres_per_unit           # the service works in the config's unit
-    if not np.all(np.isfinite(converted)):
+    if not np.all(np.isfinite(arr)):
         return "leg lengths must be finite"
+    if not np.all(np.isfinite(converted)):          # finite in metres, beyond float range in mm
+        return "leg lengths too large"
     if np.any(converted <= 0.0):
         return "leg lengths must be positive"
     return None
