@@ -197,8 +197,9 @@ def _gap_reading(res, measured, diag, cap) -> list[str]:
     pol = [r for r in res["tables"].get("3rpr", []) if r.config.polish]
     if pol:
         sums = [summarize(r.runs) for r in pol]
-        text.append(f" With the refinement (`default` rows) the solvers reach 1e-20 in "
-                    f"{min(x.success_pct for x in sums):.0f}–{max(x.success_pct for x in sums):.0f} % of the runs "
+        lo, hi = min(x.success_pct for x in sums), max(x.success_pct for x in sums)
+        rate = f"{lo:.0f} %" if lo == hi else f"{lo:.0f}–{hi:.0f} %"
+        text.append(f" With the refinement (`default` rows) the solvers reach 1e-20 in {rate} of the runs "
                     f"after {min(x.evals_mean for x in sums):,.0f}–{max(x.evals_mean for x in sums):,.0f} "
                     "evaluations on average.")
     return ["".join(text), ""]
