@@ -27,7 +27,7 @@ from .base import Manipulator, Pose
 PAIRS = ((0, 1), (0, 2), (1, 2))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def residual_kernel(x, data, legs, out):
     base, abc, d0sq = data[0], data[1], data[2]
     e1x = x[3] - x[0]

@@ -17,7 +17,7 @@ from numba import njit
 from .base import Manipulator, Pose
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def residual_kernel(x, data, legs, out):
     base, platform = data[0], data[1]
     c = math.cos(x[2])

@@ -40,7 +40,7 @@ MIN_FITNESS = 1e-300
 MUTATION_B = 5.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _roulette(cum, rng):
     u = rng.random() * cum[-1]
     lo, hi = 0, cum.shape[0] - 1
@@ -53,7 +53,7 @@ def _roulette(cum, rng):
     return lo
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def roulette_cumulative(fit, cum):
     """Cumulative roulette weights ``1 / f`` (floored at ``MIN_FITNESS``) into ``cum``."""
     s = 0.0
@@ -62,7 +62,7 @@ def roulette_cumulative(fit, cum):
         cum[i] = s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def wright_crossover(pop, fit, a, b, rng, out):
     """Wright's heuristic crossover of ``pop[a]`` and ``pop[b]`` into ``out``:
     ``better + u (better - worse)``, ``u ~ U(0, 1)`` (one draw)."""
