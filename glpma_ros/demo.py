@@ -11,14 +11,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 from . import mock_controller
 from .config import config_dir
+from .node_process import NodeProcess, node_environment
 
 MANIPULATORS = {
     "3rpr": {"config": "planar_3rpr_seed", "params": "params_3rpr.yaml", "rate": 200.0},
@@ -29,8 +27,6 @@ MIN_POSE_RATIO = 0.95
 #: largest tracking error accepted (REP 103 units)
 MAX_POSITION_ERROR_M = 1e-6
 MAX_ORIENTATION_ERROR_RAD = 1e-6
-#: a first run compiles the solvers before the node says it is ready
-READY_TIMEOUT_S = 180.0
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -43,34 +39,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="demo_out", help="directory of the figure and the JSON summary")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: a private one)")
     return p
-
-
-def _start_node(params_file: Path, solver: str, budget_ms, env) -> tuple[subprocess.Popen, Path]:
-    log = Path(env["GLPMA_DEMO_OUT"]) / "node.log"
-    args = [sys.executable, "-m", "glpma_ros.dds.node", "--ros-args", "--params-file", str(params_file),
-            "-p", f"solver:={solver}"]
-    if budget_ms is not None:
-        args += ["-p", f"time_budget_ms:={budget_ms}"]
-    fh = open(log, "w")
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=fh, text=True, env=env)
-    deadline = time.monotonic() + READY_TIMEOUT_S
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        if "ready" in line:
-            return proc, log
-        if not line and proc.poll() is not None:
-            break
-    proc.kill()
-    raise RuntimeError(f"the node did not start (see {log}): {log.read_text()[-500:]}")
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
 
 
 def _figure(summary: dict, path: Path) -> None:
@@ -144,17 +112,17 @@ def main(argv=None) -> int:
     rate = args.rate or spec["rate"]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    env = dict(os.environ)
-    env.setdefault("CYCLONEDDS_URI", (config_dir() / "cyclonedds-localhost.xml").as_uri())
-    env["ROS_DOMAIN_ID"] = str(args.domain_id if args.domain_id is not None else 1 + os.getpid() % 200)
-    env["GLPMA_DEMO_OUT"] = str(out)
-    os.environ.update({k: env[k] for k in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")})
+    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 200
+    ros_args = ["--params-file", str(config_dir() / spec["params"]), "-p", f"solver:={args.solver}"]
+    if args.budget_ms is not None:
+        ros_args += ["-p", f"time_budget_ms:={args.budget_ms}"]
+    node = NodeProcess(ros_args, node_environment(domain), out)
 
     print(f"glpma_ros demo: {args.manipulator}, solver {args.solver}, {rate:g} Hz for {args.duration:g} s, "
-          f"ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}")
+          f"ROS_DOMAIN_ID={domain}")
     print("starting the glpma_fk node (Cyclone DDS; the first run compiles the solvers) ...", flush=True)
     try:
-        node, log = _start_node(config_dir() / spec["params"], args.solver, args.budget_ms, env)
+        node.start()
     except RuntimeError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
@@ -174,7 +142,7 @@ def main(argv=None) -> int:
         bar.update(n - bar.n)
     finally:
         bar.close()
-        _stop(node)
+        node.stop()
     ok = tracking_ok(summary)
     figure = out / f"demo_{args.manipulator}.png"
     _figure(summary, figure)
@@ -182,5 +150,5 @@ def main(argv=None) -> int:
     (out / f"demo_{args.manipulator}.json").write_text(json.dumps(summary, indent=1))
     print("\nsummary")
     print(_table(summary, ok))
-    print(f"\nfigure: {figure}\nnode log: {log}")
+    print(f"\nfigure: {figure}\nnode log: {node.stderr}")
     return 0 if ok else 1

@@ -35,6 +35,7 @@ import math
 import sys
 import threading
 import time
+from pathlib import Path
 from dataclasses import dataclass
 
 import numpy as np
@@ -388,3 +389,45 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+#: end-to-end benchmark rates (issue: 3-RPR at 1 kHz, hexapod at 500 Hz) and params files
+END_TO_END = {"planar_3rpr": (1000.0, "params_3rpr.yaml"), "hexapod_66": (500.0, "params_hexapod.yaml")}
+
+
+def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False, duration_s: float = 10.0) -> dict:
+    """Start a node process over DDS on a private domain, drive it at the issue's rate for the
+    config's manipulator and return flat figures: input published -> pose received latency,
+    inputs, poses, drops, the node's solve time, and its RSS after warm-up and after the run."""
+    import os
+    import tempfile
+
+    from .config import config_dir
+    from .node_process import NodeProcess, node_environment
+
+    model = model_from_dict(load_document(resolve_config(config)), str(config))
+    rate, params = END_TO_END[model.kind]
+    duration = 2.0 if quick else (steps / rate if steps else duration_s)
+    domain = 233 - os.getpid() % 30
+    with tempfile.TemporaryDirectory(prefix="glpma_e2e_") as logs:
+        node = NodeProcess(["--params-file", str(config_dir() / params), "-p", f"manipulator_config:={config}"],
+                           node_environment(domain), Path(logs))
+        node.start()
+        try:
+            rss_before = node.rss_kb()
+            summary = run(str(config), rate, duration, domain_id=domain)
+            rss_after = node.rss_kb()
+        finally:
+            node.stop()
+    lat, diag = summary["latency_ms"], (summary.get("node_diagnostics") or {}).get("values", {})
+
+    def number(key):
+        return float(diag[key]) if key in diag else None
+    return {"rate_hz": rate, "duration_s": duration, "inputs": summary["inputs_sent"],
+            "poses": summary["poses_matched"], "pose_ratio": summary["pose_ratio"],
+            "p50_ms": lat["p50"], "p99_ms": lat["p99"], "max_ms": lat["max"],
+            "dropped": number("inputs dropped"), "deadline_misses": number("deadline misses"),
+            "node_solve_p99_ms": number("solve time p99 (ms)"),
+            "position_error_max_m": summary["tracking_error"]["position_m"]["max"],
+            "rss_after_warm_up_mb": rss_before / 1024, "rss_after_run_mb": rss_after / 1024,
+            "rss_growth_mb": (rss_after - rss_before) / 1024}

@@ -125,7 +125,6 @@ def peers_section(res) -> list[str]:
 def gap_section(res) -> list[str]:
     if "3rpr" not in res["peers"] and "3rpr" not in res["tables"]:
         return []
-    sc = res["scenarios"]["3rpr"]
     pop = solvers.PAPER_SETTINGS["planar_3rpr"]["population"]
     cap = solvers.PAPER_SETTINGS["planar_3rpr"]["max_evals"]
     ours_rows = [r for r in res["tables"].get("3rpr", []) if r.config.solver == "g3pcx" and not r.config.polish

@@ -6,4 +6,4 @@ from .planar_3rpr import Planar3RPR
 
 MODELS = {Planar3RPR.kind: Planar3RPR, Hexapod66.kind: Hexapod66}
 
-__all__ = ["Manipulator", "Pose", "Planar3RPR", "Hexapod66", "MODELS"]
+__all__ = ["Manipulator", "Pose", "Planar3RPR", "Hexapod66", "MODELS", "kernels"]
