@@ -208,13 +208,16 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         domain_id: int | None = None, qos_depth: int = 10, solution: int | None = None,
         amplitude: float = 1.0, connect_timeout_s: float = 30.0, settle_s: float = 0.3,
         tail_s: float = 1.0, diagnostics_wait_s: float = 1.5, progress=None, samples: bool = False,
-        input_type: str = "float64_multi_array", joint_names=None) -> dict:
+        input_type: str = "float64_multi_array", joint_names=None, modes_period_s: float | None = None) -> dict:
     """Drive the node for ``duration_s`` at ``rate_hz`` and return the summary (a JSON-able dict).
 
     ``progress(i, n, summary_so_far)`` is called about once a second while sending, if given;
     ``summary_so_far`` has ``poses_received``, ``latency_p50_ms`` and ``position_error_max_m``.
     With ``samples=True`` the summary also holds the per-input series (``samples``: true and
-    estimated positions in metres, latency in ms) for plotting.
+    estimated positions in metres, latency in ms) for plotting.  With ``modes_period_s`` a
+    ``~/request_assembly_modes`` is sent every so many seconds while streaming (the next once
+    the previous is answered); the summary's ``assembly_modes`` has the answers and the pose
+    latency of the inputs sent while a request was being answered.
     After sending, waits up to ``tail_s`` for the last poses and up to ``diagnostics_wait_s``
     for a ``/diagnostics`` report of the node that covers every input (``node_diagnostics``).
     ``input_type``: ``float64_multi_array`` (``leg_lengths``) or ``joint_state`` (``joint_states``,
@@ -244,8 +247,10 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     else:
         writer = participant.writer(endpoints.LEG_LENGTHS, Float64MultiArray, qos_depth)
     listener = PoseListener(participant, qos_depth)
+    modes = None if modes_period_s is None else ModesClient(participant)
     try:
-        if not endpoints.wait_for_match([writer, listener.reader], connect_timeout_s):
+        if not endpoints.wait_for_match([writer, listener.reader] + ([] if modes is None else modes.endpoints),
+                                        connect_timeout_s):
             raise TimeoutError(f"no glpma_fk node on ROS domain {participant.domain_id} within "
                                f"{connect_timeout_s:g} s (is it running with the same CYCLONEDDS_URI?)")
         time.sleep(settle_s)
@@ -277,6 +282,8 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
                 send_ns = time.time_ns()
             writer.write(msg)
             sent.append(Sent(send_ns, legs, position * mpu, quaternion))
+            if modes is not None:
+                modes.poll(send_ns, modes_period_s)
             if progress is not None and time.perf_counter() >= next_progress:
                 next_progress += 1.0
                 _, pos_err, _, latency = _compare(model, sent, list(listener.poses))
@@ -313,6 +320,13 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         "latency_ms": _stats(latency, 1e-6),
         "node_diagnostics": listener.diagnostics,
     }
+    if modes is not None:
+        modes.poll(time.time_ns(), None)
+        busy = [lat for (i, _), lat in zip(pairs, latency) if modes.busy_at(sent[i].send_ns)]
+        summary["assembly_modes"] = {"requests": modes.requested, "answers": len(modes.answers),
+                                     "modes_per_answer": sorted({n for n, _ in modes.answers}),
+                                     "answer_s": _stats([t for _, t in modes.answers]),
+                                     "pose_latency_during_requests_ms": _stats(busy, 1e-6)}
     if samples:
         summary["samples"] = {
             "true_position_m": [[float(v) for v in s.position_m] for s in sent],
@@ -320,6 +334,39 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
             "latency_ms": [v * 1e-6 for v in latency],
         }
     return summary
+
+
+class ModesClient:
+    """Sends ``~/request_assembly_modes`` one after the other (the next once the previous is
+    answered and ``period_s`` has passed) and collects the ``~/assembly_modes`` answers."""
+
+    def __init__(self, participant):
+        from .dds import endpoints
+        from .dds.messages import Empty, PoseArray
+        self._empty = Empty
+        self.writer = participant.writer(endpoints.REQUEST_ASSEMBLY_MODES, Empty, 1)
+        self.reader = participant.reader(endpoints.ASSEMBLY_MODES, PoseArray, 1, transient_local=True)
+        self.endpoints = [self.writer, self.reader]
+        self.requested = 0
+        self.pending_ns = None          # send time of the request being answered
+        self.last_ns = 0
+        self.answers = []               # (modes, seconds from request to answer)
+        self.windows = []               # (request ns, answer ns)
+
+    def poll(self, now_ns: int, period_s: float | None) -> None:
+        for msg in self.reader.take(4):
+            if hasattr(msg, "poses") and self.pending_ns is not None:
+                done = time.time_ns()
+                self.answers.append((len(msg.poses), (done - self.pending_ns) * 1e-9))
+                self.windows.append((self.pending_ns, done))
+                self.pending_ns = None
+        if period_s is not None and self.pending_ns is None and now_ns - self.last_ns >= period_s * 1e9:
+            self.writer.write(self._empty())
+            self.requested += 1
+            self.pending_ns = self.last_ns = now_ns
+
+    def busy_at(self, t_ns: int) -> bool:
+        return any(a <= t_ns <= b for a, b in self.windows)
 
 
 def _compare(model, sent, poses):
@@ -391,6 +438,8 @@ if __name__ == "__main__":
     sys.exit(main())
 
 
+#: seconds between two assembly-modes requests in the end-to-end benchmark's second run
+MODES_PERIOD_S = 0.5
 #: end-to-end benchmark rates (issue: 3-RPR at 1 kHz, hexapod at 500 Hz) and params files
 END_TO_END = {"planar_3rpr": (1000.0, "params_3rpr.yaml"), "hexapod_66": (500.0, "params_hexapod.yaml")}
 
@@ -417,6 +466,7 @@ def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False,
             rss_before = node.rss_kb()
             summary = run(str(config), rate, duration, domain_id=domain)
             rss_after = node.rss_kb()
+            with_modes = run(str(config), rate, duration, domain_id=domain, modes_period_s=MODES_PERIOD_S)
         finally:
             node.stop()
     lat, diag = summary["latency_ms"], (summary.get("node_diagnostics") or {}).get("values", {})
@@ -430,4 +480,13 @@ def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False,
             "node_solve_p99_ms": number("solve time p99 (ms)"),
             "position_error_max_m": summary["tracking_error"]["position_m"]["max"],
             "rss_after_warm_up_mb": rss_before / 1024, "rss_after_run_mb": rss_after / 1024,
-            "rss_growth_mb": (rss_after - rss_before) / 1024}
+            "rss_growth_mb": (rss_after - rss_before) / 1024,
+            "assembly_modes": _modes_figures(with_modes)}
+
+
+def _modes_figures(summary: dict) -> dict:
+    m = summary["assembly_modes"]
+    return {"requests answered": m["answers"], "modes per answer": ", ".join(map(str, m["modes_per_answer"])),
+            "answer time p50 (s)": m["answer_s"]["p50"],
+            "pose latency p99 while answering (ms)": m["pose_latency_during_requests_ms"]["p99"],
+            "pose latency p99 whole run (ms)": summary["latency_ms"]["p99"]}

@@ -398,3 +398,38 @@ def gap_diagnostics(sc, runs, progress) -> GapDiagnostics:
             out.append(Run(r.success, int(r.nfev), time.perf_counter() - t0, float(r.fun), list(r.history)))
         caps[max_evals] = out
     return GapDiagnostics(caps)
+
+
+# -- 7. the baselines: 004 Table II (SA, GA, GA-SA) and 003's DE on 001's protocols ---------
+#: 004 Table II rows reproduced: (solver, solver parameters); SA at each published chain length
+TABLE2_CONFIGS = (("sa", {"chain_length": 20}), ("sa", {"chain_length": 50}), ("sa", {"chain_length": 100}),
+                  ("rcga", {}), ("gasa", {}))
+
+
+@dataclass
+class Baselines:
+    table2: list = field(default_factory=list)   # solvers.protocols.Table2Result
+    de: dict = field(default_factory=dict)       # scenario key -> [TableRow] (pure, default)
+
+
+def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> Baselines:
+    """004's Table II protocol on the 3-RPR; DE/rand/1/bin (003) on 001's protocols."""
+    from ..solvers.protocols import table2_protocol
+    out = Baselines()
+    if "3rpr" in scenarios and table2_runs > 0:
+        model = scenarios["3rpr"].model
+        for name, params in _bar(TABLE2_CONFIGS, "004 Table II", progress):
+            out.table2.append(table2_protocol(model, name, runs=table2_runs, **params))
+    for key, sc in scenarios.items():
+        population = solvers.DEFAULT_POPULATION["de"](sc.model)
+        rows = []
+        for polish in (False, True):
+            cfg = Config("de", population, None, polish)
+            n = hex_runs if key == "hexapod" and not polish else runs
+            warm_up(sc.model, sc.legs, cfg)
+            row = TableRow(cfg)
+            for seed in _bar(range(n), f"{sc.label} DE {cfg.mode}", progress):
+                row.runs.append(run_ours(sc.model, sc.legs, cfg, seed))
+            rows.append(row)
+        out.de[key] = rows
+    return out

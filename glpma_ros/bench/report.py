@@ -371,6 +371,41 @@ def dds_section(res) -> list[str]:
     return out + [""]
 
 
+def baselines_section(res) -> list[str]:
+    b = res["baselines"]
+    out = ["## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE", ""]
+    if b.table2:
+        out += ["004's protocol: the 3-RPR example, init U[-10, 10]^3, population 40 (SA: one chain), a run stops "
+                "at fitness < 1e-4, no refinement; iterations = Markov chains (SA) or generations (GA, GA-SA), "
+                "mean ± 95 % CI over the successful runs. 'GA' is our RCGA (Wright's crossover, non-uniform "
+                "mutation): 004's GA (N-U) row.", ""]
+        rows = []
+        for r in b.table2:
+            p = r.published
+            chain = r.published.markov_chain if p is not None and p.markov_chain else "—"
+            rows.append([r.solver, chain, r.runs, f"{100 * r.success_rate:.0f} %",
+                         f"{100 * p.successes / p.runs:.0f} %" if p else "—",
+                         fmt_ci(r.mean_iterations, r.iterations_ci),
+                         fmt_ci(p.iterations, p.iterations_ci) if p else "—",
+                         fmt_ci(r.mean_evaluations, r.evaluations_ci), fmt(r.mean_fitness), fmt(p.fitness) if p else "—",
+                         fmt(r.mean_time_s * 1e3), fmt(p.cpu_s * 1e3) if p else "—"])
+        out += [table(["solver", "chain", "runs", "success", "paper", "iterations (ours)", "iterations (paper)",
+                       "evaluations (ours)", "mean f", "paper f", "time ms", "paper ms"], rows), ""]
+    if b.de:
+        out += ["DE/rand/1/bin (003 Algorithm 1: F dithered in [0.5, 1], CR in [0.8, 1], Np = 10 D) on 001's "
+                "protocols (success = fitness < 1e-20 within the papers' evaluation cap).", ""]
+        rows = []
+        for key, trows in b.de.items():
+            for row in trows:
+                s = summarize(row.runs)
+                rows.append([res["scenarios"][key].label, row.config.mode, row.config.population, s.runs,
+                             f"{s.success_pct:.0f} %", fmt_ci(s.evals_mean, s.evals_ci), fmt(s.time_median_ms),
+                             fmt(s.fun_median)])
+        out += [table(["manipulator", "mode", "Np", "runs", "success", "evals to success", "time median ms",
+                       "median final f"], rows), ""]
+    return out
+
+
 def figures_section(res, md_path) -> list[str]:
     figs = [(k, v) for k, v in res["figures"].items() if k.startswith("success_")]
     if not figs:
@@ -433,6 +468,8 @@ def render(res, md_path) -> str:
         parts += scipy_section(res)
     if res["deadline"]:
         parts += deadline_section(res, md_path)
+    if res.get("baselines") is not None:
+        parts += baselines_section(res)
     if res.get("dds") is not None:
         parts += dds_section(res)
     parts += kept_sections(md_path)
@@ -443,7 +480,7 @@ def render(res, md_path) -> str:
 #: file (``## Reliability`` from ``glpma-fk stress``) is carried over, after ours
 OWN_HEADINGS = ("## Summary", "## The papers' tables", "## Success vs evaluations", "## Pure G3-PCX against",
                 "## Why the papers' pure G3-PCX", "## All real assembly modes", "## Warm tracking latency",
-                "## Warm solve against", "## Deadline honouring", "## DDS end to end")
+                "## Warm solve against", "## Deadline honouring", "## DDS end to end", "## Baselines")
 
 
 def foreign_sections(text: str) -> list[str]:

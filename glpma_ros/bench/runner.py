@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
-SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "dds")
+SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds")
 
 #: default run counts: (full, --quick)
 DEFAULTS = {
@@ -22,6 +22,7 @@ DEFAULTS = {
     "solve_all_repeats": (5, 1),
     "gap_runs": (100, 10),
     "dds_steps": (1000, 200),
+    "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
 }
 #: pypop7 ~18 s and pymoo ~85 s per 500,000-evaluation hexapod run on the reference machine
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
@@ -55,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     p.add_argument("--solve-all-repeats", type=int, help="solve_all repetitions with seeds 0.. (default 5)")
     p.add_argument("--dds-steps", type=int, help="messages of the DDS end-to-end run (default 1000)")
+    p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
     p.add_argument("--out", type=Path, default=REPO_ROOT / "doc" / "bench", help="directory for the PNGs")
     p.add_argument("--markdown", type=Path, default=REPO_ROOT / "BENCHMARKS.md", help="report path")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
@@ -117,6 +119,7 @@ def main(argv=None) -> int:
     res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
            "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
            "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
+           "baselines": None,
            "figures": {}, "load": []}
     if "tables" in sections:
         for k, sc in scenarios.items():
@@ -155,6 +158,9 @@ def main(argv=None) -> int:
         say("deadline honouring", "deadline")
         res["deadline"] = ex.deadlines(list(scenarios.values()), args.budgets_ms, max(1, counts["deadline_solves"]),
                                        progress, args.deadline_solvers)
+    if "baselines" in sections:
+        say("baselines: 004 Table II, DE on 001's protocols", "baselines")
+        res["baselines"] = ex.baselines(scenarios, counts["table2_runs"], runs, hex_runs, progress)
     if "dds" in sections:
         say("DDS end to end", "dds")
         res["dds"] = ex.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
