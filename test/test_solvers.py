@@ -141,7 +141,9 @@ def test_deadline_is_honoured(hexapod, budget_ms):
     solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=0, polish=False, max_evals=1000)  # compile
     over = []
     preempted = 0
-    for seed in range(40):
+    for seed in range(400):                 # until 30 runs were not preempted
+        if len(over) >= 30:
+            break
         switches = _involuntary_switches()
         t0 = time.perf_counter()
         r = solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=seed, polish=False,
@@ -153,5 +155,5 @@ def test_deadline_is_honoured(hexapod, budget_ms):
         else:
             over.append(wall * 1e3 - budget_ms)
     if len(over) < 10:
-        pytest.skip(f"machine too loaded to judge: {preempted} of 40 solves preempted")
+        pytest.skip(f"machine too loaded to judge: {preempted} of {preempted + len(over)} solves preempted")
     assert max(over) <= 0.5, (over, preempted)

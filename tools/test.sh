@@ -3,7 +3,7 @@
 source "$(dirname "$0")/env.sh" "test,bench"
 cd "$ROOT"
 set +e
-python -m pytest -q -p no:cacheprovider "$@" test
+python -m pytest -q -p no:cacheprovider "${@:-test}"
 rc=$?
 if [ "$rc" = 5 ]; then
   echo "error: pytest collected no tests" >&2
