@@ -145,12 +145,14 @@ class Estimator:
         evaluations = 0
         best = None
         stages = []
+        movement = 0.0
         if self.last_x is not None:
             movement = float(np.max(np.abs(legs - self.last_legs)))
             spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
-        for (stage, spread), share in zip(stages, STAGE_SHARE[-len(stages):] if len(stages) < 3 else STAGE_SHARE):
+        # a cold-only estimate gets the cold stage's share, i.e. the whole budget
+        for (stage, spread), share in zip(stages, STAGE_SHARE[-len(stages):]):
             now = time.perf_counter()
             if now >= deadline:
                 break
@@ -168,7 +170,6 @@ class Estimator:
                     break
                 dist = model.distance(result.x, self.last_x)
                 candidates.append((dist, result, stage))
-                movement = float(np.max(np.abs(legs - self.last_legs)))
                 if dist <= max(CONTINUITY_FACTOR * movement, MIN_SPREAD * model.scale):
                     break
         elapsed = time.perf_counter() - t0
