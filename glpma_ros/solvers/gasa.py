@@ -45,8 +45,8 @@ Evaluation counting: a crossover child costs one evaluation, every annealing
 proposal one; a copied child that is not annealed costs none.  A generation cut
 short by the evaluation cap or by reaching the tolerance keeps the previous
 individuals in the slots it did not fill, and counts as one generation.
-Under a deadline the wall clock is checked between children (one annealed child
-is 10,000 evaluations, a generation ~390,000).
+Under a deadline the wall clock is checked every ``DEADLINE_CHAINS`` Markov
+chains (one annealed child is 10,000 evaluations, a generation ~390,000).
 """
 from __future__ import annotations
 
@@ -72,77 +72,105 @@ COOLING_RATE = 0.01
 SA_RATE = 0.9
 #: 004 section IV.A: "The population size of 40"
 POPULATION = 40
-#: children per compiled call when no deadline limits it
+#: Markov chains per compiled call when no deadline limits it
 UNLIMITED = 2**62
+#: Markov chains per compiled call under a deadline: 100 proposals, tens of microseconds,
+#: so the clock is read often enough to stop within a fraction of a millisecond
+DEADLINE_CHAINS = 5
 
 
 @njit(cache=True, error_model="numpy")
-def gasa_generations(pop, fit, new, new_f, cum, progress, rng, n_generations, max_children, max_evals, tolerance,
-                     temperature, t_ref, b_ref, sa_iterations, chain_length, cooling_rate, crossover_rate, sa_rate,
-                     kind, data, legs, n_res):
-    """Evolve ``pop``/``fit`` in place, child by child.
+def _finish_child(pop, fit, new, new_f, progress, child, cf, tolerance, evals, max_evals):
+    """Put a finished child in the generation in progress; commit the generation when
+    it is full, when the child reaches ``tolerance`` or when ``max_evals`` is spent (then
+    the unfilled slots keep the previous individuals).  Returns 1 if it committed."""
+    i = progress[0]
+    new[i] = child
+    new_f[i] = cf
+    progress[0] = i + 1
+    N = pop.shape[0]
+    if progress[0] == N or cf < tolerance or evals >= max_evals:
+        for k in range(progress[0], N):
+            new[k] = pop[k]
+            new_f[k] = fit[k]
+        pop[:] = new
+        fit[:] = new_f
+        progress[0] = 0
+        return 1
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def gasa_generations(pop, fit, new, new_f, cum, progress, child, child_best, child_state, rng, n_generations,
+                     max_chains, max_evals, tolerance, temperature, t_ref, b_ref, sa_iterations, chain_length,
+                     cooling_rate, crossover_rate, sa_rate, kind, data, legs, n_res):
+    """Evolve ``pop``/``fit`` in place, child by child and Markov chain by chain.
 
     ``new``/``new_f`` hold the generation in progress and ``progress[0]`` the
-    number of its slots already filled (0: none started), so a call may stop
-    after ``max_children`` children and the next one resume (the driver's
-    deadline).  A generation is committed to ``pop`` when full, when a child
-    reaches ``tolerance`` or when ``max_evals`` is spent (then the unfilled
-    slots keep the previous individuals).  Returns (generations completed,
-    evaluations, initial temperature for the next child)."""
-    N, n = pop.shape
-    child = np.empty(n)
-    child_best = np.empty(n)
+    number of its slots already filled (0: none started); ``progress[1]`` is 1
+    while a child is being annealed, its state in ``child``, ``child_best`` and
+    ``child_state = [f, best f, chain temperature, chains done]``.  So a call
+    may stop after ``max_chains`` Markov chains and the next one resume exactly
+    where it stopped (the driver's deadline; the random stream is the same as
+    in one long call).  Returns (generations completed, evaluations, initial
+    temperature for the next child)."""
     r = np.empty(n_res)
     gens = 0
     evals = 0
-    children = 0
-    while gens < n_generations and evals < max_evals and children < max_children:
-        if progress[0] == 0:
-            best = np.argmin(fit)
-            if fit[best] < tolerance:
-                break
-            roulette_cumulative(fit, cum)
-            new[0] = pop[best]
-            new_f[0] = fit[best]
-            progress[0] = 1
-        a = _roulette(cum, rng)
-        b = _roulette(cum, rng)
-        if rng.random() < crossover_rate and a != b:
-            wright_crossover(pop, fit, a, b, rng, child)
-            cf = fitness_one(child, kind, data, legs, r)
-            evals += 1
-        else:
-            child[:] = pop[a]
-            cf = fit[a]
-        if rng.random() < sa_rate:
+    chains = 0
+    while gens < n_generations and evals < max_evals and chains < max_chains:
+        if progress[1] == 0:                       # start a child
+            if progress[0] == 0:                   # start a generation
+                best = np.argmin(fit)
+                if fit[best] < tolerance:
+                    break
+                roulette_cumulative(fit, cum)
+                new[0] = pop[best]
+                new_f[0] = fit[best]
+                progress[0] = 1
+            a = _roulette(cum, rng)
+            b = _roulette(cum, rng)
+            if rng.random() < crossover_rate and a != b:
+                wright_crossover(pop, fit, a, b, rng, child)
+                cf = fitness_one(child, kind, data, legs, r)
+                evals += 1
+            else:
+                child[:] = pop[a]
+                cf = fit[a]
+            if rng.random() >= sa_rate:            # not annealed: the child as it is
+                temperature *= 1.0 - cooling_rate  # Algorithm 1 step 6
+                gens += _finish_child(pop, fit, new, new_f, progress, child, cf, tolerance, evals, max_evals)
+                continue
             child_best[:] = child
-            _, cf, e, _ = sa.anneal(child, cf, child_best, cf, temperature, t_ref, b_ref, sa_iterations,
-                                    chain_length, cooling_rate, max_evals - evals, tolerance, rng,
-                                    kind, data, legs, n_res)
-            evals += e
-            child[:] = child_best
-        temperature *= 1.0 - cooling_rate  # Algorithm 1 step 6
-        i = progress[0]
-        new[i] = child
-        new_f[i] = cf
-        progress[0] = i + 1
-        children += 1
-        if progress[0] == N or cf < tolerance or evals >= max_evals:
-            for k in range(progress[0], N):  # a generation cut short keeps the previous individuals
-                new[k] = pop[k]
-                new_f[k] = fit[k]
-            pop[:] = new
-            fit[:] = new_f
-            progress[0] = 0
-            gens += 1
+            child_state[0] = cf
+            child_state[1] = cf
+            child_state[2] = temperature
+            child_state[3] = 0.0
+            progress[1] = 1
+        # anneal the child in progress, at most the chains this call has left
+        k = min(sa_iterations - int(child_state[3]), max_chains - chains)
+        f, best_f, e, t_after = sa.anneal(child, child_state[0], child_best, child_state[1], child_state[2], t_ref,
+                                          b_ref, k, chain_length, cooling_rate, max_evals - evals, tolerance, rng,
+                                          kind, data, legs, n_res)
+        evals += e
+        chains += k
+        child_state[0] = f
+        child_state[1] = best_f
+        child_state[2] = t_after
+        child_state[3] += k
+        if int(child_state[3]) >= sa_iterations or best_f < tolerance or evals >= max_evals:
+            progress[1] = 0
+            temperature *= 1.0 - cooling_rate      # Algorithm 1 step 6
+            gens += _finish_child(pop, fit, new, new_f, progress, child_best, best_f, tolerance, evals, max_evals)
     return gens, evals, temperature
 
 
 class GASAPopulation(EvolutionaryState):
-    """The population, with the generation in progress alongside it.  Under a
-    deadline (``term.deadline``) the compiled kernel is called child by child
-    and the clock checked in between: one generation is ~(N - 1) x 10,000
-    evaluations, far longer than a real-time budget."""
+    """The population, with the generation and the annealed child in progress
+    alongside it.  Under a deadline (``term.deadline``) the compiled kernel runs
+    ``DEADLINE_CHAINS`` Markov chains per call and the clock is checked in between:
+    one annealed child is 10,000 evaluations and a generation ~390,000, far longer
+    than a real-time budget."""
 
     name = "gasa"
 
@@ -163,7 +191,10 @@ class GASAPopulation(EvolutionaryState):
         self.new = np.empty_like(self.pop)
         self.new_f = np.empty_like(self.fit)
         self.cum = np.empty_like(self.fit)
-        self.progress = np.zeros(1, dtype=np.int64)
+        self.progress = np.zeros(2, dtype=np.int64)      # slots filled, child being annealed
+        self.child = np.empty(pop.shape[1])
+        self.child_best = np.empty(pop.shape[1])
+        self.child_state = np.zeros(4)
 
     def best(self):
         """Best of the population and of the generation in progress."""
@@ -185,12 +216,12 @@ class GASAPopulation(EvolutionaryState):
     def evals_per_generation(self) -> int:
         return (len(self.pop) - 1) * (1 + self.sa_iterations * self.chain_length)
 
-    def _run(self, n_generations, max_children, max_evals, tolerance):
+    def _run(self, n_generations, max_chains, max_evals, tolerance):
         p = self.problem
         gens, evals, self.temperature = gasa_generations(
-            self.pop, self.fit, self.new, self.new_f, self.cum, self.progress, self.rng, n_generations,
-            max_children, max_evals, tolerance, self.temperature, sa.T0, self.b_ref, self.sa_iterations,
-            self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate, p.kind, p.data, p.legs,
+            self.pop, self.fit, self.new, self.new_f, self.cum, self.progress, self.child, self.child_best,
+            self.child_state, self.rng, n_generations, max_chains, max_evals, tolerance, self.temperature, sa.T0,
+            self.b_ref, self.sa_iterations, self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate, p.kind, p.data, p.legs,
             p.n_res)
         return gens, evals
 
@@ -199,7 +230,7 @@ class GASAPopulation(EvolutionaryState):
             return self._run(n_generations, UNLIMITED, max_evals, tolerance)
         gens = evals = 0
         while gens < n_generations and evals < max_evals and not self.term.out_of_time():
-            g, e = self._run(n_generations - gens, 1, max_evals - evals, tolerance)
+            g, e = self._run(n_generations - gens, DEADLINE_CHAINS, max_evals - evals, tolerance)
             gens += g
             evals += e
             if g == 0 and e == 0 and self.progress[0] == 0:
