@@ -132,5 +132,4 @@ def solve(model, legs, *, population=None, rng=None, init_range=(-50.0, 50.0), c
         return DEPopulation(problem, pop, fit, rng, **params)
 
     return run_evolution("de", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center,
-                         budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish)

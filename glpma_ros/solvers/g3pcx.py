@@ -188,5 +188,4 @@ def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), ce
         return G3PCXPopulation(problem, pop, fit, rng, **params)
 
     return run_evolution("g3pcx", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center,
-                         budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish)

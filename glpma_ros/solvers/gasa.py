@@ -258,5 +258,4 @@ def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50
                               term=term, **params)
 
     return run_evolution("gasa", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center,
-                         budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish)

@@ -77,5 +77,4 @@ def solve(model, legs, *, population=100, local_population=100, rng=None, init_r
         return GLPMAState(master, local, ls_interval, ls_intensity)
 
     return run_evolution("glpma", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center,
-                         budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish)

@@ -171,5 +171,4 @@ def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), ce
                               max_evals=max_evals, **params)
 
     return run_evolution("rcga", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center,
-                         budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish)

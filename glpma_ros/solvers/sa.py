@@ -205,5 +205,4 @@ def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50
         return SAState(problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), **params)
 
     return run_evolution("sa", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center,
-                         budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish)
