@@ -135,8 +135,6 @@ class PoseListener:
     """Takes ``pose_estimate`` (and the node's ``/diagnostics``) on a thread, with receive times."""
 
     def __init__(self, participant, depth: int):
-        from cyclonedds.core import GuardCondition, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
-
         from .dds import endpoints
         from .dds.messages import DiagnosticArray, PoseStamped
         self.reader = participant.reader(endpoints.POSE_ESTIMATE, PoseStamped, depth)
@@ -145,12 +143,7 @@ class PoseListener:
         self.diagnostics: dict | None = None
         self.diagnostics_stamp_ns = 0
         self._stop = False
-        self._guard = GuardCondition(participant.dp)
-        self._waitset = WaitSet(participant.dp)
-        any_state = SampleState.Any | ViewState.Any | InstanceState.Any
-        self._waitset.attach(ReadCondition(self.reader, any_state))
-        self._waitset.attach(ReadCondition(self.diag_reader, any_state))
-        self._waitset.attach(self._guard)
+        self._waitset, self._guard = endpoints.reader_waitset(participant, [self.reader, self.diag_reader])
         self._thread = threading.Thread(target=self._run, name="mock-pose-listener", daemon=True)
         self._thread.start()
 

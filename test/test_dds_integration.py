@@ -142,7 +142,23 @@ def test_hexapod_at_100hz_with_mock_controller(start_node, dds_env, capsys):
 
 # -- bad inputs and runtime changes (uses the project's DDS types) ------------------------------------
 
-class Client:
+class DiagnosticsWatcher:
+    """For a test client with a ``/diagnostics`` reader ``self.diag`` and a
+    ``self.last_diagnostics`` dict."""
+
+    def diagnostics_until(self, predicate, timeout=10.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for sample in self.diag.take(100):
+                if getattr(sample, "status", None):
+                    self.last_diagnostics = {kv.key: kv.value for kv in sample.status[0].values}
+            if self.last_diagnostics and predicate(self.last_diagnostics):
+                return self.last_diagnostics
+            time.sleep(0.05)
+        pytest.fail(f"diagnostics never satisfied the check; last: {self.last_diagnostics}")
+
+
+class Client(DiagnosticsWatcher):
     """Publishes leg lengths, collects poses and diagnostics."""
 
     def __init__(self):
@@ -170,16 +186,6 @@ class Client:
         time.sleep(0.1)
         return poses + [s for s in self.poses.take(100) if hasattr(s, "pose")]
 
-    def diagnostics_until(self, predicate, timeout=10.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for sample in self.diag.take(100):
-                if getattr(sample, "status", None):
-                    self.last_diagnostics = {kv.key: kv.value for kv in sample.status[0].values}
-            if self.last_diagnostics and predicate(self.last_diagnostics):
-                return self.last_diagnostics
-            time.sleep(0.05)
-        pytest.fail(f"diagnostics never satisfied the check; last: {self.last_diagnostics}")
 
 
 def test_bad_inputs_are_rejected_and_the_node_keeps_tracking(start_node, tmp_path):

@@ -17,7 +17,7 @@ import yaml
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from test_dds_integration import SEED_X, dds_env, start_node  # noqa: E402,F401 - fixtures
+from test_dds_integration import SEED_X, DiagnosticsWatcher, dds_env, start_node  # noqa: E402,F401 - fixtures
 
 from conftest import CONFIG, RPR_YAML  # noqa: E402
 
@@ -25,7 +25,7 @@ RPR_NAMES = ["rpr_a1", "rpr_a2", "rpr_a3"]
 OTHER_JOINTS = [("gripper", 0.03), ("camera_tilt", -0.4), ("conveyor", 12.5)]
 
 
-class Client:
+class Client(DiagnosticsWatcher):
     """JointState in; poses, diagnostics and assembly modes out; requests."""
 
     def __init__(self, node_name="glpma_fk"):
@@ -68,17 +68,6 @@ class Client:
                 return got[-1]
             time.sleep(0.005)
         pytest.fail("no PoseArray on ~/assembly_modes")
-
-    def diagnostics_until(self, predicate, timeout=10.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for sample in self.diag.take(100):
-                if getattr(sample, "status", None):
-                    self.last_diagnostics = {kv.key: kv.value for kv in sample.status[0].values}
-            if self.last_diagnostics and predicate(self.last_diagnostics):
-                return self.last_diagnostics
-            time.sleep(0.05)
-        pytest.fail(f"diagnostics never satisfied the check; last: {self.last_diagnostics}")
 
 
 def shuffled(names, legs_m, rng):

@@ -10,7 +10,8 @@ from __future__ import annotations
 import os
 import time
 
-from cyclonedds.core import Policy, Qos
+from cyclonedds.core import (GuardCondition, InstanceState, Policy, Qos, ReadCondition, SampleState, ViewState,
+                             WaitSet)
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
@@ -101,3 +102,15 @@ def wait_for_match(endpoints, timeout_s: float, poll_s: float = 0.02) -> bool:
             return True
         time.sleep(poll_s)
     return all(matched(ep) for ep in endpoints)
+
+
+def reader_waitset(participant, readers) -> tuple[WaitSet, GuardCondition]:
+    """A wait set that wakes when any of ``readers`` has a sample, or when the returned
+    guard condition is set (to stop the thread waiting on it)."""
+    guard = GuardCondition(participant.dp)
+    waitset = WaitSet(participant.dp)
+    any_state = SampleState.Any | ViewState.Any | InstanceState.Any
+    for reader in readers:
+        waitset.attach(ReadCondition(reader, any_state))
+    waitset.attach(guard)
+    return waitset, guard

@@ -24,7 +24,6 @@ import sys
 import threading
 import time
 
-from cyclonedds.core import GuardCondition, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.util import duration
 
 from .. import params as P
@@ -93,12 +92,7 @@ class DdsNode:
         self.loop = SolveLoop(service, self._publish_pose)
         self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
         self._stop = threading.Event()
-        self._guard = GuardCondition(participant.dp)
-        self._waitset = WaitSet(participant.dp)
-        any_state = SampleState.Any | ViewState.Any | InstanceState.Any
-        self._waitset.attach(ReadCondition(self.input_reader, any_state))
-        self._waitset.attach(ReadCondition(self.request_reader, any_state))
-        self._waitset.attach(self._guard)
+        self._waitset, self._guard = endpoints.reader_waitset(participant, [self.input_reader, self.request_reader])
         self._reader_thread = threading.Thread(target=self._read_loop, name="glpma_fk-reader", daemon=True)
 
     def start(self) -> "DdsNode":
