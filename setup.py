@@ -4,6 +4,8 @@ from glob import glob
 from setuptools import find_packages, setup
 
 package_name = "glpma_ros"
+#: glpma_tools (demo, bench, stress, mock controller): plots and progress bars
+TOOLS = ["matplotlib>=3.7", "tqdm>=4.60"]
 
 setup(
     name=package_name,
@@ -17,23 +19,23 @@ setup(
         ("share/" + package_name + "/msg_docs", glob("msg_docs/*.md")),
     ],
     python_requires=">=3.10",
-    install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=0.10.5",
-                      "matplotlib>=3.7", "tqdm>=4.60"],
+    # what the node needs (the DDS transport included); the tools' and the tests' needs are extras
+    install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=0.10.5"],
     extras_require={
-        "test": ["pytest>=7", "hypothesis>=6"],
-        "bench": ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
+        "tools": TOOLS,
+        "test": TOOLS + ["pytest>=7", "hypothesis>=6", "scipy>=1.10"],
+        "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
     },
     zip_safe=True,
     maintainer="glpma_ros developers",
     maintainer_email="dev@glpma.example",
     description="Real-time forward kinematics of parallel manipulators with G3-PCX / GLPMA",
     license="Apache-2.0",
-    tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "glpma-fk = glpma_ros.cli:main",
-            "fk_node = glpma_ros.ros_node:main",
-            "mock_controller = glpma_ros.mock_controller:main",
+            "fk_node = glpma_ros.node.ros_node:main",
+            "mock_controller = glpma_tools.mock_controller:main",
         ],
     },
 )

@@ -126,13 +126,13 @@ def build_parser() -> argparse.ArgumentParser:
 def _delegated(command: str):
     """Subcommands with parsers of their own (their options may start with ``--``)."""
     if command == "node":
-        from .node_entry import main
+        from .node.entry import main
     elif command == "bench":
-        from .bench import main
+        from glpma_tools.bench import main
     elif command == "demo":
-        from .demo import main
+        from glpma_tools.demo import main
     elif command == "stress":
-        from .stress import main
+        from glpma_tools.stress import main
     else:
         return None
     return main

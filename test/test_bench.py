@@ -2,7 +2,7 @@
 report and figures in a temporary directory."""
 import pytest
 
-from glpma_ros.bench import main
+from glpma_tools.bench import main
 
 SECTIONS = ["## Summary", "## The papers' tables (001 Tables 5 and 8)", "### 3-RPR: 001 Table 5",
             "## Success vs evaluations", "## Pure G3-PCX against peer implementations",
@@ -58,7 +58,7 @@ def test_bad_arguments_return_status_2(capsys):
 
 
 def test_report_keeps_sections_other_tools_wrote(tmp_path):
-    from glpma_ros.bench.report import kept_sections
+    from glpma_tools.bench.report import kept_sections
     md = tmp_path / "BENCHMARKS.md"
     md.write_text("# Benchmarks\n\nold preamble\n\n## Summary\n\nold summary\n\n## Reliability\n\n### overload\n\n"
                   "| a | b |\n\n## Deadline honouring\n\nold deadline table\n\n## Other tool\n\nx\n")

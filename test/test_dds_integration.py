@@ -89,7 +89,7 @@ def start_node(dds_env, tmp_path):
         n = len(nodes)
         out, err = tmp_path / f"node{n}.out", tmp_path / f"node{n}.err"
         with open(out, "w") as fo, open(err, "w") as fe:
-            proc = subprocess.Popen([sys.executable, "-m", "glpma_ros.dds.node", "--ros-args", *ros_args],
+            proc = subprocess.Popen([sys.executable, "-m", "glpma_ros.node.dds.node", "--ros-args", *ros_args],
                                     stdout=fo, stderr=fe, env=dds_env, cwd=ROOT)
         node = NodeProcess(proc, out, err)
         nodes.append(node)
@@ -104,7 +104,7 @@ def start_node(dds_env, tmp_path):
 
 
 def run_mock(env, config, rate, duration):
-    result = subprocess.run([sys.executable, "-m", "glpma_ros.mock_controller", "--config", config,
+    result = subprocess.run([sys.executable, "-m", "glpma_tools.mock_controller", "--config", config,
                              "--rate", str(rate), "--duration", str(duration), "--json", "--timeout", "30"],
                             env=env, cwd=ROOT, capture_output=True, text=True, timeout=duration + 90)
     assert result.returncode == 0, result.stderr
@@ -162,8 +162,8 @@ class Client(DiagnosticsWatcher):
     """Publishes leg lengths, collects poses and diagnostics."""
 
     def __init__(self):
-        from glpma_ros.dds import endpoints
-        from glpma_ros.dds.messages import DiagnosticArray, Float64MultiArray, PoseStamped
+        from glpma_ros.node.dds import endpoints
+        from glpma_ros.node.dds.messages import DiagnosticArray, Float64MultiArray, PoseStamped
         self.Float64MultiArray = Float64MultiArray
         self.participant = endpoints.Participant()
         self.writer = self.participant.writer("leg_lengths", Float64MultiArray)

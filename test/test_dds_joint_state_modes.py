@@ -29,8 +29,8 @@ class Client(DiagnosticsWatcher):
     """JointState in; poses, diagnostics and assembly modes out; requests."""
 
     def __init__(self, node_name="glpma_fk"):
-        from glpma_ros.dds import endpoints
-        from glpma_ros.dds.messages import DiagnosticArray, Empty, JointState, PoseArray, PoseStamped
+        from glpma_ros.node.dds import endpoints
+        from glpma_ros.node.dds.messages import DiagnosticArray, Empty, JointState, PoseArray, PoseStamped
         self.types = {"JointState": JointState, "Empty": Empty, "PoseArray": PoseArray}
         self.endpoints = endpoints
         self.participant = endpoints.Participant()
@@ -45,7 +45,7 @@ class Client(DiagnosticsWatcher):
         self.last_diagnostics = {}
 
     def send(self, names, positions, stamp_ns, pause=0.03):
-        from glpma_ros.dds.messages import Header, Time
+        from glpma_ros.node.dds.messages import Header, Time
         self.writer.write(self.types["JointState"](header=Header(stamp=Time.from_ns(stamp_ns)), name=list(names),
                                                    position=[float(v) for v in positions]))
         time.sleep(pause)
@@ -83,8 +83,8 @@ def pose_tuple(msg):
 
 
 def test_3rpr_joint_state_input_rejections_and_assembly_modes(start_node, dds_env, tmp_path, capsys):
-    from glpma_ros.mock_controller import run
-    from glpma_ros.service import FkService
+    from glpma_tools.mock_controller import run
+    from glpma_ros.node.service import FkService
     params = {"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X, "input_type": "joint_state",
               "joint_names": RPR_NAMES, "time_budget_ms": 20.0, "diagnostics_period_s": 0.2}
     path = tmp_path / "params.yaml"
@@ -164,7 +164,7 @@ def _latency_stats(ms):
 def test_hexapod_assembly_modes_while_streaming(start_node, dds_env, capsys):
     import threading
 
-    from glpma_ros.mock_controller import PoseListener
+    from glpma_tools.mock_controller import PoseListener
     node = start_node("--params-file", str(CONFIG / "params_hexapod.yaml"), "-p", "input_type:=joint_state",
                       "-p", "diagnostics_period_s:=0.2")
     client = Client()

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from glpma_ros.errors import InputError
 from glpma_ros.estimator import Estimator
 from glpma_ros.models import Hexapod66, Planar3RPR
-from glpma_ros.models.hexapod_66 import rotation_from_vector
+from glpma_ros.models.rotations import rotation_from_vector
 from glpma_ros.solvers.refine import polish
 from trajectories import hexapod_helix, rpr_loop
 

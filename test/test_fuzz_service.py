@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from glpma_ros.estimator import STATUS_BUDGET, STATUS_NEAR_SINGULAR, STATUS_NO_SOLUTION
-from glpma_ros.service import FkService
+from glpma_ros.node.service import FkService
 
 from conftest import RPR_YAML
 

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from glpma_ros.config import load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError, InputError
 from glpma_ros.models import Hexapod66, Planar3RPR
-from glpma_ros.models.hexapod_66 import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 
 
 def test_rpr_seed_solutions_satisfy_legs(rpr, rpr_solutions):

@@ -29,7 +29,7 @@ def ros():
 
 @pytest.fixture
 def fk_node(ros):
-    from glpma_ros.ros_node import FkNode
+    from glpma_ros.node.ros_node import FkNode
     node = FkNode(parameter_overrides=[Parameter("manipulator_config", value=str(RPR_YAML)),
                                        Parameter("initial_pose", value=SEED_X),
                                        Parameter("frame_id", value="robot_base")])

@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from glpma_ros import stress  # noqa: E402
+from glpma_tools import stress  # noqa: E402
 
 from conftest import CONFIG  # noqa: E402
 
@@ -96,7 +96,7 @@ def test_node_restart_mid_trajectory_cold_then_warm(session, capsys):
 # -- the Reliability section of BENCHMARKS.md (no node needed) ------------------------------------------
 
 def test_reliability_section_is_replaced_in_place_and_kept_by_the_bench(tmp_path):
-    from glpma_ros.bench import report
+    from glpma_tools.bench import report
     text = "# Benchmarks\n\nintro\n\n## Deadline honouring\n\nd\n\n## DDS end to end\n\ne\n"
     once = stress.splice_section(text, ["## Reliability", "", "first"])
     assert once.startswith(text.rstrip()) and once.rstrip().endswith("first")

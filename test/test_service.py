@@ -10,9 +10,12 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from glpma_ros import params as P
+from glpma_ros.node import params as P
+from glpma_ros.node import ros_args
 from glpma_ros.errors import ConfigError, InputError
-from glpma_ros.service import WARN, FkService, LatestInput, LogThrottle, SolveLoop
+from glpma_ros.node.loops import LatestInput, SolveLoop
+from glpma_ros.node.service import WARN, FkService
+from glpma_ros.node.stats import LogThrottle
 
 from conftest import CONFIG, HEX_YAML, RPR_YAML
 
@@ -52,7 +55,7 @@ def test_ros_args_parameters_params_file_and_order(tmp_path):
     f.write_text("glpma_fk:\n  ros__parameters:\n    solver: g3pcx\n    tolerance: 1e-18\n"
                  "    time_budget_ms: 3\n/**:\n  ros__parameters:\n    frame_id: world\n"
                  "other_node:\n  ros__parameters:\n    solver: rcga\n")
-    args = P.parse_ros_args(["--ros-args", "--params-file", str(f), "-p", "time_budget_ms:=4.5",
+    args = ros_args.parse_ros_args(["--ros-args", "--params-file", str(f), "-p", "time_budget_ms:=4.5",
                              "-p", "initial_pose:=[1, 2, 0.5]", "-p", "glpma_fk:seed:=7",
                              "-p", "other_node:seed:=9", "-p", "frame_id:=123", "--", "rest"])
     values, warnings = P.resolve(args.overrides)
@@ -68,7 +71,7 @@ def test_ros_args_parameters_params_file_and_order(tmp_path):
 def test_ros_args_node_rename_selects_params_file_section(tmp_path):
     f = tmp_path / "p.yaml"
     f.write_text("fk2:\n  ros__parameters:\n    solver: rcga\n")
-    args = P.parse_ros_args(["--ros-args", "-r", "__node:=fk2", "--params-file", str(f)])
+    args = ros_args.parse_ros_args(["--ros-args", "-r", "__node:=fk2", "--params-file", str(f)])
     assert args.node_name == "fk2" and args.overrides == {"solver": "rcga"}
 
 
@@ -85,7 +88,7 @@ def test_unknown_parameter_is_a_warning_not_an_error():
 ])
 def test_ros_args_errors_are_one_line(argv, message):
     with pytest.raises(InputError, match=message):
-        P.parse_ros_args(argv)
+        ros_args.parse_ros_args(argv)
 
 
 @pytest.mark.parametrize("name, value, message", [
@@ -128,7 +131,7 @@ def test_bad_configuration_is_a_one_line_error(tmp_path):
 
 def test_shipped_params_files_are_valid():
     for name in ("params_3rpr.yaml", "params_hexapod.yaml"):
-        values, warnings = P.resolve(P.load_params_file(str(CONFIG / name)))
+        values, warnings = P.resolve(ros_args.load_params_file(str(CONFIG / name)))
         assert not warnings
         svc = FkService(values)
         assert svc.model.n_vars == len(values["initial_pose"])
@@ -340,8 +343,8 @@ def test_solve_loop_solves_the_newest_input_and_counts_dropped(service):
 # -- transport choice ---------------------------------------------------------------------------------------
 
 def test_node_entry_chooses_the_transport(monkeypatch, capsys):
-    from glpma_ros import node_entry
-    from glpma_ros.dds import node as dds_node
+    from glpma_ros.node import entry as node_entry
+    from glpma_ros.node.dds import node as dds_node
     calls = []
     monkeypatch.setattr(node_entry, "rclpy_available", lambda: False)
     monkeypatch.setattr(dds_node, "main", lambda argv: calls.append(argv) or 0)

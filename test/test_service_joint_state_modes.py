@@ -8,10 +8,13 @@ import numpy as np
 import pytest
 import yaml
 
-from glpma_ros import params as P
-from glpma_ros.dds.rihs import type_hash
+from glpma_ros.node import params as P
+from glpma_ros.node import ros_args
+from glpma_ros.node.ros_args import node_values
+from glpma_ros.node.dds.rihs import type_hash
 from glpma_ros.errors import InputError
-from glpma_ros.service import AssemblyModesLoop, FkService, JointStateInput, SolveLoop
+from glpma_ros.node.loops import AssemblyModesLoop, SolveLoop
+from glpma_ros.node.service import FkService, JointStateInput
 from glpma_ros.solvers import SOLVERS
 
 from conftest import HEX_YAML, RPR_YAML
@@ -64,9 +67,9 @@ def test_joint_names_values_are_checked(value, message):
 def test_joint_names_from_ros_args_and_params_file(tmp_path):
     f = tmp_path / "p.yaml"
     f.write_text("glpma_fk:\n  ros__parameters:\n    input_type: joint_state\n    joint_names: [x1, '2', x3]\n")
-    values, _ = P.resolve(P.parse_ros_args(["--ros-args", "--params-file", str(f)]).overrides)
+    values, _ = node_values(["--ros-args", "--params-file", str(f)])[:2]
     assert values["input_type"] == "joint_state" and values["joint_names"] == ["x1", "2", "x3"]
-    values, _ = P.resolve(P.parse_ros_args(["--ros-args", "-p", "joint_names:=[a, b, c]"]).overrides)
+    values, _ = node_values(["--ros-args", "-p", "joint_names:=[a, b, c]"])[:2]
     assert values["joint_names"] == ["a", "b", "c"]
 
 
@@ -250,7 +253,7 @@ def test_rihs01_computation_reproduces_the_contract_and_gives_empty():
 
 def test_message_types_carry_the_computed_hashes():
     pytest.importorskip("cyclonedds")
-    from glpma_ros.dds import messages
+    from glpma_ros.node.dds import messages
     for msg_type, ros_name in messages.ROS_TYPE_NAMES.items():
         assert messages.type_hash(msg_type) == type_hash(ros_name), ros_name
     assert messages.Empty.__idl_typename__ == "std_msgs::msg::dds_::Empty_"
@@ -258,7 +261,7 @@ def test_message_types_carry_the_computed_hashes():
 
 def test_private_topic_names():
     pytest.importorskip("cyclonedds")
-    from glpma_ros.dds.endpoints import dds_topic_name, expand_topic_name
+    from glpma_ros.node.dds.endpoints import dds_topic_name, expand_topic_name
     assert dds_topic_name("~/assembly_modes") == "rt/glpma_fk/assembly_modes"
     assert dds_topic_name("~/request_assembly_modes") == "rt/glpma_fk/request_assembly_modes"
     assert dds_topic_name("/diagnostics") == "rt/diagnostics" and dds_topic_name("joint_states") == "rt/joint_states"

@@ -1,7 +1,7 @@
 """Smooth test trajectories (true solver variables per step)."""
 import numpy as np
 
-from glpma_ros.models.hexapod_66 import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 
 
 def rpr_loop(x0, steps=1000):

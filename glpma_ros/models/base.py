@@ -5,7 +5,7 @@ A model turns the forward-kinematics problem into minimisation (Chandra & Rollan
 ``x`` (the papers' search space) map to a residual vector whose squared sum is
 the fitness.  Each model provides
 
-* ``residual_kernel(x, data, legs, out)`` -- a Numba-compiled function that fills
+* a residual function in :mod:`.residuals` -- a Numba-compiled function that fills
   ``out`` with the residuals of one individual, dispatched by ``kind_id`` in
   :mod:`.kernels`; the solvers call it inside their compiled loops so a whole
   population is evaluated without Python overhead;
@@ -22,7 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from ..errors import InputError
+from .kernels import population_fitness, population_residuals
 
 
 @dataclass(frozen=True)
@@ -75,12 +77,10 @@ class Manipulator:
                 np.ascontiguousarray(third, dtype=float), self.evaluation_counter)
 
     def residuals(self, X, legs) -> np.ndarray:
-        from .kernels import population_residuals
         X2 = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
         return population_residuals(X2, self.kind_id, self.data, np.asarray(legs, dtype=float), self.n_res)
 
     def fitness(self, X, legs) -> np.ndarray:
-        from .kernels import population_fitness
         X2 = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
         return population_fitness(X2, self.kind_id, self.data, np.asarray(legs, dtype=float), self.n_res)
 

@@ -20,53 +20,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from .base import Manipulator, Pose
+from .residuals import KIND_HEXAPOD_66
+from .rotations import cross_rows, kabsch, matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 
 PAIRS = ((0, 1), (0, 2), (1, 2))
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def residual_kernel(x, data, legs, out):
-    base, abc, d0sq = data[0], data[1], data[2]
-    e1x = x[3] - x[0]
-    e1y = x[4] - x[1]
-    e1z = x[5] - x[2]
-    e2x = x[6] - x[0]
-    e2y = x[7] - x[1]
-    e2z = x[8] - x[2]
-    n1sq = e1x * e1x + e1y * e1y + e1z * e1z
-    n2sq = e2x * e2x + e2y * e2y + e2z * e2z
-    n1 = math.sqrt(n1sq)
-    n2 = math.sqrt(n2sq)
-    u1x, u1y, u1z = e1x / n1, e1y / n1, e1z / n1
-    u2x, u2y, u2z = e2x / n2, e2y / n2, e2z / n2
-    u3x = u1y * u2z - u1z * u2y
-    u3y = u1z * u2x - u1x * u2z
-    u3z = u1x * u2y - u1y * u2x
-    for j in range(6):
-        a, b, c = abc[j, 0], abc[j, 1], abc[j, 2]
-        bx = x[0] + a * u1x + b * u2x + c * u3x - base[j, 0]
-        by = x[1] + a * u1y + b * u2y + c * u3y - base[j, 1]
-        bz = x[2] + a * u1z + b * u2z + c * u3z - base[j, 2]
-        out[j] = math.sqrt(bx * bx + by * by + bz * bz) - legs[j]
-    e3x = x[6] - x[3]
-    e3y = x[7] - x[4]
-    e3z = x[8] - x[5]
-    out[6] = d0sq[0] - n1sq
-    out[7] = d0sq[1] - n2sq
-    out[8] = d0sq[2] - (e3x * e3x + e3y * e3y + e3z * e3z)
-
-
-def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of two (n, 3) arrays (``np.cross`` without its
-    generic-axis overhead, which dominates at this size)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
 
 
 def frame_coefficients(platform: np.ndarray) -> np.ndarray:
@@ -79,52 +38,6 @@ def frame_coefficients(platform: np.ndarray) -> np.ndarray:
     return np.linalg.solve(M, (platform - platform[0]).T).T
 
 
-def rotation_from_vector(w) -> np.ndarray:
-    """Rodrigues' formula: rotation matrix of rotation vector ``w``."""
-    theta = math.sqrt(float(w @ w))
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if theta < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return np.eye(3) + (math.sin(theta) / theta) * K + ((1.0 - math.cos(theta)) / theta ** 2) * K @ K
-
-
-def quaternion_from_matrix(R) -> np.ndarray:
-    """Unit quaternion [qx, qy, qz, qw] of a rotation matrix, qw >= 0."""
-    t = np.trace(R)
-    if t > 0.0:
-        s = 2.0 * math.sqrt(1.0 + t)
-        q = np.array([(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, 0.25 * s])
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(max(1.0 + R[i, i] - R[j, j] - R[k, k], 0.0))
-        q = np.empty(4)
-        q[i] = 0.25 * s
-        q[j] = (R[j, i] + R[i, j]) / s
-        q[k] = (R[k, i] + R[i, k]) / s
-        q[3] = (R[k, j] - R[j, k]) / s
-    q /= np.linalg.norm(q)
-    return -q if q[3] < 0 else q
-
-
-def matrix_from_quaternion(q) -> np.ndarray:
-    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def kabsch(src: np.ndarray, dst: np.ndarray):
-    """Rigid transform (R, p) minimising sum |R src_k + p - dst_k|^2."""
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
-    H = (src - cs).T @ (dst - cd)
-    U, _, Vt = np.linalg.svd(H)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0])
-    R = Vt.T @ D @ U.T
-    return R, cd - R @ cs
-
-
 class Hexapod66(Manipulator):
     kind = "hexapod_66"
     n_legs = 6
@@ -132,7 +45,7 @@ class Hexapod66(Manipulator):
     n_res = 9
     n_pose = 6
     variable_names = ("x1", "y1", "z1", "x2", "y2", "z2", "x3", "y3", "z3")
-    kind_id = 1  # models.kernels.KIND_HEXAPOD_66
+    kind_id = KIND_HEXAPOD_66
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
         super().__init__(base, platform, unit, leg_limits)

@@ -11,18 +11,14 @@ start would recompile every solver).  With an integer and a uniform data tuple
 ``counter[0]`` counts residual evaluations: an independent check of the
 solvers' evaluation bookkeeping (incremented once per call, outside the loops:
 an increment inside them stops LLVM from keeping the geometry in registers
-and made the hexapod's fitness 2.5 times slower).
+and slows the compiled loops down).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from .hexapod_66 import residual_kernel as hexapod_66_residuals
-from .planar_3rpr import residual_kernel as planar_3rpr_residuals
-
-KIND_PLANAR_3RPR = 0
-KIND_HEXAPOD_66 = 1
+from .residuals import KIND_PLANAR_3RPR, hexapod_66_residuals, planar_3rpr_residuals
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -12,20 +12,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from .base import Manipulator, Pose
+from .residuals import KIND_PLANAR_3RPR
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def residual_kernel(x, data, legs, out):
-    base, platform = data[0], data[1]
-    c = math.cos(x[2])
-    s = math.sin(x[2])
-    for i in range(3):
-        bx = x[0] + c * platform[i, 0] - s * platform[i, 1] - base[i, 0]
-        by = x[1] + s * platform[i, 0] + c * platform[i, 1] - base[i, 1]
-        out[i] = math.sqrt(bx * bx + by * by) - legs[i]
 
 
 class Planar3RPR(Manipulator):
@@ -35,7 +26,7 @@ class Planar3RPR(Manipulator):
     n_res = 3
     n_pose = 3
     variable_names = ("x", "y", "theta")
-    kind_id = 0  # models.kernels.KIND_PLANAR_3RPR
+    kind_id = KIND_PLANAR_3RPR
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
         super().__init__(base, platform, unit, leg_limits)

@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from .config import config_dir
+from glpma_ros.config import config_dir
 
 #: a first run on a fresh machine compiles the solvers before the node is ready
 READY_TIMEOUT_S = 240.0
@@ -18,7 +18,7 @@ PACKAGE_PARENT = Path(__file__).resolve().parents[1]
 
 
 class NodeProcess:
-    """``python -m glpma_ros.dds.node --ros-args ...`` with its output in files; restartable."""
+    """``python -m glpma_ros.node.dds.node --ros-args ...`` with its output in files; restartable."""
 
     def __init__(self, ros_args, env: dict, log_dir: Path):
         self.ros_args = list(ros_args)
@@ -40,7 +40,7 @@ class NodeProcess:
         self.starts += 1
         t0 = time.monotonic()
         with open(self.stdout, "w") as fo, open(self.stderr, "w") as fe:
-            self.proc = subprocess.Popen([sys.executable, "-m", "glpma_ros.dds.node", "--ros-args", *self.ros_args],
+            self.proc = subprocess.Popen([sys.executable, "-m", "glpma_ros.node.dds.node", "--ros-args", *self.ros_args],
                                          stdout=fo, stderr=fe, env=self.env, cwd=PACKAGE_PARENT)
         while time.monotonic() - t0 < timeout:
             if "ready" in self.stdout.read_text():

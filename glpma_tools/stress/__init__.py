@@ -1,6 +1,6 @@
 """``glpma-fk stress``: the ``glpma_fk`` node under overload, bursts, restarts and deadlines.
 
-Starts a real node process over Cyclone DDS (``python -m glpma_ros.dds.node``,
+Starts a real node process over Cyclone DDS (``python -m glpma_ros.node.dds.node``,
 cold start, ``/diagnostics`` every 0.2 s) and drives it from this process as a
 controller would, along the mock controller's trajectory:
 
@@ -23,7 +23,7 @@ each phase); "lost in transport" is what the controller wrote and the node never
 received (DDS keep-last history of ``qos_depth`` on both sides); latency is end to
 end, controller write -> pose received, for the inputs that got a pose.
 
-Run: ``python -m glpma_ros.stress [--quick] [--json] [--markdown [BENCHMARKS.md]]``;
+Run: ``python -m glpma_tools.stress [--quick] [--json] [--markdown [BENCHMARKS.md]]``;
 exit status 0 when every check passed, 1 when one failed, 2 for bad arguments.
 """
 from __future__ import annotations
@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .node_process import NodeProcess, node_environment
+from glpma_tools.sim.node_process import NodeProcess, node_environment
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_PARAMS = REPO_ROOT / "config" / "params_3rpr.yaml"
@@ -79,8 +79,8 @@ class Plan:
     clock shared by the phases (each phase continues where the previous one stopped)."""
 
     def __init__(self, config, solution: int | None = None, amplitude: float = 1.0):
-        from .config import load_document, model_from_dict, resolve_config
-        from .mock_controller import DEFAULT_SOLUTION, start_pose, trajectory
+        from glpma_ros.config import load_document, model_from_dict, resolve_config
+        from glpma_tools.mock_controller import DEFAULT_SOLUTION, start_pose, trajectory
         path = resolve_config(config)
         self.doc = load_document(path)
         self.model = model_from_dict(self.doc, str(path))
@@ -96,8 +96,8 @@ class Plan:
 
     def sample(self, t: float):
         """(legs in the config's unit, position m, quaternion) at trajectory time ``t``."""
-        from .mock_controller import legs_for
-        from .models.hexapod_66 import quaternion_from_matrix
+        from glpma_tools.mock_controller import legs_for
+        from glpma_ros.models.rotations import quaternion_from_matrix
         position, R = self.pose_at(t)
         q = quaternion_from_matrix(R)
         return legs_for(self.model, position, q), position * self.mpu, q
@@ -107,9 +107,9 @@ class Controller:
     """One DDS participant: a ``leg_lengths`` writer and a listener of poses and ``/diagnostics``."""
 
     def __init__(self, model, domain_id: int, depth: int = 10, listen_depth: int = 1000):
-        from .dds import endpoints
-        from .dds.messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
-        from .mock_controller import PoseListener
+        from glpma_ros.node.dds import endpoints
+        from glpma_ros.node.dds.messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout
+        from glpma_tools.mock_controller import PoseListener
         self.model = model
         self.mpu = float(model.metres_per_unit)
         self.participant = endpoints.Participant(domain_id)
@@ -121,7 +121,7 @@ class Controller:
 
     def wait_for_node(self, timeout: float = 60.0) -> float:
         """Seconds until the node's endpoints matched ours; raises TimeoutError."""
-        from .dds import endpoints
+        from glpma_ros.node.dds import endpoints
         t0 = time.monotonic()
         if not endpoints.wait_for_match([self.writer, self.listener.reader, self.listener.diag_reader], timeout):
             raise TimeoutError(f"no glpma_fk node matched within {timeout:g} s")
@@ -135,7 +135,7 @@ class Controller:
         """Write ``n`` samples of ``plan`` from trajectory time ``t0``, ``dt`` apart in trajectory time
         (default 1 / rate_hz); paced at ``rate_hz`` in wall time, or as fast as possible when ``rate_hz``
         is None (the messages are then prepared beforehand).  Returns ([Sent], late sends)."""
-        from .mock_controller import Sent
+        from glpma_tools.mock_controller import Sent
         dt = dt or 1.0 / (rate_hz or RATE_HZ)
         sent, late = [], 0
         if rate_hz is None:
@@ -226,7 +226,7 @@ def match(model, sent: list, poses: list, window: int = MATCH_WINDOW) -> list:
     """``[(input index, pose, max leg residual in the config's unit)]``: each pose paired with the
     input whose legs it reproduces best among the ``window`` written before its stamp (the input's
     arrival at the node) and the next one; each input at most once."""
-    from .mock_controller import legs_for
+    from glpma_tools.mock_controller import legs_for
     if not sent:
         return []
     send_ns = np.array([s.send_ns for s in sent], dtype=np.int64)
@@ -294,11 +294,11 @@ class Session:
 
     def __init__(self, params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None,
                  log_dir: Path | None = None, say=None):
-        from . import params as P
+        from glpma_ros.node.ros_args import node_values
         self.domain_id = 150 + os.getpid() % 50 if domain_id is None else int(domain_id)
         self.ros_args = ["--params-file", str(params_file), "-p", "initial_pose:=[]",
                          "-p", f"diagnostics_period_s:={DIAGNOSTICS_PERIOD_S}", *extra_args]
-        values, _ = P.resolve(P.parse_ros_args(["--ros-args", *self.ros_args]).overrides)
+        values, _, _ = node_values(["--ros-args", *self.ros_args])
         self.params = values
         self.plan = Plan(values["manipulator_config"])
         self.model = self.plan.model
@@ -386,7 +386,7 @@ class Session:
     def burst(self, n: int) -> dict:
         # within less than half a loop of the trajectory, so that no two inputs of the burst have the
         # same legs (the pose <-> input matching goes by the legs)
-        from .mock_controller import PERIOD_S
+        from glpma_tools.mock_controller import PERIOD_S
         return self.flood("burst", n, None, warmup_s=0.0, dt=min(1.0 / RATE_HZ, 0.4 * PERIOD_S / n))
 
     # -- (c) restarts and a jump ----------------------------------------------------------------------
@@ -436,7 +436,7 @@ class Session:
         a_before = analyse(self.model, sent_a, list(ctl.listener.poses[k0:]))
         k0 = len(ctl.listener.poses)
         # jump to the point of the other trajectory whose legs are farthest from the last ones sent
-        from .mock_controller import PERIOD_S
+        from glpma_tools.mock_controller import PERIOD_S
         last_legs = self.plan.sample(self.t - 1.0 / PHASE_RATE_HZ)[0]
         self.t = max(np.linspace(0.0, PERIOD_S, 200, endpoint=False),
                      key=lambda t: float(np.max(np.abs(other.sample(t)[0] - last_legs))))
@@ -583,8 +583,8 @@ def deadlines(model, budgets_ms=DEADLINE_BUDGETS_MS, n: int = 10_000, seed_x=Non
 
 
 def _deadline_cell(model, legs, case: str, b: float, n: int, seed_x, collections: list, say) -> dict:
-    from .bench.common import involuntary_switches
-    from .estimator import Estimator
+    from glpma_tools.bench.common import involuntary_switches
+    from glpma_ros.estimator import Estimator
     if say:
         say(f"deadline: {n} Estimator solves, {case}, {b:g} ms")
     # no evaluation cap: only the deadline stops a search
@@ -626,7 +626,7 @@ def run(sections=SECTIONS, quick: bool = False, duration_s: float | None = None,
         params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None, log_dir=None,
         budgets_ms=DEADLINE_BUDGETS_MS, say=None) -> dict:
     """Every requested section; a JSON-able dict of figures and checks."""
-    from .bench.common import git_revision, machine
+    from glpma_tools.bench.common import git_revision, machine
 
     def pick(value, name):
         return DEFAULTS[name][1 if quick else 0] if value is None else value
@@ -639,7 +639,7 @@ def run(sections=SECTIONS, quick: bool = False, duration_s: float | None = None,
     session = None
     if node_sections:
         session = Session(params_file, extra_args, domain_id, log_dir, say)
-        res["node"] = {"command": shlex.join(["python", "-m", "glpma_ros.dds.node", "--ros-args",
+        res["node"] = {"command": shlex.join(["python", "-m", "glpma_ros.node.dds.node", "--ros-args",
                                               *session.ros_args]),
                        "domain": session.domain_id, "manipulator": session.model.kind,
                        "time_budget_ms": session.params["time_budget_ms"], "qos_depth": session.params["qos_depth"],
@@ -672,14 +672,14 @@ def run(sections=SECTIONS, quick: bool = False, duration_s: float | None = None,
 
 
 def _manipulator(params_file, extra_args) -> str:
-    from . import params as P
-    values, _ = P.resolve(P.parse_ros_args(["--ros-args", "--params-file", str(params_file), *extra_args]).overrides)
+    from glpma_ros.node.ros_args import node_values
+    values, _, _ = node_values(["--ros-args", "--params-file", str(params_file), *extra_args])
     return values["manipulator_config"]
 
 
 def _known_solution(plan: Plan) -> np.ndarray:
     """Solver variables of the trajectory's start (a known solution of the config)."""
-    from .models.hexapod_66 import quaternion_from_matrix
+    from glpma_ros.models.rotations import quaternion_from_matrix
     position, R = plan.pose_at(0.0)
     return plan.model.variables_from_pose(position, quaternion_from_matrix(R))
 
@@ -838,7 +838,7 @@ def reliability_section(res: dict) -> list[str]:
     secs = res["sections"]
     m = res["machine"]
     out = [RELIABILITY_HEADING, "",
-           f"Generated by `{res.get('command') or 'glpma-fk stress'}` (`python -m glpma_ros.stress`) on "
+           f"Generated by `{res.get('command') or 'glpma-fk stress'}` (`python -m glpma_tools.stress`) on "
            f"{res['date']} (run took {res['wall_s'] / 60:.1f} min), revision {res['revision']}; {m['cpu']}, "
            f"{m['cores']} cores; load average {res['load_average_start'][0]:.2f} at the start and "
            f"{res['load_average_end'][0]:.2f} at the end (the machine is shared: timings are noisy). "

@@ -83,7 +83,7 @@ def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
         counts = {name: _count(args, name) for name in DEFAULTS}
-        from .. import solvers
+        from glpma_ros import solvers
         unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
         if unknown:
             raise SystemExit(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
@@ -218,7 +218,7 @@ def finish(res, args, out_dir, say) -> int:
                 if row.status == "run":
                     series.append((f"{row.name} G3PCX", plots.COLORS[row.name], ":", row.runs))
             if series:
-                from .. import solvers
+                from glpma_ros import solvers
                 path = out_dir / f"success_vs_evals_{k}.png"
                 res["figures"][f"success_{k}"] = plots.success_curves(
                     path, f"{sc.label}: success and convergence", solvers.PAPER_SETTINGS[sc.model.kind]["max_evals"],

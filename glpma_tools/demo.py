@@ -14,9 +14,9 @@ import os
 import sys
 from pathlib import Path
 
-from . import mock_controller
-from .config import config_dir
-from .node_process import NodeProcess, node_environment
+from glpma_tools import mock_controller
+from glpma_ros.config import config_dir
+from glpma_tools.sim.node_process import NodeProcess, node_environment
 
 MANIPULATORS = {
     "3rpr": {"config": "planar_3rpr_seed", "params": "params_3rpr.yaml", "rate": 200.0},

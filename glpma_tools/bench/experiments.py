@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
-from .. import solvers
-from ..estimator import Estimator
-from ..solve_all import solve_all, wide_range
+from glpma_ros import solvers
+from glpma_ros.estimator import Estimator
+from glpma_ros.solve_all import solve_all, wide_range
 from .common import Run, involuntary_switches, percentiles_ms
 from .papers import PUBLISHED
 from .peers import PEER_SOLVERS, SCIPY_VARIANTS, PeerMissing, ScipyWarm, available
@@ -344,19 +344,19 @@ HOOK_NAMES = ("bench_end_to_end", "run_bench", "benchmark")
 
 
 def dds_end_to_end(scenarios, steps, quick):
-    """Call ``glpma_ros.mock_controller.bench_end_to_end`` if it exists.
+    """Call ``glpma_tools.mock_controller.bench_end_to_end`` if it exists.
 
     Expected: ``bench_end_to_end(config=<yaml path>, steps=<int>, quick=<bool>) -> dict``
     of latency statistics (any scalar values, e.g. ``p50_ms``, ``p99_ms``, ``max_ms``,
     ``sent``, ``received``); keyword arguments it does not accept are not passed."""
     try:
-        mc = importlib.import_module("glpma_ros.mock_controller")
+        mc = importlib.import_module("glpma_tools.mock_controller")
     except Exception as exc:  # noqa: BLE001 - reported, never fatal
-        return {"status": "skipped", "reason": f"glpma_ros.mock_controller not importable ({exc})"}
+        return {"status": "skipped", "reason": f"glpma_tools.mock_controller not importable ({exc})"}
     fn = next((getattr(mc, n) for n in HOOK_NAMES if callable(getattr(mc, n, None))), None)
     if fn is None:
         return {"status": "skipped",
-                "reason": f"glpma_ros.mock_controller has no {' / '.join(HOOK_NAMES)}() function"}
+                "reason": f"glpma_tools.mock_controller has no {' / '.join(HOOK_NAMES)}() function"}
     try:
         params = inspect.signature(fn).parameters
         accepts_any = any(p.kind == p.VAR_KEYWORD for p in params.values())
@@ -373,7 +373,7 @@ def dds_end_to_end(scenarios, steps, quick):
                                  "wall_s": time.perf_counter() - t0}
         except Exception as exc:  # noqa: BLE001
             results[sc.label] = {"status": "not run", "reason": f"{type(exc).__name__}: {exc}"}
-    return {"status": "run", "function": f"glpma_ros.mock_controller.{fn.__name__}", "results": results}
+    return {"status": "run", "function": f"glpma_tools.mock_controller.{fn.__name__}", "results": results}
 
 
 # -- the gap between the papers' pure G3-PCX and faithful implementations --------------------
@@ -414,7 +414,7 @@ class Baselines:
 
 def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> Baselines:
     """004's Table II protocol on the 3-RPR; DE/rand/1/bin (003) on 001's protocols."""
-    from ..solvers.protocols import table2_protocol
+    from .protocols import table2_protocol
     out = Baselines()
     if "3rpr" in scenarios and table2_runs > 0:
         model = scenarios["3rpr"].model

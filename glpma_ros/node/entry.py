@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-from .params import TRANSPORTS, split_transport
+from .ros_args import TRANSPORTS, split_transport
 
 
 def rclpy_available() -> bool:

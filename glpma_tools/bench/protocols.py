@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import sa
+from glpma_ros.solvers import sa
 
 #: 004 section IV.A: "initialize the population with real numbers in the range of [-10, 10]"
 TABLE2_INIT_RANGE = (-10.0, 10.0)
@@ -121,7 +121,7 @@ def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> 
     """Run ``solver_name`` ``runs`` times (seeds ``seed0, seed0 + 1, ...``) on
     004's protocol with ``model``'s example leg lengths; ``params`` go to the
     solver (e.g. ``chain_length=50`` for SA, ``max_evals``, ``population``)."""
-    from . import solve  # the registry (late import: this module is part of the package)
+    from glpma_ros.solvers import solve
 
     legs = model.example_leg_lengths
     settings = {"population": sa.POPULATION if solver_name == "sa" else TABLE2_POPULATION,

@@ -7,7 +7,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from .. import solvers
+from glpma_ros import solvers
 from .common import fmt, fmt_ci, percentiles_ms, ratio, summarize, table
 from .experiments import DEADLINE_MARGIN_MS, STOP_AFTER, STOP_OVERRUN_FACTOR
 from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE_NAME

@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from ..models.kernels import population_fitness
+from glpma_ros.models.kernels import population_fitness
 from .common import SUCCESS_TOLERANCE, Run
 
 #: pymoo needs bounds (its PM mutation scales with them): this many init half-widths
@@ -193,7 +193,7 @@ class ScipyWarm:
 
             res = ls(lambda x: rj(x)[0], np.asarray(x_start, dtype=float), jac=lambda x: rj(x)[1], **kw)
             return res.x, res.nfev
-        from ..models.hexapod_66 import rotation_from_vector
+        from glpma_ros.models.rotations import rotation_from_vector
         R0, p0 = model.pose_state(x_start)
         cache = {}
 

@@ -4,9 +4,8 @@
 everything a transport should not have to know about: parameters and their
 runtime changes, unit conversion (metres on topics, the config's unit inside),
 input validation with a one-line reason, the publish decision (converged
-only), statistics and the diagnostics report.  :class:`SolveLoop` is the
-threading both transports share: the newest pending input is solved, an input
-replaced before it was picked up counts as dropped.
+only), statistics (:mod:`.stats`) and the diagnostics report.  The threads both
+transports share are in :mod:`.loops`.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
 ``SolveLoop.submit(msg.data, arrival_ns)`` (``input_type`` float64_multi_array) or
@@ -15,7 +14,7 @@ A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
 ``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
 ``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
 received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
-(:mod:`glpma_ros.modes_worker`), so that the real-time solve loop keeps its latency.
+(:mod:`glpma_ros.node.modes_worker`), so that the real-time solve loop keeps its latency.
 """
 from __future__ import annotations
 
@@ -24,25 +23,17 @@ import logging
 import math
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import params as P
-from .config import load_manipulator, resolve_config
-from .errors import InputError
-from .estimator import Estimator
-
-#: statistics cover the most recent inputs
-WINDOW = 2000
-#: distinct rejection reasons shown on /diagnostics (the rest are counted as "other")
-MAX_REASONS = 16
-#: a conditioning (reciprocal condition number) below this is reported as near-singular
-NEAR_SINGULAR = 1e-4
-#: seconds between two log lines of the same rejection reason
-LOG_THROTTLE_S = 1.0
+from ..config import load_manipulator, resolve_config
+from ..errors import InputError
+from ..estimator import Estimator
+from .stats import LogThrottle, Statistics, percentiles_ms
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3   # diagnostic_msgs/DiagnosticStatus levels
 #: ``last_input`` argument: the last input received so far
@@ -108,63 +99,6 @@ class DiagnosticReport:
 
     def as_dict(self) -> dict:
         return dict(self.values)
-
-
-class LogThrottle:
-    """Lets one log line per key through every ``period_s`` and counts the rest."""
-
-    def __init__(self, period_s: float = LOG_THROTTLE_S, clock=time.monotonic):
-        self.period_s = period_s
-        self.clock = clock
-        self._last: dict = {}
-        self._suppressed: Counter = Counter()
-
-    def __call__(self, key) -> int | None:
-        """``None`` to stay silent, else the number of lines suppressed since the last one."""
-        now = self.clock()
-        last = self._last.get(key)
-        if last is not None and now - last < self.period_s:
-            self._suppressed[key] += 1
-            return None
-        self._last[key] = now
-        return self._suppressed.pop(key, 0)
-
-
-def _percentiles_ms(samples) -> tuple[float, float, float]:
-    if not samples:
-        return (math.nan, math.nan, math.nan)
-    arr = np.fromiter(samples, dtype=float) * 1e3
-    p50, p99 = np.percentile(arr, [50, 99])
-    return float(p50), float(p99), float(arr.max())
-
-
-class Statistics:
-    """Counters since start, and distributions over the last :data:`WINDOW` inputs.
-    ``handled`` inputs went through :meth:`FkService.handle`; ``dropped`` ones were replaced
-    by a newer input first; received = handled + dropped."""
-
-    def __init__(self):
-        self.handled = self.published = self.rejected = self.dropped = self.deadline_misses = 0
-        self.dropped_reported = 0     # dropped count at the last diagnostics report
-        self.reasons: Counter = Counter()
-        # ~/request_assembly_modes: requests taken, answered, failed, merged into a later one
-        self.modes_requests = self.modes_published = self.modes_failed = self.modes_coalesced = 0
-        self.modes_last = ""
-        self.modes_last_failure = ""
-        self.starts: Counter = Counter()
-        self.solve_s: deque = deque(maxlen=WINDOW)
-        self.latency_s: deque = deque(maxlen=WINDOW)
-        self.evaluations: deque = deque(maxlen=WINDOW)
-        self.residual_m: deque = deque(maxlen=WINDOW)
-        self.conditioning: deque = deque(maxlen=WINDOW)
-        self.last_estimate = None
-        self.last_reason = ""
-        self.period = Counter()       # events since the last diagnostics report
-
-    def count_reason(self, key: str) -> None:
-        if key not in self.reasons and len(self.reasons) >= MAX_REASONS:
-            key = "other"
-        self.reasons[key] += 1
 
 
 class FkService:
@@ -423,7 +357,7 @@ class FkService:
         """Every real assembly mode of the last input received (or ``last_input``), stamped
         ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed)`` returns the solver
         variables of each mode (default: :func:`~glpma_ros.solve_all.solve_all` in this thread;
-        the node passes a :class:`~glpma_ros.modes_worker.ModesWorker`).  Does not hold the
+        the node passes a :class:`~glpma_ros.node.modes_worker.ModesWorker`).  Does not hold the
         service lock while solving.  :class:`InputError` with the reason on failure."""
         t0 = time.perf_counter()
         legs, input_stamp_ns, runs, seed = self.assembly_modes_input(last_input)
@@ -441,12 +375,12 @@ class FkService:
                                time.perf_counter() - t0)
 
     def modes_worker(self):
-        """A :class:`~glpma_ros.modes_worker.ModesWorker` (not started) for this manipulator."""
+        """A :class:`~glpma_ros.node.modes_worker.ModesWorker` (not started) for this manipulator."""
         from .modes_worker import ModesWorker
         return ModesWorker(self.config_path, warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
 
     def _solve_all_here(self, legs, runs, seed) -> list:
-        from .solve_all import solve_all
+        from ..solve_all import solve_all
         return [s.x for s in solve_all(self.model, legs, runs=runs, seed=seed).solutions]
 
     def note_assembly_modes(self, result: PoseArrayOutput | None = None, failure: str | None = None,
@@ -508,8 +442,8 @@ class FkService:
             st = self.stats
             period, st.period = st.period, Counter()
             period["dropped"], st.dropped_reported = st.dropped - st.dropped_reported, st.dropped
-            solve = _percentiles_ms(st.solve_s)
-            latency = _percentiles_ms(st.latency_s)
+            solve = percentiles_ms(st.solve_s)
+            latency = percentiles_ms(st.latency_s)
             last = st.last_estimate
             cond_last = last.conditioning if last is not None else math.nan
             with self._modes_lock:
@@ -564,7 +498,7 @@ class FkService:
                 problems.append(f"{period['dropped']} inputs dropped")
             if period["modes_failed"]:
                 problems.append(f"{period['modes_failed']} assembly-modes requests failed")
-            if last is not None and last.converged and cond_last < NEAR_SINGULAR:
+            if last is not None and last.converged and last.near_singular:
                 problems.append(f"near a singularity (conditioning {cond_last:.2g})")
             if problems:
                 level, message = WARN, "; ".join(problems)
@@ -580,143 +514,9 @@ class FkService:
     def summary(self) -> str:
         """One line of totals, for the log at shutdown."""
         st = self.stats
-        solve = _percentiles_ms(st.solve_s)
+        solve = percentiles_ms(st.solve_s)
         return (f"received {st.handled + st.dropped}, solved {st.published}, rejected {st.rejected}, "
                 f"dropped {st.dropped}, deadline misses {st.deadline_misses}, "
                 f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms")
 
 
-class LatestInput:
-    """A one-slot mailbox: a new input replaces the pending one (which is then dropped)."""
-
-    def __init__(self):
-        self._cond = threading.Condition()
-        self._item = None
-        self._closed = False
-
-    def put(self, item) -> bool:
-        """Store ``item``; True when it replaced an input nobody had taken yet."""
-        with self._cond:
-            replaced = self._item is not None
-            self._item = item
-            self._cond.notify()
-            return replaced
-
-    def get(self, timeout: float | None = None):
-        """The pending input, waiting up to ``timeout``; ``None`` on timeout or when closed."""
-        with self._cond:
-            if self._item is None and not self._closed:
-                self._cond.wait(timeout)
-            item, self._item = self._item, None
-            return item
-
-    def close(self) -> None:
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-
-
-class SolveLoop:
-    """The worker thread both transports use: solve the newest input, publish its pose."""
-
-    def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver"):
-        self.service = service
-        self.publish = publish
-        self.mailbox = LatestInput()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> "SolveLoop":
-        self._thread.start()
-        return self
-
-    def submit(self, legs_m, stamp_ns: int) -> None:
-        """Called by the transport on arrival of leg lengths (metres), ``stamp_ns`` = arrival time."""
-        arrival = time.perf_counter()
-        self.service.note_input(legs_m, stamp_ns)
-        if self.mailbox.put((legs_m, int(stamp_ns), arrival)):
-            self.service.note_dropped(1)
-
-    def submit_joint_state(self, names, positions, stamp_ns: int) -> None:
-        """Called by the transport on arrival of a JointState, ``stamp_ns`` = its header.stamp.
-        The legs are picked out by the solver thread (a rejection is counted there)."""
-        self.submit(JointStateInput(tuple(names), tuple(positions)), stamp_ns)
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            item = self.mailbox.get(timeout=0.1)
-            if item is None:
-                continue
-            outcome = self.service.handle(*item)
-            if outcome.pose is not None:
-                try:
-                    self.publish(outcome.pose)
-                except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
-                    self.service.log.error(f"publishing the pose failed: {exc!r}")
-
-    def stop(self, timeout: float = 2.0) -> None:
-        self._stop.set()
-        self.mailbox.close()
-        self._thread.join(timeout)
-
-
-class AssemblyModesLoop:
-    """The thread both transports use for ``~/request_assembly_modes``: each request takes the
-    last input received at that moment; the newest pending request is computed (by ``solve``,
-    normally a :class:`~glpma_ros.modes_worker.ModesWorker` process, so that the solve loop
-    keeps its latency) and its :class:`PoseArrayOutput` published.  A request arriving while
-    another waits replaces it (counted as coalesced); one arriving during a computation is
-    answered by a computation of its own afterwards."""
-
-    def __init__(self, service: FkService, publish, solve=None, name: str = "glpma_fk-assembly-modes"):
-        """``solve(legs, runs, seed)``: default a new :class:`~glpma_ros.modes_worker.ModesWorker`
-        (started by :meth:`start`, stopped by :meth:`stop`)."""
-        self.service = service
-        self.publish = publish
-        self._owned = solve is None
-        self.solve = service.modes_worker() if solve is None else solve
-        self.mailbox = LatestInput()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> "AssemblyModesLoop":
-        if self._owned:
-            self.solve.start()          # the child warms up while the node does
-        self._thread.start()
-        return self
-
-    def request(self, stamp_ns: int) -> None:
-        """Called by the transport on arrival of a request, ``stamp_ns`` = its arrival time."""
-        if self.mailbox.put((int(stamp_ns), self.service._last_input)):
-            self.service.note_assembly_modes(coalesced=1)
-
-    def _run(self) -> None:
-        log = self.service.log
-        while not self._stop.is_set():
-            item = self.mailbox.get(timeout=0.1)
-            if item is None:
-                continue
-            stamp_ns, last_input = item
-            try:
-                result = self.service.assembly_modes(stamp_ns, last_input, solve=self.solve)
-            except InputError as exc:
-                self.service.note_assembly_modes(failure=str(exc))
-                log.warning(f"assembly modes not computed: {exc}")
-                continue
-            except Exception as exc:  # noqa: BLE001 - the node must survive anything
-                self.service.note_assembly_modes(failure=f"internal error: {exc}")
-                log.error(f"assembly modes failed: {exc!r}")
-                continue
-            self.service.note_assembly_modes(result)
-            log.info(f"assembly modes: {len(result.poses)} real assembly modes in {result.elapsed_s:.3f} s")
-            try:
-                self.publish(result)
-            except Exception as exc:  # noqa: BLE001
-                log.error(f"publishing the assembly modes failed: {exc!r}")
-
-    def stop(self, timeout: float = 2.0) -> None:
-        self._stop.set()
-        self.mailbox.close()
-        if self._owned:
-            self.solve.close()
-        self._thread.join(timeout)

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 import yaml
 
-from ..config import config_dir, load_manipulator
-from ..models.hexapod_66 import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+from glpma_ros.config import config_dir, load_manipulator
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 
 #: short name -> shipped config
 CONFIGS = {"3rpr": "planar_3rpr_seed.yaml", "hexapod": "hexapod_66_rolland.yaml"}
@@ -59,7 +59,7 @@ def trajectory(sc: Scenario, steps: int) -> np.ndarray:
         R = matrix_from_quaternion(p.orientation)
         return -p.position[2] + 1e3 * (1.0 - R[2, 2])
     home = min(sc.published, key=tilt)
-    from ..solvers import refine
+    from glpma_ros.solvers import refine
     x0, _, _ = refine.polish(model, home, sc.legs, np.random.default_rng(0))
     p0 = model.pose(x0)
     R0 = matrix_from_quaternion(p0.orientation)

@@ -5,7 +5,7 @@ compiled kernels hold the GIL for a whole chunk of generations, so in a thread o
 they would hold up the real-time solve loop for milliseconds at a time (measured: pose
 latency p99 from 4 to 8 ms, max 12 ms, inputs dropped, for a hexapod solve_all next to a
 3-RPR stream at 200 Hz).  :class:`ModesWorker` runs them in a child process instead
-(a fresh interpreter, ``python -m glpma_ros.modes_worker``: nothing of the node is forked
+(a fresh interpreter, ``python -m glpma_ros.node.modes_worker``: nothing of the node is forked
 or re-imported), at a lower scheduling priority (``nice`` +5), so that on a multi-core
 machine the solve loop does not notice.
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 #: scheduling priority of the child relative to the node (higher = yields more)
 NICE = 5
@@ -40,7 +40,7 @@ def _reply(out, kind: str, payload) -> None:
 
 
 def child_main(argv=None) -> int:
-    """The child: ``python -m glpma_ros.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
+    """The child: ``python -m glpma_ros.node.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
     per line on stdin (``[legs, runs, seed]``), one JSON reply per line on stdout
     (``["ok", [x, ...]]``, ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
     argv = sys.argv[1:] if argv is None else argv
@@ -51,8 +51,8 @@ def child_main(argv=None) -> int:
         pass
     out = sys.stdout
     sys.stdout = sys.stderr          # nothing but replies on the pipe
-    from .config import load_manipulator
-    from .solve_all import solve_all
+    from ..config import load_manipulator
+    from ..solve_all import solve_all
     model = load_manipulator(argv[0])
     if len(argv) > 2:
         try:
@@ -75,7 +75,7 @@ def child_main(argv=None) -> int:
 class ModesWorker:
     """``worker(legs, runs, seed)`` -> the solver variables of every real assembly mode of
     ``legs`` (config unit), computed by ``solve_all`` in a child process
-    (``python -m glpma_ros.modes_worker``).  The child is (re)started on demand;
+    (``python -m glpma_ros.node.modes_worker``).  The child is (re)started on demand;
     :meth:`close` stops it."""
 
     def __init__(self, config_path, warm_legs=None, nice: int = NICE):
@@ -98,7 +98,7 @@ class ModesWorker:
         package_root = str(Path(__file__).resolve().parents[1])
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package_root, env.get("PYTHONPATH", "")) if p)
-        args = [sys.executable, "-m", "glpma_ros.modes_worker", self.config_path, str(self.nice)]
+        args = [sys.executable, "-m", "glpma_ros.node.modes_worker", self.config_path, str(self.nice)]
         if self.warm_legs is not None:
             args.append(json.dumps(self.warm_legs))
         self._proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True,

@@ -22,7 +22,7 @@ apart neighbouring inputs.  The summary has
 the tracking error (metres, radians), the end-to-end latency (input sent -> pose
 received) p50/p99/max, inputs sent and poses received.
 
-Command line: ``python -m glpma_ros.mock_controller --config planar_3rpr_seed --rate 200
+Command line: ``python -m glpma_tools.mock_controller --config planar_3rpr_seed --rate 200
 --duration 5 [--input joint_state [--joint-names A B C]] [--json]``; as a library: :func:`run`
 returns the summary.
 """
@@ -40,9 +40,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import load_document, model_from_dict, resolve_config
-from .errors import GlpmaError
-from .models.hexapod_66 import quaternion_from_matrix, rotation_from_vector
+from glpma_ros.config import load_document, model_from_dict, resolve_config
+from glpma_ros.errors import GlpmaError
+from glpma_ros.models.rotations import quaternion_from_matrix, rotation_from_vector
 
 #: default solution of each manipulator to move around (index in the config's list)
 DEFAULT_SOLUTION = {"planar_3rpr": 0,      # real_solutions[0], the one of 001 Table 1
@@ -135,8 +135,8 @@ class PoseListener:
     """Takes ``pose_estimate`` (and the node's ``/diagnostics``) on a thread, with receive times."""
 
     def __init__(self, participant, depth: int):
-        from .dds import endpoints
-        from .dds.messages import DiagnosticArray, PoseStamped
+        from glpma_ros.node.dds import endpoints
+        from glpma_ros.node.dds.messages import DiagnosticArray, PoseStamped
         self.reader = participant.reader(endpoints.POSE_ESTIMATE, PoseStamped, depth)
         self.diag_reader = participant.reader(endpoints.DIAGNOSTICS, DiagnosticArray, depth)
         self.poses: list = []            # (recv_ns, stamp_ns, frame_id, position (3,), quaternion (4,))
@@ -150,7 +150,7 @@ class PoseListener:
     def _run(self):
         from cyclonedds.util import duration
 
-        from .dds.messages import DiagnosticArray, PoseStamped
+        from glpma_ros.node.dds.messages import DiagnosticArray, PoseStamped
         while not self._stop:
             self._waitset.wait(duration(milliseconds=100))
             samples = self.reader.take(256)
@@ -216,8 +216,8 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     ``input_type``: ``float64_multi_array`` (``leg_lengths``) or ``joint_state`` (``joint_states``,
     legs under ``joint_names`` among :data:`EXTRA_JOINTS`, shuffled, stamped with the send time).
     Raises :class:`TimeoutError` when no node answers within ``connect_timeout_s``."""
-    from .dds import endpoints
-    from .dds.messages import (Float64MultiArray, Header, JointState, MultiArrayDimension, MultiArrayLayout,
+    from glpma_ros.node.dds import endpoints
+    from glpma_ros.node.dds.messages import (Float64MultiArray, Header, JointState, MultiArrayDimension, MultiArrayLayout,
                                Time)
 
     if input_type not in INPUT_TYPES:
@@ -334,8 +334,8 @@ class ModesClient:
     answered and ``period_s`` has passed) and collects the ``~/assembly_modes`` answers."""
 
     def __init__(self, participant):
-        from .dds import endpoints
-        from .dds.messages import Empty, PoseArray
+        from glpma_ros.node.dds import endpoints
+        from glpma_ros.node.dds.messages import Empty, PoseArray
         self._empty = Empty
         self.writer = participant.writer(endpoints.REQUEST_ASSEMBLY_MODES, Empty, 1)
         self.reader = participant.reader(endpoints.ASSEMBLY_MODES, PoseArray, 1, transient_local=True)
@@ -444,8 +444,8 @@ def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False,
     import os
     import tempfile
 
-    from .config import config_dir
-    from .node_process import NodeProcess, node_environment
+    from glpma_ros.config import config_dir
+    from glpma_tools.sim.node_process import NodeProcess, node_environment
 
     model = model_from_dict(load_document(resolve_config(config)), str(config))
     rate, params = END_TO_END[model.kind]

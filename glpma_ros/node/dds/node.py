@@ -1,9 +1,9 @@
 """The ``glpma_fk`` node over plain Eclipse Cyclone DDS (no ROS 2 installation needed).
 
 Same topics, types, QoS and parameters as the rclpy node (``ros_node.py``);
-both run :class:`~glpma_ros.service.FkService` through
-:class:`~glpma_ros.service.SolveLoop` and
-:class:`~glpma_ros.service.AssemblyModesLoop`.  Threads: a reader thread takes leg
+both run :class:`~glpma_ros.node.service.FkService` through
+:class:`~glpma_ros.node.loops.SolveLoop` and
+:class:`~glpma_ros.node.loops.AssemblyModesLoop`.  Threads: a reader thread takes leg
 lengths (or joint states) and assembly-modes requests as they arrive and keeps only the
 newest pending input; the solver thread solves it and publishes the pose; the
 assembly-modes thread hands requests to its worker process and publishes the
@@ -12,7 +12,7 @@ PoseArray; the main thread publishes
 SIGTERM stop the node, SIGHUP re-reads the ``--ros-args`` parameters, i.e. the
 params files, and applies the changed ones).
 
-Run: ``python -m glpma_ros.dds.node --ros-args --params-file config/params_3rpr.yaml``.
+Run: ``python -m glpma_ros.node.dds.node --ros-args --params-file config/params_3rpr.yaml``.
 Prints one line ``[glpma_fk] ready: ...`` on stdout once it can take inputs;
 logs go to stderr.
 """
@@ -27,8 +27,10 @@ import time
 from cyclonedds.util import duration
 
 from .. import params as P
-from ..errors import GlpmaError, InputError
-from ..service import AssemblyModesLoop, FkService, SolveLoop
+from ...errors import GlpmaError, InputError
+from ..loops import AssemblyModesLoop, SolveLoop
+from ..ros_args import node_values, parse_ros_args, split_transport
+from ..service import FkService
 from . import endpoints
 from .messages import (DiagnosticArray, DiagnosticStatus, Empty, Float64MultiArray, Header, JointState, KeyValue,
                        Point, Pose, PoseArray, PoseStamped, Quaternion, Time)
@@ -39,7 +41,7 @@ TAKE_BATCH = 256
 
 
 def pose_message(pose) -> PoseStamped:
-    """:class:`~glpma_ros.service.PoseOutput` -> ``geometry_msgs/PoseStamped``."""
+    """:class:`~glpma_ros.node.service.PoseOutput` -> ``geometry_msgs/PoseStamped``."""
     x, y, z = pose.position
     qx, qy, qz, qw = pose.orientation
     return PoseStamped(header=Header(stamp=Time.from_ns(pose.stamp_ns), frame_id=pose.frame_id),
@@ -47,14 +49,14 @@ def pose_message(pose) -> PoseStamped:
 
 
 def pose_array_message(modes) -> PoseArray:
-    """:class:`~glpma_ros.service.PoseArrayOutput` -> ``geometry_msgs/PoseArray``."""
+    """:class:`~glpma_ros.node.service.PoseArrayOutput` -> ``geometry_msgs/PoseArray``."""
     return PoseArray(header=Header(stamp=Time.from_ns(modes.stamp_ns), frame_id=modes.frame_id),
                      poses=[Pose(position=Point(*position), orientation=Quaternion(*orientation))
                             for position, orientation in modes.poses])
 
 
 def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
-    """:class:`~glpma_ros.service.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
+    """:class:`~glpma_ros.node.service.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
     status = DiagnosticStatus(level=report.level, name=report.name, message=report.message,
                               hardware_id=report.hardware_id,
                               values=[KeyValue(key=k, value=v) for k, v in report.values])
@@ -184,7 +186,7 @@ class ParameterReload:
     def __call__(self) -> None:
         log = self.service.log
         try:
-            values, _ = P.resolve(P.parse_ros_args(self.argv).overrides)
+            values, _, _ = node_values(self.argv)
         except InputError as exc:
             log.error(f"parameter reload failed, keeping the current values: {exc}")
             return
@@ -206,11 +208,11 @@ def main(argv=None) -> int:
     """Run the node over Cyclone DDS until SIGINT/SIGTERM; returns the exit status
     (2 for bad parameters or configuration, 1 for a DDS failure)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    transport, argv = P.split_transport(argv, default="dds")
+    transport, argv = split_transport(argv, default="dds")
     if transport not in ("dds", "auto"):
         return _error(f"this is the Cyclone DDS transport; --transport {transport} is not it")
     try:
-        ros = P.parse_ros_args(argv)
+        ros = parse_ros_args(argv)
     except InputError as exc:
         return _error(str(exc))
     if ros.other:

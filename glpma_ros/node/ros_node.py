@@ -1,10 +1,10 @@
 """The ``glpma_fk`` node on rclpy (``ros2 run glpma_ros fk_node``).
 
-A thin adapter: parameters are declared from :mod:`glpma_ros.params` (with
+A thin adapter: parameters are declared from :mod:`glpma_ros.node.params` (with
 descriptions and ranges), changes are validated and applied by
-:class:`~glpma_ros.service.FkService`, inputs go through the shared
-:class:`~glpma_ros.service.SolveLoop` (newest input only), assembly-modes requests
-through :class:`~glpma_ros.service.AssemblyModesLoop`, and messages are
+:class:`~glpma_ros.node.service.FkService`, inputs go through the shared
+:class:`~glpma_ros.node.loops.SolveLoop` (newest input only), assembly-modes requests
+through :class:`~glpma_ros.node.loops.AssemblyModesLoop`, and messages are
 converted here.  Importable only where rclpy is.
 """
 from __future__ import annotations
@@ -26,8 +26,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty, Float64MultiArray
 
 from . import params as P
-from .errors import GlpmaError
-from .service import AssemblyModesLoop, FkService, SolveLoop
+from ..errors import GlpmaError
+from .loops import AssemblyModesLoop, SolveLoop
+from .service import FkService
 
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,

@@ -1,0 +1,1 @@
+"""Simulation helpers shared by the demo, the benchmark and the stress test."""
