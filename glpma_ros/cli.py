@@ -1,4 +1,4 @@
-"""``glpma-fk``: solve, solve-all, node, bench, demo (see CONTRACT.md)."""
+"""``glpma-fk``: the command line of the package (``glpma-fk --help``; doc/interface.md)."""
 from __future__ import annotations
 
 import argparse

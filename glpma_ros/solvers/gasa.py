@@ -31,10 +31,8 @@ Generational.  Each generation (004 Algorithm 1):
 ("No. Itera" hardly changes with the chain length while the CPU time grows
 with it, see :mod:`.sa`): 500 Markov chains of 20, i.e. 10,000 proposals per
 annealed child.  004 does not settle it; the other reading, 500 proposals
-(``sa_iterations=25``), is a parameter away.  Measured on 004's protocol, 50
-runs: this reading 50/50 in 4.8 +- 0.4 generations and 1.49 M evaluations; the
-other 50/50 in 16.5 +- 0.9 generations and 0.28 M evaluations; 004 reports
-50/50 in 18 +- 3 generations.
+(``sa_iterations=25``), is a parameter away (BENCHMARKS.md compares both
+readings with 004 Table II).
 
 One "iteration" in 004 Table II's sense is one GA generation.  The annealer's
 neighbourhood follows the law of :mod:`.sa`: ``b(T) = b0 sqrt(T / T0_SA)``,
@@ -46,7 +44,7 @@ proposal one; a copied child that is not annealed costs none.  A generation cut
 short by the evaluation cap or by reaching the tolerance keeps the previous
 individuals in the slots it did not fill, and counts as one generation.
 Under a deadline the wall clock is checked every ``DEADLINE_CHAINS`` Markov
-chains (one annealed child is 10,000 evaluations, a generation ~390,000).
+chains, not once per annealed child.
 """
 from __future__ import annotations
 
