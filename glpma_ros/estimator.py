@@ -100,7 +100,8 @@ class Estimator:
         if name not in solvers.SOLVERS:
             raise InputError(f"unknown solver {name!r}; choose one of {', '.join(solvers.SOLVERS)}")
         self.solver = name
-        self.params = {k: v for k, v in params.items() if v is not None}
+        # options of another solver (GLPMA's local search for G3-PCX, say) do not apply to this one
+        self.params = {k: v for k, v in params.items() if v is not None and k in solvers.OPTIONS[name]}
 
     def reset(self, initial_pose=None):
         """Forget the warm-start state; ``initial_pose`` (solver variables) selects

@@ -1,5 +1,4 @@
 """Solvers: one module per algorithm, one result type (:class:`SolveResult`)."""
-import inspect
 
 from . import de, g3pcx, gasa, glpma, rcga, refine, sa
 from .common import BUDGET_EXHAUSTED, CONVERGED, MAX_EVALS, SolveResult, Termination
@@ -12,8 +11,20 @@ SOLVERS = {"glpma": glpma.solve, "g3pcx": g3pcx.solve, "rcga": rcga.solve,
 DEFAULT_POPULATION = {"sa": sa.default_population, "gasa": gasa.default_population,
                       "de": de.default_population}
 
-#: the keyword arguments each solver takes
-_KEYWORDS = {name: frozenset(inspect.signature(f).parameters) for name, f in SOLVERS.items()}
+#: the options every solver takes
+COMMON_OPTIONS = frozenset({"population", "rng", "init_range", "center", "spread", "tolerance", "max_evals",
+                            "budget_s", "polish"})
+#: each solver's own options (its module documents them)
+OPTIONS = {
+    "glpma": COMMON_OPTIONS | {"local_population", "ls_interval", "ls_intensity",
+                               "mu", "lam", "r", "sigma_zeta", "sigma_eta"},
+    "g3pcx": COMMON_OPTIONS | {"mu", "lam", "r", "sigma_zeta", "sigma_eta"},
+    "rcga": COMMON_OPTIONS | {"crossover_rate", "mutation_rate", "mutation_b"},
+    "sa": COMMON_OPTIONS | {"t0", "chain_length", "cooling_rate", "neighbour_fraction"},
+    "gasa": COMMON_OPTIONS | {"t0", "sa_iterations", "chain_length", "cooling_rate", "crossover_rate", "sa_rate",
+                              "neighbour_fraction"},
+    "de": COMMON_OPTIONS | {"f_low", "f_high", "cr_low", "cr_high"},
+}
 
 #: the papers' population sizes per manipulator (Chandra & Rolland 2014, section 5)
 PAPER_SETTINGS = {
@@ -25,18 +36,21 @@ PAPER_SETTINGS = {
 
 
 def solve(name, model, legs, **kwargs):
-    """Run solver ``name`` with the paper's settings for ``model`` overridden by ``kwargs``."""
+    """Run solver ``name`` with the paper's settings for ``model`` overridden by ``kwargs``
+    (options of :data:`OPTIONS`; ``None`` keeps the default)."""
     if name not in SOLVERS:
         raise ValueError(f"unknown solver {name!r}; choose one of {', '.join(SOLVERS)}")
-    settings = dict(PAPER_SETTINGS[model.kind])
-    # keep only the settings the solver names (GLPMA-only keys go to GLPMA alone)
-    settings = {k: v for k, v in settings.items() if k in _KEYWORDS[name]}
+    unknown = sorted(set(kwargs) - OPTIONS[name])
+    if unknown:
+        raise ValueError(f"solver {name!r} takes no option {', '.join(unknown)}")
+    # the papers' settings the solver has (GLPMA's local search ones go to GLPMA alone)
+    settings = {k: v for k, v in PAPER_SETTINGS[model.kind].items() if k in OPTIONS[name]}
     if name in DEFAULT_POPULATION:
         settings["population"] = DEFAULT_POPULATION[name](model)
     settings.update({k: v for k, v in kwargs.items() if v is not None})
     return SOLVERS[name](model, legs, **settings)
 
 
-__all__ = ["SOLVERS", "PAPER_SETTINGS", "solve", "SolveResult", "Termination",
+__all__ = ["SOLVERS", "OPTIONS", "PAPER_SETTINGS", "solve", "SolveResult", "Termination",
            "CONVERGED", "BUDGET_EXHAUSTED", "MAX_EVALS", "g3pcx", "rcga", "glpma", "refine",
            "sa", "gasa", "de"]

@@ -44,8 +44,8 @@ class SolveResult:
 class Termination:
     """Tolerance, evaluation cap and a hard wall-clock deadline.
 
-    The deadline is checked by the solvers' driver loops between compiled chunks
-    whose length is sized to a fraction of the budget (``chunk_generations``)."""
+    The deadline is checked by the solvers' driver loop between compiled chunks
+    whose length is sized to a fraction of the remaining budget."""
 
     def __init__(self, tolerance=DEFAULT_TOLERANCE, max_evals=10_000, budget_s=None):
         if not tolerance > 0:
@@ -58,10 +58,6 @@ class Termination:
         self.start = time.perf_counter()
         self.deadline = None if budget_s is None else self.start + self.budget_s
         self.nfev = 0
-
-    def restart_clock(self):
-        self.start = time.perf_counter()
-        self.deadline = None if self.budget_s is None else self.start + self.budget_s
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.start
@@ -100,11 +96,3 @@ def initial_population(rng: np.random.Generator, size: int, n_vars: int, init_ra
     low, high = init_range
     return rng.uniform(low, high, size=(size, n_vars))
 
-
-def chunk_generations(term: Termination, seconds_per_generation: float, fallback: int) -> int:
-    """Generations to run in one compiled call: a tenth of the remaining time
-    budget (at least one), so the deadline is overrun by a fraction of it."""
-    if term.deadline is None:
-        return fallback
-    left = term.deadline - time.perf_counter()
-    return int(max(1, min(fallback, 0.1 * left / max(seconds_per_generation, 1e-9))))

@@ -35,7 +35,7 @@ from numba import njit
 
 from ..models.kernels import population_fitness
 from .common import initial_population
-from .driver import EvolutionaryState, run_evolution
+from .driver import EvolutionaryState, solve_population
 
 #: 003 Eq. 21 and text: "the range of the mutation scale factor F is [0.5, 1.0]"
 F_LOW, F_HIGH = 0.5, 1.0
@@ -123,13 +123,8 @@ def solve(model, legs, *, population=None, rng=None, init_range=(-50.0, 50.0), c
     """Minimise the model's fitness with DE/rand/1/bin (plus the refinement
     unless ``polish=False``).  ``population`` defaults to ``10 D``.
     ``params``: ``f_low``, ``f_high``, ``cr_low``, ``cr_high``."""
-    rng = np.random.default_rng(rng)
     size = default_population(model) if population is None else int(population)
-
-    def make(problem, term):
-        pop = initial_de_population(rng, size, model.n_vars, init_range, center, spread)
-        fit = problem.evaluate(pop, term)
-        return DEPopulation(problem, pop, fit, rng, **params)
-
-    return run_evolution("de", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+    return solve_population("de", model, legs, lambda problem, pop, fit, rng, term: DEPopulation(problem, pop, fit, rng, **params),
+                            population=size, sample=initial_de_population,
+                            rng=rng, init_range=init_range, center=center, spread=spread,
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..models.kernels import population_fitness
 from . import refine
-from .common import CONVERGED, SolveResult, Termination
+from .common import CONVERGED, SolveResult, Termination, initial_population
 
 #: generations per compiled call when no deadline limits it
 CHUNK_GENERATIONS = 256
@@ -142,3 +142,18 @@ def _result(name, model, x, f, term, nit, polished, history, refined=None) -> So
                        status=status, solver=name, polished=polished and status == CONVERGED,
                        history=history, message=MESSAGES[status],
                        refined_x=None if refined is None else refined[0])
+
+
+def solve_population(name, model, legs, make_population, *, population, rng, init_range, center, spread,
+                     tolerance, max_evals, budget_s, polish, sample=initial_population):
+    """What every population solver's ``solve`` does: draw ``population`` individuals with
+    ``sample(rng, size, n_vars, init_range, center, spread)``, evaluate them, hand them to
+    ``make_population(problem, pop, fit, rng, term)`` and run that to termination."""
+    rng = np.random.default_rng(rng)
+
+    def make(problem, term):
+        pop = sample(rng, population, model.n_vars, init_range, center, spread)
+        return make_population(problem, pop, problem.evaluate(pop, term), rng, term)
+
+    return run_evolution(name, model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
+                         center=center, budget_s=budget_s, polish=polish)

@@ -31,8 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
-from .common import initial_population
-from .driver import EvolutionaryState, run_evolution
+from .driver import EvolutionaryState, solve_population
 
 #: Deb et al. (2002) defaults; the papers use "two kids, a family of two parents"
 MU = 3
@@ -180,12 +179,6 @@ def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), ce
           tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
     """Minimise the model's fitness with G3-PCX (plus the refinement unless
     ``polish=False``).  ``params``: ``mu``, ``lam``, ``r``, ``sigma_zeta``, ``sigma_eta``."""
-    rng = np.random.default_rng(rng)
-
-    def make(problem, term):
-        pop = initial_population(rng, population, model.n_vars, init_range, center, spread)
-        fit = problem.evaluate(pop, term)
-        return G3PCXPopulation(problem, pop, fit, rng, **params)
-
-    return run_evolution("g3pcx", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+    return solve_population("g3pcx", model, legs, lambda problem, pop, fit, rng, term: G3PCXPopulation(problem, pop, fit, rng, **params),
+                            population=population, rng=rng, init_range=init_range, center=center, spread=spread,
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)

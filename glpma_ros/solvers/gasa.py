@@ -54,8 +54,7 @@ from numba import njit
 from ..models.kernels import fitness_one
 
 from . import sa
-from .common import initial_population
-from .driver import EvolutionaryState, run_evolution
+from .driver import EvolutionaryState, solve_population
 from .rcga import CROSSOVER_RATE, _roulette, mutation_width, roulette_cumulative, wright_crossover
 
 #: 004 section IV.A item 4: "initial temperature of 10"
@@ -247,13 +246,7 @@ def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50
     unless ``polish=False``).  ``params``: ``t0``, ``sa_iterations``,
     ``chain_length``, ``cooling_rate``, ``crossover_rate``, ``sa_rate``,
     ``neighbour_fraction``."""
-    rng = np.random.default_rng(rng)
-
-    def make(problem, term):
-        pop = initial_population(rng, population, model.n_vars, init_range, center, spread)
-        fit = problem.evaluate(pop, term)
-        return GASAPopulation(problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars),
-                              term=term, **params)
-
-    return run_evolution("gasa", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+    return solve_population("gasa", model, legs, lambda problem, pop, fit, rng, term: GASAPopulation(
+        problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), term=term, **params),
+                            population=population, rng=rng, init_range=init_range, center=center, spread=spread,
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)

@@ -28,8 +28,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
-from .common import initial_population
-from .driver import EvolutionaryState, run_evolution
+from .driver import EvolutionaryState, solve_population
 
 #: the papers' rates (Chandra & Rolland 2014; Chandra, Zhang & Rolland 2009)
 CROSSOVER_RATE = 0.9
@@ -162,13 +161,7 @@ def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), ce
           tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
     """Minimise the model's fitness with the RCGA (plus the refinement unless
     ``polish=False``).  ``params``: ``crossover_rate``, ``mutation_rate``, ``mutation_b``."""
-    rng = np.random.default_rng(rng)
-
-    def make(problem, term):
-        pop = initial_population(rng, population, model.n_vars, init_range, center, spread)
-        fit = problem.evaluate(pop, term)
-        return RCGAPopulation(problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars),
-                              max_evals=max_evals, **params)
-
-    return run_evolution("rcga", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+    return solve_population("rcga", model, legs, lambda problem, pop, fit, rng, term: RCGAPopulation(
+        problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), max_evals=max_evals, **params),
+                            population=population, rng=rng, init_range=init_range, center=center, spread=spread,
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)

@@ -49,8 +49,7 @@ from numba import njit
 
 from ..models.kernels import fitness_one
 
-from .common import initial_population
-from .driver import EvolutionaryState, run_evolution
+from .driver import EvolutionaryState, solve_population
 from .rcga import mutation_width
 
 #: 004 section IV.A item 1: "initial temperature of 100"
@@ -197,12 +196,7 @@ def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50
     """Minimise the model's fitness by simulated annealing (plus the refinement
     unless ``polish=False``).  ``params``: ``t0``, ``chain_length``,
     ``cooling_rate``, ``neighbour_fraction``."""
-    rng = np.random.default_rng(rng)
-
-    def make(problem, term):
-        pop = initial_population(rng, population, model.n_vars, init_range, center, spread)
-        fit = problem.evaluate(pop, term)
-        return SAState(problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), **params)
-
-    return run_evolution("sa", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+    return solve_population("sa", model, legs, lambda problem, pop, fit, rng, term: SAState(
+        problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), **params),
+                            population=population, rng=rng, init_range=init_range, center=center, spread=spread,
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)
