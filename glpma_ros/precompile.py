@@ -82,10 +82,17 @@ def precompile(configs=SHIPPED_CONFIGS, solver_names=None, say=_say) -> float:
     t0 = time.perf_counter()
     say(f"precompile: {len(steps)} steps ({len(names)} solvers and solve-all on {len(models)} manipulators); "
         f"a first run compiles (minutes on two cores), later runs load the cache (seconds)")
+    seen, compiled_s, loaded_s = set(), [], []
     for k, (model, name) in enumerate(steps, 1):
         t = exercise_solve_all(model) if name == "solve-all" else exercise(model, name)
-        done = time.perf_counter() - t0
-        left = done / k * (len(steps) - k)
+        (compiled_s if t > COMPILED_S else loaded_s).append(t)
+        seen.add(name)
+        # the compiled code is shared by both manipulator kinds: a solver seen once only loads
+        # later; one not seen yet may compile (as long as the compiled ones took on average)
+        unseen = len({n for _, n in steps[k:]} - seen)
+        per_compile = sum(compiled_s) / len(compiled_s) if compiled_s else 0.0
+        per_load = sum(loaded_s) / len(loaded_s) if loaded_s else 0.0
+        left = unseen * per_compile + (len(steps) - k - unseen) * per_load
         how = "compiled" if t > COMPILED_S else "loaded"
         say(f"precompile: [{k}/{len(steps)}] {model.kind} {name}: {how} in {t:.1f} s"
             + (f" (about {left:.0f} s left)" if k < len(steps) else ""))
