@@ -10,7 +10,7 @@ package_name = "glpma_ros"
 VERSION = re.search(r'__version__ = "([^"]+)"',
                     (Path(__file__).resolve().parent / package_name / "__init__.py").read_text()).group(1)
 #: glpma_tools (demo, bench, stress, mock controller): plots and progress bars
-TOOLS = ["matplotlib>=3.7", "tqdm>=4.60"]
+TOOLS = ["matplotlib>=3.6", "tqdm>=4.60"]   # accept Ubuntu 24.04 / Debian 12 (3.6.3)
 
 setup(
     name=package_name,
