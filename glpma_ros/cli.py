@@ -95,7 +95,6 @@ def cmd_solve(args) -> int:
     from .estimator import STATUS_BUDGET, Estimator
     from .solvers import MAX_EVALS
     model = _load(args.config)
-    legs = _legs(model, args.legs)
     init = {}
     if args.init_range is not None:
         low, high = args.init_range
@@ -103,6 +102,7 @@ def cmd_solve(args) -> int:
             raise GlpmaError("--init-range needs finite LOW < HIGH")
         init["init_range"] = (low, high)
     near = None if args.near is None else model.check_variables(args.near)
+    legs = _legs(model, args.legs)
     budget_s = NO_BUDGET_S if args.budget_ms is None else args.budget_ms / 1e3
     load_s = precompile.exercise(model, args.solver, polish_modes=(not args.no_polish,))
     est = Estimator(model, solver=args.solver, time_budget_s=budget_s, tolerance=args.tolerance, seed=args.seed,
