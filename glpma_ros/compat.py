@@ -17,8 +17,8 @@ from .errors import GlpmaError
 #: oldest Numba the kernels compile with (also in setup.py and package.xml)
 NUMBA_FLOOR = (0, 58)
 #: how to get a newer Numba where the distribution's is too old (PEP 668: no plain pip)
-NUMBA_HOWTO = ("pip install 'numba>=0.58' in a venv (python3 -m venv --system-site-packages), or "
-               "python3 -m pip install --user --break-system-packages 'numba>=0.58'")
+NUMBA_HOWTO = ("python3 -m pip install --user --break-system-packages 'numba>=0.58' 'numpy<2', or the same "
+               "in a venv made with --system-site-packages (README, Usage with ROS 2 Jazzy)")
 
 
 def version_tuple(text: str) -> tuple[int, ...]:
