@@ -104,7 +104,7 @@ def cmd_solve(args) -> int:
     near = None if args.near is None else model.check_variables(args.near)
     legs = _legs(model, args.legs)
     budget_s = NO_BUDGET_S if args.budget_ms is None else args.budget_ms / 1e3
-    load_s = precompile.exercise(model, args.solver, polish_modes=(not args.no_polish,))
+    load_s = precompile.exercise(model, args.solver)
     est = Estimator(model, solver=args.solver, time_budget_s=budget_s, tolerance=args.tolerance, seed=args.seed,
                     polish=not args.no_polish, initial_pose=near, max_evals=args.max_evals)
     if init:

@@ -24,6 +24,10 @@ SHIPPED_CONFIGS = ("planar_3rpr_seed", "hexapod_66_rolland")
 WARM_UP_EVALS = 2000
 #: the warm-up legs are the warm-up pose's scaled by this: a warm start must search, not stop at once
 WARM_UP_LEG_STRETCH = 1.0 + 1e-3
+#: equal legs this share of the geometry's scale have no real assembly unless base and platform are
+#: nearly congruent (the platform joints cannot all come that close to the base joints): the
+#: warm-up's search that does not converge (and so runs every generation's code)
+INFEASIBLE_SCALE = 0.05
 #: time budget of a warm-up solve (s): the evaluation cap, not the clock, ends it
 WARM_UP_BUDGET_S = 60.0
 #: solve_all runs of the warm-up of ``glpma-fk solve-all`` and of the node's assembly modes
@@ -46,17 +50,23 @@ def warm_up_legs(model) -> np.ndarray:
     return legs
 
 
-def exercise(model, solver: str, polish_modes=(True, False)) -> float:
+def exercise(model, solver: str) -> float:
     """Run every path of ``solver`` on ``model`` once -- cold and warm start, with and without
-    the refinement -- so that every compiled function it uses is loaded (or compiled).
-    The results are thrown away; returns the seconds spent."""
+    the refinement, on legs with and without a real assembly (a search that does not converge
+    at once reaches the code a quick one never does, e.g. GLPMA's local search) -- so that every
+    compiled function it uses is loaded (or compiled).  The results are thrown away; returns
+    the seconds spent."""
     from .estimator import Estimator
     t0 = time.perf_counter()
-    legs = warm_up_legs(model)
-    for start in (None, warm_up_pose(model)):
-        for polish in polish_modes:
-            Estimator(model, solver=solver, time_budget_s=WARM_UP_BUDGET_S, polish=polish, initial_pose=start,
-                      max_evals=WARM_UP_EVALS).estimate(legs)
+    feasible = warm_up_legs(model)
+    infeasible = np.full(model.n_legs, INFEASIBLE_SCALE * model.scale)
+    if model.leg_limits is not None:
+        infeasible = np.clip(infeasible, *model.leg_limits)
+    for legs in (feasible, infeasible):
+        for start in (None, warm_up_pose(model)):
+            for polish in (True, False):
+                Estimator(model, solver=solver, time_budget_s=WARM_UP_BUDGET_S, polish=polish,
+                          initial_pose=start, max_evals=WARM_UP_EVALS).estimate(legs)
     return time.perf_counter() - t0
 
 
