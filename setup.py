@@ -1,15 +1,20 @@
 """ament_python package, also installable with pip (``pip install -e .``)."""
+import re
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 package_name = "glpma_ros"
+#: one version of record: glpma_ros/__init__.py (package.xml repeats it; a test checks they agree)
+VERSION = re.search(r'__version__ = "([^"]+)"',
+                    (Path(__file__).resolve().parent / package_name / "__init__.py").read_text()).group(1)
 #: glpma_tools (demo, bench, stress, mock controller): plots and progress bars
-TOOLS = ["matplotlib>=3.7", "tqdm>=4.60"]
+TOOLS = ["matplotlib>=3.6", "tqdm>=4.60"]   # accept Ubuntu 24.04 / Debian 12 (3.6.3)
 
 setup(
     name=package_name,
-    version="0.1.0",
+    version=VERSION,
     packages=find_packages(exclude=["test", "test.*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
@@ -19,7 +24,9 @@ setup(
         ("share/" + package_name + "/msg_docs", glob("msg_docs/*.md")),
     ],
     python_requires=">=3.10",
-    # what the node needs (the DDS transport included); the tools' and the tests' needs are extras
+    # what the node needs (the DDS transport included); the tools' and the tests' needs are extras.
+    # Floors accept Ubuntu 24.04's packages (numpy 1.26, PyYAML 6, numba >= 0.58.1 as numpy 1.26 needs);
+    # numba 0.58 is the oldest the compiled kernels work with (glpma_ros/compat.py says why)
     install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=0.10.5"],
     extras_require={
         "tools": TOOLS,

@@ -1,16 +1,25 @@
 """Manipulator YAML -> model, with the validation errors users see.
 
-Schema (see ``config/*.yaml``)::
+Schema (see ``config/*.yaml`` and ``doc/interface.md``)::
 
     manipulator: planar_3rpr | hexapod_66
-    unit: mm | cm | m            # unit of every length in the file and on the CLI
+    unit: mm | cm | m            # required: unit of every length in the file and on the CLI
     base: [[...], ...]           # base joints A_i in the base frame
     platform: [[...], ...]       # platform joints B_i in the platform frame
-    leg_limits: [min, max]       # optional, config unit
+    leg_limits: [min, max]       # optional, config unit: leg lengths outside are rejected
     example_leg_lengths: [...]   # optional
+    real_solutions: [...]        # optional (3-RPR): {x, y, theta_deg} of known assembly modes
+    published_solutions: [...]   # optional (hexapod): [x1 y1 z1 x2 y2 z2 x3 y3 z3] of known modes
+    name: ..., description: ...  # optional, free text
+
+Any other key is an error that names it (a typo such as ``basee`` is not silently ignored).
+
+Leg lengths that are off by a unit factor (metres given to a millimetre config, millimetres
+on a topic in metres) are recognised by :func:`unit_mistake`.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import sys
 from pathlib import Path
@@ -18,11 +27,20 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .errors import ConfigError
+from .errors import ConfigError, InputError
 from .models import MODELS, Manipulator
 
 UNIT_TO_METRES = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
 JOINT_DIMENSION = {"planar_3rpr": (3, 2), "hexapod_66": (6, 3)}
+#: keys a manipulator YAML may have (the first four are required)
+REQUIRED_KEYS = ("manipulator", "unit", "base", "platform")
+OPTIONAL_KEYS = ("leg_limits", "example_leg_lengths", "real_solutions", "published_solutions", "name",
+                 "description")
+#: without ``leg_limits``, leg lengths are plausible between the geometry's scale (largest extent of
+#: the base or platform joints) divided and multiplied by this factor; all legs outside that band and
+#: inside it once read in another unit are taken for a unit mistake
+PLAUSIBLE_SCALE_FACTOR = 100.0
 
 
 def _matrix(doc: dict, key: str, shape: tuple[int, int], path: str) -> np.ndarray:
@@ -60,14 +78,28 @@ def _check_joints(arr: np.ndarray, key: str, path: str, need_triangle: bool) -> 
             raise ConfigError(f"{path}: '{key}' joints 1, 2 and 3 are collinear")
 
 
+def _check_keys(doc: dict, path: str) -> None:
+    """Unknown keys are an error naming the key (and the known key it most resembles)."""
+    known = REQUIRED_KEYS + OPTIONAL_KEYS
+    for key in doc:
+        if key not in known:
+            close = difflib.get_close_matches(str(key), known, n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else f"; known keys: {', '.join(known)}"
+            raise ConfigError(f"{path}: unknown key {str(key)!r}{hint}")
+
+
 def model_from_dict(doc, path: str = "config") -> Manipulator:
     """Build and validate a model from a parsed YAML mapping."""
     if not isinstance(doc, dict):
-        raise ConfigError(f"{path}: expected a YAML mapping with keys manipulator, unit, base, platform")
+        raise ConfigError(f"{path}: expected a YAML mapping with keys {', '.join(REQUIRED_KEYS)}")
+    _check_keys(doc, path)
     kind = doc.get("manipulator")
     if kind not in MODELS:
         raise ConfigError(f"{path}: 'manipulator' must be one of {', '.join(MODELS)}, got {kind!r}")
-    unit = doc.get("unit", "mm")
+    if "unit" not in doc:
+        raise ConfigError(f"{path}: missing key 'unit' (the unit of every length in the file: "
+                          f"{', '.join(UNIT_TO_METRES)})")
+    unit = doc["unit"]
     if unit not in UNIT_TO_METRES:
         raise ConfigError(f"{path}: 'unit' must be one of {', '.join(UNIT_TO_METRES)}, got {unit!r}")
     shape = JOINT_DIMENSION[kind]
@@ -95,6 +127,55 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
         except Exception as exc:  # noqa: BLE001 - reported as a config error
             raise ConfigError(f"{path}: 'example_leg_lengths': {exc}") from None
     return model
+
+
+def _plausible_band(model) -> tuple[float, float]:
+    """Leg lengths (config unit) a set of legs should lie in: ``leg_limits``, or else the
+    geometry's scale divided and multiplied by :data:`PLAUSIBLE_SCALE_FACTOR`."""
+    if model.leg_limits is not None:
+        return model.leg_limits
+    return model.scale / PLAUSIBLE_SCALE_FACTOR, model.scale * PLAUSIBLE_SCALE_FACTOR
+
+
+def unit_mistake(model, legs, given_unit: str | None = None) -> str | None:
+    """The unit that finite, positive leg lengths ``legs`` (config unit, converted from
+    ``given_unit``; default: the config's unit) look like they were really written in, or None.
+
+    Rule: the legs lie outside the plausible band (``leg_limits`` when the config has them,
+    otherwise [scale / 100, 100 x scale] with the geometry's scale), and read in another unit
+    they all lie inside it.  When several units fit, the one putting the legs nearest the
+    geometry's scale (in ratio) wins.  A factor of 10 to 1000 between the units makes this
+    reliable for the usual mistakes (metres <-> millimetres); any other input is left to the
+    solver, which reports ``no_solution`` when the legs have no real assembly."""
+    given_unit = given_unit or model.unit
+    arr = np.asarray(legs, dtype=float).reshape(-1)
+    if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        return None
+    lo, hi = _plausible_band(model)
+    if np.all((arr >= lo) & (arr <= hi)):
+        return None
+    best, best_distance = None, math.inf
+    for unit, metres in UNIT_TO_METRES.items():
+        if unit == given_unit:
+            continue
+        # the numbers as written were in `unit`: in the config's unit they would be
+        with np.errstate(over="ignore"):
+            candidate = arr * (metres / UNIT_TO_METRES[given_unit])
+        if np.all((candidate >= lo) & (candidate <= hi)):
+            distance = abs(math.log(float(np.median(candidate)) / model.scale))
+            if distance < best_distance:
+                best, best_distance = unit, distance
+    return best
+
+
+def check_units(model, legs, given_unit: str | None = None, where: str | None = None) -> None:
+    """:class:`~glpma_ros.errors.InputError` with a one-line hint when :func:`unit_mistake`
+    finds the legs written in another unit.  ``where`` says which unit the input should be in
+    (default: "this config is in <unit>")."""
+    unit = unit_mistake(model, legs, given_unit)
+    if unit is not None:
+        where = where or f"this config is in {model.unit}"
+        raise InputError(f"leg lengths look like {UNIT_NAMES[unit]}; {where}")
 
 
 def load_document(path) -> dict:

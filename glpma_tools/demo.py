@@ -18,6 +18,10 @@ from glpma_tools import mock_controller
 from glpma_ros.config import config_dir
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 
+#: ``glpma-fk demo --help`` (plain text: no reST markup)
+DESCRIPTION = ("The main job: start the glpma_fk node over Cyclone DDS, drive it with the mock controller "
+               "along a trajectory, show live progress, print a summary and write a figure. Exits non-zero "
+               "when tracking failed.")
 MANIPULATORS = {
     "3rpr": {"config": "planar_3rpr_seed", "params": "params_3rpr.yaml", "rate": 200.0},
     "hexapod": {"config": "hexapod_66_rolland", "params": "params_hexapod.yaml", "rate": 100.0},
@@ -30,11 +34,13 @@ MAX_ORIENTATION_ERROR_RAD = 1e-6
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="glpma-fk demo", description=__doc__.split("\n\n")[0])
-    p.add_argument("--manipulator", choices=sorted(MANIPULATORS), default="3rpr")
+    from glpma_ros.solvers import SOLVERS
+    p = argparse.ArgumentParser(prog="glpma-fk demo", description=DESCRIPTION)
+    p.add_argument("--manipulator", choices=sorted(MANIPULATORS), default="3rpr",
+                   help="which shipped manipulator to drive (default 3rpr)")
     p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod 100)")
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
-    p.add_argument("--solver", default="glpma", help="the node's solver parameter")
+    p.add_argument("--solver", choices=list(SOLVERS), default="glpma", help="the node's solver parameter")
     p.add_argument("--budget-ms", type=float, default=None, help="the node's time_budget_ms")
     p.add_argument("--out", default="demo_out", help="directory of the figure and the JSON summary")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: a private one)")

@@ -63,6 +63,9 @@ def _rot_z(angle: float) -> np.ndarray:
 def start_pose(model, doc: dict, solution: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(position, rotation matrix) of a known solution of the config (config unit)."""
     kind = model.kind
+    key = "real_solutions" if kind == "planar_3rpr" else "published_solutions"
+    if solution is None and not doc.get(key):
+        return _solved_start_pose(model)
     index = DEFAULT_SOLUTION[kind] if solution is None else int(solution)
     if kind == "planar_3rpr":
         sols = doc.get("real_solutions") or []
@@ -75,6 +78,20 @@ def start_pose(model, doc: dict, solution: int | None = None) -> tuple[np.ndarra
         raise GlpmaError(f"the config has {len(sols)} published_solutions; cannot use solution {index}")
     R, p = model.pose_state(np.asarray(sols[index], dtype=float))   # rigid fit of B1, B2, B3
     return np.asarray(p, dtype=float), np.asarray(R, dtype=float)
+
+
+def _solved_start_pose(model) -> tuple[np.ndarray, np.ndarray]:
+    """A user's own config without known solutions: start where its ``example_leg_lengths`` put
+    the platform (one cold solve, no time limit)."""
+    from glpma_ros.estimator import Estimator
+    from glpma_ros.models.rotations import matrix_from_quaternion
+    if model.example_leg_lengths is None:
+        raise GlpmaError("the config has no known solutions and no example_leg_lengths to start from; "
+                         "add example_leg_lengths (a pose's leg lengths)")
+    e = Estimator(model, time_budget_s=60.0).estimate(model.example_leg_lengths)
+    if not e.converged:
+        raise GlpmaError(f"cannot start from the config's example_leg_lengths: {e.message}")
+    return np.asarray(e.pose.position, dtype=float), matrix_from_quaternion(e.pose.orientation)
 
 
 def trajectory(model, p0: np.ndarray, R0: np.ndarray, amplitude: float = 1.0, period_s: float = PERIOD_S):

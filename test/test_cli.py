@@ -18,7 +18,8 @@ def test_solve_json():
     p = run("solve", RPR_YAML, "--legs", 100, 120, 150, "--json", "--seed", 3)
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout)
-    assert set(out) == {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"}
+    # the documented keys (more may be added, none removed)
+    assert {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"} <= set(out)
     assert out["status"] == "converged" and out["fitness"] < 1e-20 and out["solver"] == "glpma"
     assert len(out["variables"]) == 3 and out["pose"]["position"][2] == 0.0
     assert len(out["pose"]["orientation"]) == 4

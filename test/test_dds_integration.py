@@ -3,7 +3,7 @@
 * node + mock controller: 3-RPR at 200 Hz for 5 s, hexapod at 100 Hz for 3 s;
 * a sequence of bad inputs: the node keeps running, poses resume, rejections on /diagnostics;
   then a runtime solver switch through a params-file reload (SIGHUP);
-* a minimal DDS participant written only against CONTRACT.md sees the poses.
+* a minimal DDS participant written only against doc/interface.md sees the poses.
 """
 import itertools
 import json
@@ -250,7 +250,7 @@ def test_bad_inputs_are_rejected_and_the_node_keeps_tracking(start_node, tmp_pat
     assert node.proc.poll() is None
 
 
-# -- an independent participant, written only against CONTRACT.md -------------------------------------
+# -- an independent participant, written only against doc/interface.md ------------------------------
 # The ROS 2 Jazzy types as rmw_cyclonedds_cpp names them, defined here without any glpma_ros import.
 
 @dataclass

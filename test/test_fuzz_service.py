@@ -48,6 +48,7 @@ legs_inputs = st.one_of(float_lists, near_valid, near_valid, numpy_arrays,
 def service():
     svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X})
     svc.warm_up(solvers=("glpma",))          # compiled before the time budgets count
+    service_limits[0] = svc.model.leg_limits
     return svc
 
 
@@ -64,7 +65,15 @@ def expected_rejection(legs, metres_per_unit: float):
         return "leg lengths too large"
     if np.any(converted <= 0.0):
         return "leg lengths must be positive"
+    limits = service_limits[0]
+    if limits is not None and (np.any(converted < limits[0]) or np.any(converted > limits[1])):
+        # outside the config's leg_limits: a unit hint, or the limits named
+        return ("leg lengths look like", "leg lengths outside the configured limits")
     return None
+
+
+#: the service's leg_limits (config unit), set by the fixture
+service_limits = [None]
 
 
 def _copy(x):
@@ -93,7 +102,7 @@ def test_handle_never_raises_and_names_every_rejection(service, legs, stamp):
         if want is not None:
             assert out.reason.startswith(want), (legs, out.reason)
             assert out.estimate is None
-            CASES[want] += 1
+            CASES[want if isinstance(want, str) else want[0] + "/" + want[1]] += 1
         else:
             # the estimator ran and did not converge: its status names the reason
             assert out.estimate is not None and not out.estimate.converged

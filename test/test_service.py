@@ -155,6 +155,7 @@ def test_config_in_metres_gives_the_same_pose(tmp_path):
     doc["unit"] = "m"
     doc["base"] = (np.array(doc["base"]) / 1000).tolist()
     doc["platform"] = (np.array(doc["platform"]) / 1000).tolist()
+    doc["leg_limits"] = (np.array(doc["leg_limits"]) / 1000).tolist()
     doc.pop("example_leg_lengths")
     path = tmp_path / "rpr_m.yaml"
     path.write_text(yaml.safe_dump(doc))

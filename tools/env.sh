@@ -1,5 +1,7 @@
 # Sourced by tools/*.sh: create .venv in the repository root (once) and install
-# the package with the given extras; reinstall only when setup.py changed.
+# the package with the given extras; reinstall only when setup.py changed.  After an
+# install, `glpma-fk precompile` compiles the solvers once (a line per solver), so that
+# no later command waits for Numba.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$ROOT/.venv"
@@ -26,6 +28,7 @@ if [ ! -f "$STAMP" ]; then
     if [ ! -f "$STAMP" ]; then
       "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
       "$VENV/bin/python" -m pip install -q -e "$ROOT${EXTRAS:+[$EXTRAS]}"
+      "$VENV/bin/glpma-fk" precompile
       touch "$STAMP"
     fi
   )

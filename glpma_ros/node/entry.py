@@ -24,7 +24,18 @@ def usage() -> str:
     """``glpma-fk node --help``: the syntax and every declared parameter."""
     from .params import PARAMETERS
     lines = ["usage: glpma-fk node [--transport auto|rclpy|dds] [--ros-args -p NAME:=VALUE ... "
-             "--params-file FILE]", "", "parameters:"]
+             "--params-file FILE]", "",
+             "Run the glpma_fk node: leg lengths in, poses out (topics in metres). SIGINT/SIGTERM stop it; "
+             "SIGHUP (DDS transport) re-reads the --ros-args, params files included, and applies what changed.",
+             "", "options:",
+             "  -h, --help            print this help and exit",
+             "  --transport auto|rclpy|dds",
+             "                        rclpy (ROS 2 sourced) or plain Cyclone DDS; auto: rclpy when importable",
+             "  --ros-args            the rest is ROS 2 arguments, as for ros2 run glpma_ros fk_node:",
+             "  -p NAME:=VALUE        set a parameter (VALUE read as YAML)",
+             "  --params-file FILE    a ROS 2 params file (glpma_fk: ros__parameters: ...), not a manipulator YAML",
+             "  -r FROM:=TO           remap a topic (-r __node:=NAME renames the node)",
+             "  --log-level LEVEL     debug, info, warn, error", "", "parameters:"]
     for spec in PARAMETERS:
         default = spec.default if spec.default != [] else "[]"
         extra = f" ({spec.constraints})" if spec.constraints else ""

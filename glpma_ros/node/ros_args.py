@@ -75,6 +75,9 @@ def load_params_file(path: str, node_name: str = NODE_NAME) -> dict:
         return {}
     if not isinstance(doc, dict):
         raise InputError(f"params file {path}: expected 'NODE: ros__parameters: {{...}}' mappings")
+    if "manipulator" in doc and not any("ros__parameters" in (v or {}) for v in doc.values() if isinstance(v, dict)):
+        raise InputError(f"{path} is a manipulator config, not a ROS 2 params file: pass it as "
+                         f"-p manipulator_config:={path}")
     params: dict = {}
     for key, section in doc.items():
         if not _node_matches(str(key), node_name):
@@ -86,6 +89,19 @@ def load_params_file(path: str, node_name: str = NODE_NAME) -> dict:
             raise InputError(f"params file {path}: '{key}: ros__parameters' must be a mapping")
         _flatten("", values, params)
     return {name: _typed_value(name, value) for name, value in params.items()}
+
+
+def check_params_files(argv, node_name: str = NODE_NAME) -> None:
+    """Read every ``--params-file`` after ``--ros-args`` as :func:`load_params_file` does, so that a
+    mistake (a manipulator YAML, invalid YAML) is one line (:class:`InputError`) on any transport."""
+    argv, in_ros = list(argv), False
+    for i, tok in enumerate(argv):
+        if tok == "--ros-args":
+            in_ros = True
+        elif tok == "--":
+            in_ros = False
+        elif in_ros and tok == "--params-file" and i + 1 < len(argv):
+            load_params_file(argv[i + 1], node_name)
 
 
 _FLOAT_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|[-+]?(inf|nan)", re.IGNORECASE)

@@ -28,6 +28,7 @@ from std_msgs.msg import Empty, Float64MultiArray
 from . import params as P
 from ..errors import GlpmaError
 from .loops import AssemblyModesLoop, SolveLoop
+from .ros_args import check_params_files
 from .service import FkService
 
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
@@ -147,6 +148,11 @@ class FkNode(Node):
 
 def main(args=None) -> int:
     """Entry point of ``fk_node``; ``args`` are the arguments after the program name."""
+    try:   # a params-file mistake (e.g. a manipulator YAML) in one line, before rcl's parser sees it
+        check_params_files(sys.argv[1:] if args is None else args)
+    except GlpmaError as exc:
+        print(f"glpma_fk: error: {exc}", file=sys.stderr)
+        return 2
     rclpy.init(args=None if args is None else [sys.argv[0], *args])
     node = None
     try:

@@ -30,9 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from . import params as P
-from ..config import load_manipulator, resolve_config
+from ..compat import check_numba
+from ..config import check_units, load_manipulator, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
+from ..precompile import COMPILED_S
 from .stats import LogThrottle, Statistics, percentiles_ms
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3   # diagnostic_msgs/DiagnosticStatus levels
@@ -110,6 +112,7 @@ class FkService:
         Raises :class:`~glpma_ros.errors.ConfigError` or :class:`InputError` with a one-line reason."""
         self.log = logger or logging.getLogger(node_name)
         self.node_name = node_name
+        check_numba()
         values = P.defaults()
         for name, value in (parameters or {}).items():
             values[name] = P.coerce(name, value)
@@ -206,7 +209,8 @@ class FkService:
         legs = self.model.inverse_kinematics(x) * (1.0 + 1e-3)
         if self.model.leg_limits is not None:
             legs = np.clip(legs, *self.model.leg_limits)
-        for name in solvers:
+        for k, name in enumerate(solvers, 1):
+            t_solver = time.perf_counter()
             for start in (None, x):
                 for polish in (True, False):
                     values = dict(params, solver=name, time_budget_ms=budget_ms, polish=polish)
@@ -220,11 +224,19 @@ class FkService:
                         if time.perf_counter() - t < 3e-3 * budget_ms:
                             break
             self._warmed.add(name)
+            self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, time.perf_counter() - t0)
         # everything loaded so far lives as long as the node: keep it out of the cyclic
         # collector's scans, whose pauses would otherwise land in the real-time path
         gc.collect()
         gc.freeze()
         return time.perf_counter() - t0
+
+    def _log_warm_up(self, name: str, k: int, n: int, took_s: float, so_far_s: float) -> None:
+        """One line per solver warmed up; a slow one was compiled (first start after an install)."""
+        left = "" if k == n else f", about {so_far_s / k * (n - k):.0f} s left"
+        how = "compiled (first start; `glpma-fk precompile` does this ahead)" if took_s > COMPILED_S \
+            else "loaded"
+        self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s{left}")
 
     # -- inputs -------------------------------------------------------------------------------
     def legs_from_joint_state(self, names, positions) -> list:
@@ -273,6 +285,8 @@ class FkService:
             legs = legs_m / self.metres_per_unit
         if legs.size == self.model.n_legs and np.all(np.isfinite(legs_m)) and not np.all(np.isfinite(legs)):
             raise InputError(f"leg lengths too large to express in {self.model.unit}")
+        if legs.size == self.model.n_legs:   # e.g. millimetres sent on the topic: a reason naming units
+            check_units(self.model, legs, "m", "topics are in metres (REP 103)")
         return legs
 
     def handle(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
@@ -515,8 +529,9 @@ class FkService:
         """One line of totals, for the log at shutdown."""
         st = self.stats
         solve = percentiles_ms(st.solve_s)
+        times = (f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms" if st.solve_s
+                 else "no solve yet")
         return (f"received {st.handled + st.dropped}, solved {st.published}, rejected {st.rejected}, "
-                f"dropped {st.dropped}, deadline misses {st.deadline_misses}, "
-                f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms")
+                f"dropped {st.dropped}, deadline misses {st.deadline_misses}, {times}")
 
 

@@ -937,15 +937,18 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _OneLineParser(prog="glpma-fk stress", description=__doc__.split("\n\n")[0].split(": ", 1)[1])
+    p = _OneLineParser(prog="glpma-fk stress", description=__doc__.split("\n\n")[0].split(": ", 1)[1]
+                       .replace("``", ""))
     p.add_argument("--quick", action="store_true", help="a few seconds per section")
-    p.add_argument("--sections", nargs="+", choices=SECTIONS, default=list(SECTIONS))
+    p.add_argument("--sections", nargs="+", choices=SECTIONS, default=list(SECTIONS),
+                   help="run only these sections (default: all)")
     p.add_argument("--duration", type=float, help="seconds of overload (default 60; --quick 3)")
     p.add_argument("--rate", type=float, default=RATE_HZ, help="overload input rate, Hz (default 1000)")
     p.add_argument("--burst", type=int, help="messages in the burst (default 10000; --quick 2000)")
     p.add_argument("--phase", type=float, help="seconds of each restart/jump phase (default 2; --quick 1)")
     p.add_argument("--deadline-solves", type=int, help="Estimator solves per budget and case (default 10000)")
-    p.add_argument("--budgets-ms", type=float, nargs="+", default=list(DEADLINE_BUDGETS_MS))
+    p.add_argument("--budgets-ms", type=float, nargs="+", default=list(DEADLINE_BUDGETS_MS),
+                   help="time budgets of the deadline section, ms")
     p.add_argument("--params-file", type=Path, default=DEFAULT_PARAMS, help="the node's parameters")
     p.add_argument("-p", dest="params", action="append", default=[], metavar="NAME:=VALUE",
                    help="more node parameters (as after --ros-args -p)")

@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import byte, float64, int32, sequence, uint8, uint32
 
-# RIHS01 type hashes of the Jazzy definitions (CONTRACT.md; std_msgs/msg/Empty computed by
-# glpma_ros/dds/rihs.py, which reproduces the contract's five, and checked in the tests);
+# RIHS01 type hashes of the Jazzy definitions (doc/interface.md; std_msgs/msg/Empty computed by
+# glpma_ros/node/dds/rihs.py, which reproduces the documented five, and checked in the tests);
 # rmw_cyclonedds_cpp expects them in every endpoint's USER_DATA as ``typehash=<hash>;``.
 TYPE_HASHES = {
     "std_msgs/msg/Float64MultiArray":

@@ -4,7 +4,7 @@ A ROS 2 Jazzy type hash is the SHA-256 of the type's description (its fields and
 name, the descriptions of every type it refers to) written as JSON in one canonical way
 (``rosidl_generator_type_description``: ``separators=(', ', ': ')``, keys in declaration
 order, default values left out).  :func:`type_hash` reproduces the five hashes of
-CONTRACT.md and gives the one of ``std_msgs/msg/Empty`` (whose IDL struct carries the
+doc/interface.md and gives the one of ``std_msgs/msg/Empty`` (whose IDL struct carries the
 member ``uint8 structure_needs_at_least_one_member`` that rosidl adds to an empty message);
 ``messages.TYPE_HASHES`` holds the results, the tests compare the two.  Pure Python.
 """

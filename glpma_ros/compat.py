@@ -1,0 +1,41 @@
+"""What the installed libraries must be for the compiled kernels to work, checked before use.
+
+The solvers draw from a ``numpy.random.Generator`` inside Numba-compiled code
+(``rng.integers``, ``rng.standard_normal``, ...); Numba supports those from 0.58 on
+(older releases, e.g. Debian 12's 0.56.4, fail to compile with ``Unknown attribute
+'integers' of type NumPyRandomGeneratorType``).  Ubuntu 24.04, the platform of ROS 2
+Jazzy, ships NumPy 1.26, which no Numba before 0.58.1 supports, so the distribution's
+``python3-numba`` passes.  The node and ``glpma-fk`` refuse an older Numba with one line
+saying how to get a newer one, rather than failing later on every solve.
+"""
+from __future__ import annotations
+
+import re
+
+from .errors import GlpmaError
+
+#: oldest Numba the kernels compile with (also in setup.py and package.xml)
+NUMBA_FLOOR = (0, 58)
+#: how to get a newer Numba where the distribution's is too old (PEP 668: no plain pip)
+NUMBA_HOWTO = ("python3 -m pip install --user --break-system-packages 'numba>=0.58' 'numpy<2', or the same "
+               "in a venv made with --system-site-packages (README, Usage with ROS 2 Jazzy)")
+
+
+def version_tuple(text: str) -> tuple[int, ...]:
+    """``"0.56.4+dfsg"`` -> ``(0, 56, 4)``."""
+    return tuple(int(part) for part in re.findall(r"\d+", str(text))[:3])
+
+
+def check_numba(version: str | None = None) -> None:
+    """:class:`GlpmaError` (one line) when Numba is missing or older than :data:`NUMBA_FLOOR`.
+    ``version``: the version to judge (default: the installed one)."""
+    if version is None:
+        try:
+            import numba
+        except ImportError:
+            raise GlpmaError(f"numba is not installed; glpma_ros needs numba >= "
+                             f"{'.'.join(map(str, NUMBA_FLOOR))}: {NUMBA_HOWTO}") from None
+        version = numba.__version__
+    if version_tuple(version)[:2] < NUMBA_FLOOR:
+        raise GlpmaError(f"numba {version} is too old; glpma_ros needs numba >= "
+                         f"{'.'.join(map(str, NUMBA_FLOOR))}: {NUMBA_HOWTO}")

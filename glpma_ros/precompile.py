@@ -1,0 +1,111 @@
+"""Load -- or, the first time, compile -- the solvers' machine code before it is timed.
+
+The hot loops are Numba functions with ``cache=True``: the first call after an install
+compiles them (about a minute per manipulator on two cores) and writes the machine code to
+the cache (``__pycache__`` beside the sources, or the user's cache directory when that is
+read-only); every later process loads it from there in about a second.  Neither cost belongs
+to a solve, so ``glpma-fk solve`` runs :func:`exercise` (untimed) before its timed solve and
+reports it as ``load_s``, and ``glpma-fk precompile`` (run by the install scripts) fills the
+cache for every solver and both manipulator kinds ahead of time, printing a line per solver.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from . import solvers
+from .config import load_manipulator, resolve_config
+
+#: the shipped configs, one per manipulator kind
+SHIPPED_CONFIGS = ("planar_3rpr_seed", "hexapod_66_rolland")
+#: evaluation cap of each warm-up solve: every code path runs, and once compiled it is quick
+WARM_UP_EVALS = 2000
+#: the warm-up legs are the warm-up pose's scaled by this: a warm start must search, not stop at once
+WARM_UP_LEG_STRETCH = 1.0 + 1e-3
+#: equal legs this share of the geometry's scale have no real assembly unless base and platform are
+#: nearly congruent (the platform joints cannot all come that close to the base joints): the
+#: warm-up's search that does not converge (and so runs every generation's code)
+INFEASIBLE_SCALE = 0.05
+#: time budget of a warm-up solve (s): the evaluation cap, not the clock, ends it
+WARM_UP_BUDGET_S = 60.0
+#: solve_all runs of the warm-up of ``glpma-fk solve-all`` and of the node's assembly modes
+SOLVE_ALL_RUNS = 2
+#: a solver that took longer than this (s) was compiled rather than loaded from the cache
+COMPILED_S = 5.0
+
+
+def warm_up_pose(model) -> np.ndarray:
+    """Solver variables of a pose clear of the base joints (platform lifted by the scale)."""
+    s = model.scale
+    return model.variables_from_pose([0.25 * s, 0.25 * s, s], [0.0, 0.0, 0.0, 1.0])
+
+
+def warm_up_legs(model) -> np.ndarray:
+    """Leg lengths near :func:`warm_up_pose` (within the config's ``leg_limits``)."""
+    legs = model.inverse_kinematics(warm_up_pose(model)) * WARM_UP_LEG_STRETCH
+    if model.leg_limits is not None:
+        legs = np.clip(legs, *model.leg_limits)
+    return legs
+
+
+def exercise(model, solver: str) -> float:
+    """Run every path of ``solver`` on ``model`` once -- cold and warm start, with and without
+    the refinement, on legs with and without a real assembly (a search that does not converge
+    at once reaches the code a quick one never does, e.g. GLPMA's local search) -- so that every
+    compiled function it uses is loaded (or compiled).  The results are thrown away; returns
+    the seconds spent."""
+    from .estimator import Estimator
+    t0 = time.perf_counter()
+    feasible = warm_up_legs(model)
+    infeasible = np.full(model.n_legs, INFEASIBLE_SCALE * model.scale)
+    if model.leg_limits is not None:
+        infeasible = np.clip(infeasible, *model.leg_limits)
+    for legs in (feasible, infeasible):
+        for start in (None, warm_up_pose(model)):
+            for polish in (True, False):
+                Estimator(model, solver=solver, time_budget_s=WARM_UP_BUDGET_S, polish=polish,
+                          initial_pose=start, max_evals=WARM_UP_EVALS).estimate(legs)
+    return time.perf_counter() - t0
+
+
+def exercise_solve_all(model) -> float:
+    """Load what :func:`~glpma_ros.solve_all.solve_all` uses; returns the seconds spent."""
+    from .solve_all import solve_all
+    t0 = time.perf_counter()
+    solve_all(model, warm_up_legs(model), runs=SOLVE_ALL_RUNS, seed=0)
+    return time.perf_counter() - t0
+
+
+def _say(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def precompile(configs=SHIPPED_CONFIGS, solver_names=None, say=_say) -> float:
+    """Fill the compiled-code cache for every solver (default: all registered) on each config,
+    and for solve_all; ``say`` gets one progress line per step, with an estimate of the time
+    left.  Returns the seconds spent."""
+    names = list(solver_names or solvers.SOLVERS)
+    models = [load_manipulator(resolve_config(c)) for c in configs]
+    steps = [(m, n) for m in models for n in names] + [(m, "solve-all") for m in models]
+    t0 = time.perf_counter()
+    say(f"precompile: {len(steps)} steps ({len(names)} solvers and solve-all on {len(models)} manipulators); "
+        f"a first run compiles (minutes on two cores), later runs load the cache (seconds)")
+    seen, compiled_s, loaded_s = set(), [], []
+    for k, (model, name) in enumerate(steps, 1):
+        t = exercise_solve_all(model) if name == "solve-all" else exercise(model, name)
+        (compiled_s if t > COMPILED_S else loaded_s).append(t)
+        seen.add(name)
+        # the compiled code is shared by both manipulator kinds: a solver seen once only loads
+        # later; one not seen yet may compile (as long as the compiled ones took on average)
+        unseen = len({n for _, n in steps[k:]} - seen)
+        per_compile = sum(compiled_s) / len(compiled_s) if compiled_s else 0.0
+        per_load = sum(loaded_s) / len(loaded_s) if loaded_s else 0.0
+        left = unseen * per_compile + (len(steps) - k - unseen) * per_load
+        how = "compiled" if t > COMPILED_S else "loaded"
+        say(f"precompile: [{k}/{len(steps)}] {model.kind} {name}: {how} in {t:.1f} s"
+            + (f" (about {left:.0f} s left)" if k < len(steps) else ""))
+    total = time.perf_counter() - t0
+    say(f"precompile: done in {total:.1f} s")
+    return total
