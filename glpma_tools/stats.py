@@ -8,7 +8,7 @@ import numpy as np
 
 #: keys of :func:`distribution`
 KEYS = ("p50", "p99", "max", "mean")
-#: two-sided 95 % quantile of the normal distribution (used above 30 samples and when scipy is absent)
+#: two-sided 95 % quantile of the normal distribution (004's confidence intervals; the t quantile without scipy)
 Z_95 = 1.959964
 
 

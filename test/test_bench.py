@@ -65,8 +65,11 @@ def test_the_reliability_section_comes_from_the_stress_json(report):
 
 
 def test_quick_never_writes_over_the_committed_report():
+    import shutil
+
     from glpma_tools.bench.runner import DEFAULT_MARKDOWN, DEFAULT_OUT, build_parser, output_paths
     out, md = output_paths(build_parser().parse_args(["--quick"]))
+    shutil.rmtree(out)                                              # the scratch directory it made
     assert md != DEFAULT_MARKDOWN and out != DEFAULT_OUT and md.parent == out
     out, md = output_paths(build_parser().parse_args(["--quick", "--markdown", "/tmp/x/B.md"]))
     assert str(md) == "/tmp/x/B.md" and str(out) == "/tmp/x"

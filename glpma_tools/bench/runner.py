@@ -15,7 +15,7 @@ SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines",
 #: default run counts: (full, --quick)
 DEFAULTS = {
     "runs": (100, 10),                # ours, every row except pure hexapod
-    "hexapod_runs": (100, 5),         # ours, pure hexapod rows (0.1-0.5 s each)
+    "hexapod_runs": (100, 5),         # ours, pure hexapod rows (up to 500,000 evaluations each)
     "peer_runs": (100, 5),            # peers on the 3-RPR
     "peer_hexapod_runs": (None, 0),   # peers on the hexapod: None = PEER_HEXAPOD_RUNS
     "track_steps": (1000, 300),
