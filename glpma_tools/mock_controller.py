@@ -30,7 +30,7 @@ import numpy as np
 from glpma_ros.cli import OneLineParser
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
-from glpma_tools.sim.controller import Controller, counters
+from glpma_tools.sim.controller import Controller, counters, diff
 from glpma_tools.sim.matching import ORIENTATION_TOL_RAD, POSITION_TOL_M, compare
 from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution
@@ -54,8 +54,10 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     ``~/request_assembly_modes`` is sent every so many seconds while streaming (the next once
     the previous is answered); the summary's ``assembly_modes`` has the answers and the pose
     latency of the inputs sent while a request was being answered.
-    After sending, waits up to ``tail_s`` for the last poses and up to ``diagnostics_wait_s``
-    for the node's ``/diagnostics`` to report it idle after the last input (``node_diagnostics``).
+    Before sending, waits up to ``diagnostics_wait_s`` for the node's counters; after sending, up
+    to ``tail_s`` for the last poses and up to ``diagnostics_wait_s`` for the node's
+    ``/diagnostics`` to report it idle after the last input (``node_diagnostics``); the summary's
+    ``node_counters`` are the differences over the run.
     Raises :class:`TimeoutError` when no node answers within ``connect_timeout_s``."""
     plan = Plan(config, solution, amplitude)
     model = plan.model
@@ -67,6 +69,7 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     try:
         ctl.wait_for_node(connect_timeout_s)
         time.sleep(settle_s)
+        before = ctl.counters_before(diagnostics_wait_s)
         n = max(1, int(round(rate_hz * duration_s)))
         next_progress = [time.perf_counter() + 1.0]
 
@@ -95,7 +98,7 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
 
     c = compare(model, sent, poses, input_type == INPUT_JOINT_STATE)
     wrong = len(c.unpaired) + int(np.sum(~c.on_truth))
-    node_counts = counters(idle) if idle is not None else None
+    node_counts = diff(counters(idle), before) if idle is not None and before is not None else None
     summary = {
         "manipulator": model.kind,
         "config": str(plan.path),
@@ -143,7 +146,10 @@ def verdict(s: dict) -> tuple[bool, list[str]]:
     lines, ok = [], True
     if s["poses_received"] == 0:
         ok = False
-        lines.append(f"FAILED: no pose came back for {s['inputs_sent']} inputs")
+        n, values = s["node_counters"], (s["node_diagnostics"] or {}).get("values", {})
+        why = (f" (the node rejected {n['rejected']}; last: {values.get('last rejection', '?')})"
+               if n and n["rejected"] else "")
+        lines.append(f"FAILED: no pose came back for {s['inputs_sent']} inputs{why}")
     if s["poses_wrong"]:
         ok = False
         lines.append(f"FAILED: {s['poses_wrong']} of {s['poses_received']} poses wrong ({s['poses_unpaired']} "

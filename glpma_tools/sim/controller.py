@@ -36,6 +36,11 @@ def counters(values: dict) -> dict:
     return {k: int(values.get(key, 0)) for k, key in COUNTERS.items()}
 
 
+def diff(after: dict, before: dict | None) -> dict:
+    """Counter differences over a phase (``before`` None: since the node started)."""
+    return {k: v - (before or {}).get(k, 0) for k, v in after.items()}
+
+
 def starts(values: dict) -> dict:
     """How many solves started warm, widened and cold, from a ``/diagnostics`` report's values."""
     warm, widened, cold = (int(v) for v in values.get("starts warm/widened/cold", "0/0/0").split("/"))
@@ -223,6 +228,21 @@ class Controller:
                 previous = values
             time.sleep(0.01)
         return None
+
+    def counters_before(self, timeout: float) -> dict | None:
+        """The node's counters before this controller sends: those of its first report when it has
+        received nothing yet, else those of a stable report (it is idle); None without a report
+        within ``timeout`` seconds."""
+        deadline = time.monotonic() + timeout
+        while self.listener.diagnostics is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        if self.listener.diagnostics is None:
+            return None
+        first = counters(self.listener.diagnostics["values"])
+        if first["received"] == 0:
+            return first
+        values = self.diagnostics_after(0, max(0.0, deadline - time.monotonic()))
+        return None if values is None else counters(values)
 
     def close(self) -> None:
         """Delete the participant and everything in it (a controller that goes away)."""

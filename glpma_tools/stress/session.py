@@ -9,7 +9,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from glpma_tools.sim.controller import Controller, counters, starts
+from glpma_tools.sim.controller import Controller, counters, diff, starts
 from glpma_tools.sim.matching import compare
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 from glpma_tools.sim.trajectories import Plan
@@ -35,11 +35,6 @@ DIAGNOSTICS_PERIOD_S = 0.2
 #: seconds to wait for the node's endpoints, and for it to report idle after a phase
 MATCH_TIMEOUT_S = 60.0
 SETTLE_TIMEOUT_S = 15.0
-
-
-def diff(after: dict, before: dict | None) -> dict:
-    """Counter differences over a phase."""
-    return {k: v - (before or {}).get(k, 0) for k, v in after.items()}
 
 
 def analyse(model, sent: list, poses: list) -> dict:
