@@ -31,7 +31,8 @@ MANIPULATORS = {
 
 
 def _parser() -> OneLineParser:
-    p = OneLineParser(prog="glpma-fk demo", description=__doc__.split("\n\n")[0].split(": ", 1)[1])
+    what = __doc__.split("\n\n")[0].split(": ", 1)[1]
+    p = OneLineParser(prog="glpma-fk demo", description=what[0].upper() + what[1:])
     p.add_argument("--manipulator", choices=sorted(MANIPULATORS), default="3rpr")
     p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod 100)")
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
