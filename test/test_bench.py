@@ -17,7 +17,8 @@ def report(tmp_path_factory):
     md = out / "BENCH.md"
     rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
                "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma", "--solve-all-runs", "20",
-               "--dds-steps", "20", "--no-progress", "--out", str(out), "--markdown", str(md)])
+               "--dds-steps", "20", "--no-progress", "--out", str(out), "--markdown", str(md),
+               "--reliability", str(out / "none.json")])
     assert rc == 0
     return out, md.read_text()
 
@@ -57,11 +58,19 @@ def test_bad_arguments_return_status_2(capsys):
     assert main(["--deadline-solvers", "nonsense"]) == 2
 
 
-def test_report_keeps_sections_other_tools_wrote(tmp_path):
-    from glpma_tools.bench.report import kept_sections
-    md = tmp_path / "BENCHMARKS.md"
-    md.write_text("# Benchmarks\n\nold preamble\n\n## Summary\n\nold summary\n\n## Reliability\n\n### overload\n\n"
-                  "| a | b |\n\n## Deadline honouring\n\nold deadline table\n\n## Other tool\n\nx\n")
-    assert kept_sections(md) == ["", "## Reliability", "", "### overload", "", "| a | b |", "", "## Other tool", "",
-                                 "x"]
-    assert kept_sections(tmp_path / "missing.md") == []
+def test_the_reliability_section_comes_from_the_stress_json(report):
+    _, text = report
+    assert text.count("## Reliability") == 1
+    assert "Not measured yet" in text.split("## Reliability")[1]      # --reliability pointed at no file
+
+
+def test_quick_never_writes_over_the_committed_report():
+    import shutil
+
+    from glpma_tools.bench.runner import DEFAULT_MARKDOWN, DEFAULT_OUT, build_parser, output_paths
+    out, md = output_paths(build_parser().parse_args(["--quick"]))
+    shutil.rmtree(out)                                              # the scratch directory it made
+    assert md != DEFAULT_MARKDOWN and out != DEFAULT_OUT and md.parent == out
+    out, md = output_paths(build_parser().parse_args(["--quick", "--markdown", "/tmp/x/B.md"]))
+    assert str(md) == "/tmp/x/B.md" and str(out) == "/tmp/x"
+    assert output_paths(build_parser().parse_args([])) == (DEFAULT_OUT, DEFAULT_MARKDOWN)

@@ -164,7 +164,7 @@ def _latency_stats(ms):
 def test_hexapod_assembly_modes_while_streaming(start_node, dds_env, capsys):
     import threading
 
-    from glpma_tools.mock_controller import PoseListener
+    from glpma_tools.sim.controller import PoseListener
     node = start_node("--params-file", str(CONFIG / "params_hexapod.yaml"), "-p", "input_type:=joint_state",
                       "-p", "diagnostics_period_s:=0.2")
     client = Client()

@@ -10,7 +10,7 @@ from glpma_ros.estimator import Estimator
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.rotations import rotation_from_vector
 from glpma_ros.solvers.refine import polish
-from trajectories import hexapod_helix, rpr_loop
+from glpma_tools.sim.trajectories import variables_along
 
 # generous: tracking accuracy, not speed, is under test here
 BUDGET_S = 0.05
@@ -28,14 +28,14 @@ def _track(model, est, truth):
 
 def test_rpr_tracking_1000_steps_stays_on_branch(rpr, rpr_solutions):
     x0 = rpr_solutions[0]
-    truth = rpr_loop(x0)
+    truth = variables_along(rpr, x0, 1000, amplitude=2.0)
     est = Estimator(rpr, initial_pose=x0, time_budget_s=BUDGET_S)
     _track(rpr, est, truth)
 
 
 def test_hexapod_tracking_1000_steps_stays_on_branch(hexapod, hex_published):
     x0, _, _ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
-    truth = hexapod_helix(hexapod, x0)
+    truth = variables_along(hexapod, x0, 1000)
     est = Estimator(hexapod, initial_pose=x0, time_budget_s=BUDGET_S)
     _track(hexapod, est, truth)
 

@@ -1,8 +1,9 @@
 """Reliability of the node process over real Cyclone DDS (short versions of ``glpma-fk stress``):
 a 1 kHz overload with its memory checked, a burst, a controller restart, a large jump of the
 legs to another assembly mode, and a node restart (cold, then warm).  One node process serves
-every check (it takes ~10-20 s to start: it compiles or loads its solvers); the restart test
-comes last.  Counts come from the node's /diagnostics."""
+every check (it compiles or loads its solvers before it is ready); the restart test comes last.
+Counts come from the node's /diagnostics.  Nothing here depends on how fast the machine is:
+the checks are that counters add up, every pose answers an input it was sent, the node lives."""
 import json
 import os
 
@@ -11,6 +12,7 @@ import pytest
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
 from glpma_tools import stress  # noqa: E402
+from glpma_tools.stress.report import json_default  # noqa: E402
 
 from conftest import CONFIG  # noqa: E402
 
@@ -40,74 +42,84 @@ def session(tmp_path_factory):
 def show(capsys, name, res):
     with capsys.disabled():
         brief = {k: v for k, v in res.items() if k != "checks"}
-        print(f"\n[{name}] {json.dumps(brief, default=stress._json_default)}")
+        print(f"\n[{name}] {json.dumps(brief, default=json_default)}")
 
 
 def check(res, session):
+    """Every check passed (the expectations, which depend on how busy the machine is, are only shown)."""
     failed = [k for k, ok in res["checks"].items() if not ok]
-    assert not failed, f"failed: {failed}\n{json.dumps(res, default=stress._json_default, indent=1)}\n" \
+    assert not failed, f"failed: {failed}\n{json.dumps(res, default=json_default, indent=1)}\n" \
                        f"{session.node.output()}"
 
 
-def test_overload_1khz_keeps_the_newest_input_and_its_memory(session, capsys):
-    res = session.overload(3.0, 1000.0)
+def test_overload_1khz_keeps_the_newest_input(session, capsys):
+    res = stress.overload(session, 3.0, 1000.0)
     show(capsys, "overload 1 kHz 3 s", res)
     check(res, session)
     assert res["inputs"] == 3000
-    # every input written is solved, dropped, rejected or (a small slack) lost in transport
+    # every input the node received is solved, dropped or rejected; none is lost inside the node
     assert res["received"] == res["solved"] + res["dropped"] + res["rejected"]
-    assert res["inputs"] - res["received"] <= stress.LOST_SLACK * res["inputs"]
-    assert res["rss_growth_mb"] <= stress.RSS_SLACK_MB
+    assert res["received"] <= res["inputs"]
+    assert res["poses"] == res["solved"] and res["unpaired"] == 0
 
 
 def test_burst_of_2000_messages(session, capsys):
-    res = session.burst(2000)
+    res = stress.burst(session, 2000)
     show(capsys, "burst 2000", res)
     check(res, session)
     assert res["received"] == res["solved"] + res["dropped"] + res["rejected"]
-    assert res["solved"] >= 1
-    # the node cannot solve thousands per second: the excess is dropped (node) or overwritten (DDS
-    # keep-last history), never queued
+    assert res["solved"] >= 1 and res["unpaired"] == 0
+    # the node cannot solve thousands of inputs in the time it takes to write them: the excess is
+    # dropped (node) or overwritten (DDS keep-last history), never queued
     assert res["dropped"] + res["lost_in_transport"] > 0
-    assert res["rss_growth_mb"] <= stress.RSS_SLACK_MB
 
 
 def test_controller_restart_mid_trajectory(session, capsys):
-    res = session.controller_restart(1.0)
+    res = stress.controller_restart(session, 1.0)
     show(capsys, "controller restart", res)
     check(res, session)
+    assert res["poses_after"] >= 1
 
 
 def test_large_jump_to_another_assembly_mode_recovers(session, capsys):
-    res = session.large_jump(1.0)
+    res = stress.large_jump(session, 1.0)
     show(capsys, "large jump", res)
     check(res, session)
     assert res["jump_legs_max"] > 50 * res["step_legs_max"]
+    assert res["poses"] >= 1
 
 
 def test_node_restart_mid_trajectory_cold_then_warm(session, capsys):
-    res = session.node_restart(1.0)
+    res = stress.node_restart(session, 1.0)
     show(capsys, "node restart", res)
     check(res, session)
     assert res["first_report"]["starts"]["cold"] >= 1
-    assert res["final"]["last start"] == "warm"
 
 
-# -- the Reliability section of BENCHMARKS.md (no node needed) ------------------------------------------
+# -- the figures as JSON, rendered by the bench (no node needed) ----------------------------------------
 
-def test_reliability_section_is_replaced_in_place_and_kept_by_the_bench(tmp_path):
-    from glpma_tools.bench import report
-    text = "# Benchmarks\n\nintro\n\n## Deadline honouring\n\nd\n\n## DDS end to end\n\ne\n"
-    once = stress.splice_section(text, ["## Reliability", "", "first"])
-    assert once.startswith(text.rstrip()) and once.rstrip().endswith("first")
-    twice = stress.splice_section(once, ["## Reliability", "", "second"])
-    assert "first" not in twice and twice.count("## Reliability") == 1
-    middle = "# B\n\n## Reliability\n\nold\n\n## Later\n\nl\n"
-    assert stress.splice_section(middle, ["## Reliability", "", "new"]) == "# B\n\n## Reliability\n\nnew\n\n## Later\n\nl\n"
-    md = tmp_path / "BENCHMARKS.md"
-    md.write_text(twice)
-    assert report.kept_sections(md) == ["", "## Reliability", "", "second"]
-    assert report.kept_sections(tmp_path / "missing.md") == []
+def test_the_bench_renders_the_stress_figures(tmp_path):
+    from glpma_tools.bench.reliability import load, reliability_section
+    from glpma_tools.stress.report import write_json
+    flood = {"inputs": 10, "send_s": 0.5, "send_rate_hz": 20.0, "late_sends": 0, "received": 9, "solved": 7,
+             "rejected": 1, "dropped": 1, "deadline_misses": 0, "lost_in_transport": 1, "rss_before_mb": 80.0,
+             "rss_after_mb": 80.5, "rss_growth_mb": 0.5, "node_latency_ms": {"p50": 1.0, "p99": 2.0, "max": 3.0},
+             "starts": {"warm": 7, "widened": 0, "cold": 1}, "poses": 7, "matched": 7, "unpaired": 0,
+             "latency_ms": {"p50": 1.5, "p99": 2.5, "max": 3.5, "mean": 1.6}, "residual_max_m": 1e-13,
+             "on_trajectory_mode": 7, "checks": {"node alive": True, "one pose per solved input": True},
+             "rate_hz": 20.0, "duration_s": 0.5}
+    res = {"date": "2024-01-01 00:00 UTC", "quick": True, "revision": "abc", "wall_s": 60.0,
+           "machine": {"cpu": "cpu", "cores": 2}, "load_average_start": [1.0, 1.0, 1.0],
+           "load_average_end": [2.0, 1.0, 1.0], "passed": True, "command": "glpma-fk stress --quick",
+           "sections": {"overload": flood}}
+    path = write_json(tmp_path / "doc" / "reliability.json", res)
+    lines = reliability_section(load(path), "doc/reliability.json")
+    text = "\n".join(lines)
+    assert lines[0] == "## Reliability" and "`glpma-fk stress --quick`" in text and "--quick run" in text
+    assert "| received by the node | 9 |" in text and "| dropped (replaced by a newer input) | 1 |" in text
+    assert "- overload: pass" in text
+    missing = "\n".join(reliability_section(load(tmp_path / "none.json"), "doc/bench/reliability.json"))
+    assert "Not measured yet" in missing and "doc/bench/reliability.json" in missing
 
 
 @pytest.mark.parametrize("argv", [["--duration", "0"], ["--burst", "0"], ["--rate", "nan"], ["--domain", "300"],

@@ -1,4 +1,4 @@
-"""Shared pieces of the benchmark: run records, statistics, machine description."""
+"""Shared pieces of the benchmark: run records and their summary, the machine and revision, progress bars."""
 from __future__ import annotations
 
 import math
@@ -11,7 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_tools.stats import mean_ci
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
+#: the papers' success criterion: best fitness below this
 SUCCESS_TOLERANCE = 1e-20
 
 
@@ -24,27 +27,6 @@ class Run:
     wall_s: float        # wall time around the call
     fun: float           # best fitness reached
     history: list = field(default_factory=list)  # (evaluations, best fitness so far)
-
-
-def t_critical(n: int) -> float:
-    """Two-sided 95% Student t quantile for ``n`` samples (normal above 30)."""
-    if n < 2:
-        return math.nan
-    try:
-        from scipy.stats import t
-        return float(t.ppf(0.975, n - 1))
-    except Exception:  # noqa: BLE001 - scipy is optional here
-        return 1.96
-
-
-def mean_ci(values):
-    """(mean, 95% confidence half-width) of ``values``; NaN when undefined."""
-    v = np.asarray(values, dtype=float)
-    if v.size == 0:
-        return math.nan, math.nan
-    if v.size == 1:
-        return float(v[0]), math.nan
-    return float(v.mean()), t_critical(v.size) * float(v.std(ddof=1)) / math.sqrt(v.size)
 
 
 @dataclass
@@ -74,25 +56,12 @@ def summarize(runs: list[Run]) -> Summary:
                    float(np.median([r.fun for r in runs])) if runs else math.nan)
 
 
-def percentiles_ms(seconds) -> dict:
-    a = np.asarray(seconds, dtype=float) * 1e3
-    if a.size == 0:
-        return {"p50": math.nan, "p99": math.nan, "max": math.nan, "mean": math.nan}
-    return {"p50": float(np.percentile(a, 50)), "p99": float(np.percentile(a, 99)),
-            "max": float(a.max()), "mean": float(a.mean())}
-
-
-def involuntary_switches() -> int:
-    """Involuntary context switches of this thread so far (Linux; 0 elsewhere).
-
-    A timed call during which this count grows was preempted by another process:
-    on a shared machine that, not the solver, explains most outliers."""
-    try:
-        import resource
-        who = getattr(resource, "RUSAGE_THREAD", resource.RUSAGE_SELF)
-        return int(resource.getrusage(who).ru_nivcsw)
-    except Exception:  # noqa: BLE001
-        return 0
+def progress_bar(iterable, desc, progress: bool, total=None):
+    """``iterable`` with a tqdm progress bar when ``progress``."""
+    if not progress:
+        return iterable
+    from tqdm import tqdm
+    return tqdm(iterable, desc=desc, total=total, leave=False, dynamic_ncols=True)
 
 
 def load_average() -> str:
@@ -100,45 +69,6 @@ def load_average() -> str:
         return "/".join(f"{v:.2f}" for v in os.getloadavg())
     except OSError:
         return "n/a"
-
-
-# -- formatting -------------------------------------------------------------------
-def fmt(v, digits=3, unit=""):
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "—"
-    if isinstance(v, (int, np.integer)):
-        return f"{v:,}{unit}"
-    a = abs(v)
-    if a != 0 and (a >= 1e5 or a < 1e-3):
-        return f"{v:.{max(digits - 1, 1)}e}{unit}"
-    if a >= 100:
-        return f"{v:,.0f}{unit}"
-    return f"{v:.{digits}g}{unit}"
-
-
-def fmt_ci(mean, ci):
-    if not math.isfinite(mean):
-        return "—"
-    if not math.isfinite(ci):
-        return f"{mean:,.0f}"
-    return f"{mean:,.0f} ± {ci:,.0f}"
-
-
-def ratio(a, b, digits=2):
-    try:
-        if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)) or b == 0:
-            return "—"
-    except TypeError:
-        return "—"
-    r = a / b
-    return f"{r:.{digits}g}×" if r < 100 else f"{r:,.0f}×"
-
-
-def table(header: list[str], rows: list[list]) -> str:
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    for row in rows:
-        out.append("| " + " | ".join(str(c) for c in row) + " |")
-    return "\n".join(out)
 
 
 # -- machine ---------------------------------------------------------------------------
@@ -185,8 +115,9 @@ def git_revision() -> str:
         return "unknown"
 
 
-def command_line(argv) -> tuple[str, str]:
+def command_line(argv, tool: str = "bench") -> tuple[str, str]:
+    """(``glpma-fk <tool> ARGS``, the command line this process was started with)."""
     import shlex
-    canonical = shlex.join(["glpma-fk", "bench", *argv])
+    canonical = shlex.join(["glpma-fk", tool, *argv])
     invoked = shlex.join(getattr(sys, "orig_argv", sys.argv))
     return canonical, invoked

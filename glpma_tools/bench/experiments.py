@@ -1,29 +1,24 @@
-"""The experiments.  Each returns plain data; ``report`` turns it into tables."""
+"""The papers' experiments: their tables (001 Tables 5 and 8), the peers' G3-PCX, the larger-cap
+diagnostics, all assembly modes (002) and the baselines (004 Table II, 003's DE).  Each returns
+plain data; ``report`` turns it into tables.  Timing experiments: :mod:`.tracking`,
+:mod:`.deadlines`, :mod:`.dds`."""
 from __future__ import annotations
 
 import gc
-import importlib
-import inspect
 import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from tqdm import tqdm
 
 from glpma_ros import solvers
-from glpma_ros.estimator import Estimator
 from glpma_ros.solve_all import solve_all, wide_range
-from .common import Run, involuntary_switches, percentiles_ms
+from .common import Run, progress_bar as _bar
 from .papers import PUBLISHED
-from .peers import PEER_SOLVERS, SCIPY_VARIANTS, PeerMissing, ScipyWarm, available
+from .peers import PEER_SOLVERS, PeerMissing, available
 
 
-def _bar(iterable, desc, progress, total=None):
-    return tqdm(iterable, desc=desc, total=total, disable=not progress, leave=False, dynamic_ncols=True)
-
-
-# -- 1. the papers' tables ----------------------------------------------------------------
+# -- the papers' tables ----------------------------------------------------------------
 @dataclass
 class Config:
     solver: str
@@ -59,38 +54,33 @@ def paper_configs(model) -> list[Config]:
     return out
 
 
-def run_ours(model, legs, cfg: Config, seed: int) -> Run:
-    kwargs = {"population": cfg.population}
-    if cfg.local_population:
-        kwargs["local_population"] = cfg.local_population
+def timed_solve(solver, model, legs, seed, **options) -> Run:
+    """One search of ours, timed with the wall clock."""
     t0 = time.perf_counter()
-    r = solvers.solve(cfg.solver, model, legs, rng=seed, polish=cfg.polish, **kwargs)
-    wall = time.perf_counter() - t0
-    return Run(r.success, int(r.nfev), wall, float(r.fun), list(r.history))
+    r = solvers.solve(solver, model, legs, rng=seed, **options)
+    return Run(r.success, int(r.nfev), time.perf_counter() - t0, float(r.fun), list(r.history))
 
 
-def warm_up(model, legs, cfg: Config):
-    """Compile (or load from Numba's cache) everything this configuration calls."""
-    kwargs = {"population": cfg.population, "max_evals": 50 * cfg.population}
+def table_row(sc, cfg: Config, n: int, progress) -> TableRow:
+    """``n`` searches (seeds 0..n-1) of one configuration, after one short solve in which Numba
+    compiles (or loads from its cache) everything the configuration calls."""
+    options = {"population": cfg.population, "polish": cfg.polish}
     if cfg.local_population:
-        kwargs["local_population"] = cfg.local_population
-    solvers.solve(cfg.solver, model, legs, rng=12345, polish=cfg.polish, **kwargs)
+        options["local_population"] = cfg.local_population
+    solvers.solve(cfg.solver, sc.model, sc.legs, rng=12345, max_evals=50 * cfg.population, **options)
+    gc.collect()
+    row = TableRow(cfg)
+    for seed in _bar(range(n), f"{sc.label} {cfg.solver} {cfg.pop_label} {cfg.mode}", progress):
+        row.runs.append(timed_solve(cfg.solver, sc.model, sc.legs, seed, **options))
+    return row
 
 
 def paper_tables(sc, runs_pure, runs_polished, progress) -> list[TableRow]:
-    rows = []
-    for cfg in paper_configs(sc.model):
-        n = runs_polished if cfg.polish else runs_pure
-        warm_up(sc.model, sc.legs, cfg)
-        gc.collect()
-        row = TableRow(cfg)
-        for seed in _bar(range(n), f"{sc.label} {cfg.solver} {cfg.pop_label} {cfg.mode}", progress):
-            row.runs.append(run_ours(sc.model, sc.legs, cfg, seed))
-        rows.append(row)
-    return rows
+    return [table_row(sc, cfg, runs_polished if cfg.polish else runs_pure, progress)
+            for cfg in paper_configs(sc.model)]
 
 
-# -- 3a. peers: pure G3-PCX -----------------------------------------------------------------
+# -- peers: pure G3-PCX -----------------------------------------------------------------
 @dataclass
 class PeerRow:
     name: str
@@ -125,184 +115,7 @@ def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
     return out
 
 
-# -- 4 + 3b. warm tracking, and scipy from the same warm starts -------------------------------
-@dataclass
-class Tracking:
-    steps: int
-    budget_ms: float
-    latency_s: np.ndarray
-    errors: np.ndarray            # distance to the true pose (config unit)
-    leg_residual: np.ndarray      # max |IK(x) - legs| per step
-    statuses: dict
-    stages: dict
-    evaluations: np.ndarray
-    starts: np.ndarray            # the warm start of each step (previous estimate)
-    legs: np.ndarray
-    truth: np.ndarray
-    preempted: np.ndarray         # the step was preempted by another process (involuntary context switch)
-
-    @property
-    def stats(self):
-        return percentiles_ms(self.latency_s)
-
-
-def max_leg_residual(model, x, legs) -> float:
-    return float(np.max(np.abs(model.inverse_kinematics(x) - legs)))
-
-
-def tracking(sc, steps, budget_ms, progress) -> Tracking:
-    from .scenarios import trajectory
-    model = sc.model
-    traj = trajectory(sc, steps)
-    legs_all = np.array([model.inverse_kinematics(x) for x in traj])
-    # warm-up on a copy of the first steps (compiles the warm path)
-    est = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)
-    for legs in legs_all[1:20]:
-        est.estimate(legs)
-    est = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)
-    lat, err, res, evals, starts, pre = [], [], [], [], [], []
-    statuses, stages = {}, {}
-    gc.collect()
-    for k in _bar(range(1, steps + 1), f"{sc.label} tracking", progress):
-        legs = legs_all[k]
-        starts.append(np.array(est.last_x, dtype=float))
-        c0 = involuntary_switches()
-        t0 = time.perf_counter()
-        e = est.estimate(legs)
-        lat.append(time.perf_counter() - t0)
-        pre.append(involuntary_switches() > c0)
-        statuses[e.status] = statuses.get(e.status, 0) + 1
-        stages[e.start] = stages.get(e.start, 0) + 1
-        evals.append(e.evaluations)
-        if e.x is not None and np.all(np.isfinite(e.x)):
-            err.append(model.distance(e.x, traj[k]))
-            res.append(max_leg_residual(model, e.x, legs))
-        else:
-            err.append(math.inf)
-            res.append(math.inf)
-    return Tracking(steps, budget_ms, np.array(lat), np.array(err), np.array(res), statuses, stages,
-                    np.array(evals), np.array(starts), legs_all[1:], traj[1:], np.array(pre, dtype=bool))
-
-
-@dataclass
-class ScipyRow:
-    method: str
-    jac: str
-    latency_s: np.ndarray = None
-    leg_residual: np.ndarray = None
-    nfev: np.ndarray = None
-    preempted: np.ndarray = None
-    status: str = "run"
-    note: str = ""
-
-
-def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
-    why = available("scipy")
-    if why is not None:
-        print(f"bench: scipy {why}; its rows are marked 'not installed'")
-        return [ScipyRow(m, j, status="not installed", note=why) for m, j in SCIPY_VARIANTS]
-    out = []
-    model = sc.model
-    for method, jac in SCIPY_VARIANTS:
-        solver = ScipyWarm(model, method, jac)
-        for k in range(min(10, len(trk.legs))):      # warm-up
-            solver.solve(trk.starts[k], trk.legs[k])
-        lat, res, nfev, pre = [], [], [], []
-        gc.collect()
-        for k in _bar(range(len(trk.legs)), f"{sc.label} scipy {method}/{jac}", progress):
-            c0 = involuntary_switches()
-            t0 = time.perf_counter()
-            x, n = solver.solve(trk.starts[k], trk.legs[k])
-            lat.append(time.perf_counter() - t0)
-            pre.append(involuntary_switches() > c0)
-            res.append(max_leg_residual(model, x, trk.legs[k]))
-            nfev.append(n)
-        out.append(ScipyRow(method, jac, np.array(lat), np.array(res), np.array(nfev), np.array(pre, dtype=bool)))
-    return out
-
-
-# -- 5. deadlines --------------------------------------------------------------------------------
-@dataclass
-class DeadlineRow:
-    case: str
-    solver: str
-    budget_ms: float
-    elapsed_s: np.ndarray
-    short: str = ""
-    preempted: np.ndarray = None
-    stopped_early: bool = False
-
-    @property
-    def label(self):
-        return f"{self.short} | {self.solver}"
-
-    @property
-    def overrun_ms(self):
-        return self.elapsed_s * 1e3 - self.budget_ms
-
-
-#: margin a solve may take beyond its budget and still count as on time
-DEADLINE_MARGIN_MS = 0.5
-#: a cell stops after this many solves if every one overran by more than STOP_OVERRUN_FACTOR x budget
-STOP_AFTER = 10
-STOP_OVERRUN_FACTOR = 10.0
-
-
-def _timed_cell(call, n, budget_ms, desc, progress):
-    """``n`` timed calls; returns (elapsed seconds, preempted flags, stopped early)."""
-    el, pre = [], []
-    for i in _bar(range(n), desc, progress):
-        c0 = involuntary_switches()
-        t0 = time.perf_counter()
-        call(i)
-        el.append(time.perf_counter() - t0)
-        pre.append(involuntary_switches() > c0)
-        if i + 1 == STOP_AFTER and n > STOP_AFTER and min(el) * 1e3 > (1.0 + STOP_OVERRUN_FACTOR) * budget_ms:
-            return np.array(el), np.array(pre, dtype=bool), True
-    return np.array(el), np.array(pre, dtype=bool), False
-
-
-def infeasible_legs(sc):
-    """Leg lengths with no real assembly (the platform cannot reach the base joints)."""
-    if sc.key == "3rpr":
-        return np.array([10.0, 10.0, 400.0])
-    return np.full(6, 100.0)
-
-
-def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRow]:
-    rows = []
-    names = list(names or solvers.SOLVERS)
-    for sc in scenarios:
-        model = sc.model
-        cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible_legs(sc),
-                  True)]
-        if sc.key == "hexapod":
-            cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
-                             sc.legs, False))
-        for case, short, legs, polish in cases:
-            for solver in names:
-                solvers.solve(solver, model, legs, rng=1, polish=polish, budget_s=0.002, max_evals=10**9)
-                for b in budgets_ms:
-                    def call(seed, solver=solver, legs=legs, polish=polish, b=b):
-                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3,
-                                      max_evals=10**9)
-                    el, pre, stopped = _timed_cell(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
-                    rows.append(DeadlineRow(case, solver, b, el, short, pre, stopped))
-        # the estimator, cold, on legs without a solution: every stage runs until the deadline
-        case = f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)"
-        for b in budgets_ms:
-            est = Estimator(model, time_budget_s=b / 1e3)
-            est.estimate(infeasible_legs(sc))
-
-            def call(_, est=est, legs=infeasible_legs(sc)):
-                est.reset()
-                est.estimate(legs)
-            el, pre, stopped = _timed_cell(call, n, b, f"deadline {sc.label} Estimator {b:g} ms", progress)
-            rows.append(DeadlineRow(case, "Estimator", b, el, f"{sc.label} infeasible, cold", pre, stopped))
-    return rows
-
-
-# -- 2. all solutions -------------------------------------------------------------------------
+# -- all solutions -------------------------------------------------------------------------
 @dataclass
 class AllSolutionsResult:
     runs: int
@@ -339,43 +152,6 @@ def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
                               len(first or []) - len(matched))
 
 
-# -- 6. DDS end to end (another module's experiment) -------------------------------------------
-HOOK_NAMES = ("bench_end_to_end", "run_bench", "benchmark")
-
-
-def dds_end_to_end(scenarios, steps, quick):
-    """Call ``glpma_tools.mock_controller.bench_end_to_end`` if it exists.
-
-    Expected: ``bench_end_to_end(config=<yaml path>, steps=<int>, quick=<bool>) -> dict``
-    of latency statistics (any scalar values, e.g. ``p50_ms``, ``p99_ms``, ``max_ms``,
-    ``sent``, ``received``); keyword arguments it does not accept are not passed."""
-    try:
-        mc = importlib.import_module("glpma_tools.mock_controller")
-    except Exception as exc:  # noqa: BLE001 - reported, never fatal
-        return {"status": "skipped", "reason": f"glpma_tools.mock_controller not importable ({exc})"}
-    fn = next((getattr(mc, n) for n in HOOK_NAMES if callable(getattr(mc, n, None))), None)
-    if fn is None:
-        return {"status": "skipped",
-                "reason": f"glpma_tools.mock_controller has no {' / '.join(HOOK_NAMES)}() function"}
-    try:
-        params = inspect.signature(fn).parameters
-        accepts_any = any(p.kind == p.VAR_KEYWORD for p in params.values())
-    except (TypeError, ValueError):
-        params, accepts_any = {}, True
-    results = {}
-    for sc in scenarios:
-        kwargs = {"config": sc.path, "steps": steps, "quick": quick}
-        kwargs = {k: v for k, v in kwargs.items() if accepts_any or k in params}
-        try:
-            t0 = time.perf_counter()
-            stats = fn(**kwargs)
-            results[sc.label] = {"status": "run", "stats": dict(stats or {}),
-                                 "wall_s": time.perf_counter() - t0}
-        except Exception as exc:  # noqa: BLE001
-            results[sc.label] = {"status": "not run", "reason": f"{type(exc).__name__}: {exc}"}
-    return {"status": "run", "function": f"glpma_tools.mock_controller.{fn.__name__}", "results": results}
-
-
 # -- the gap between the papers' pure G3-PCX and faithful implementations --------------------
 @dataclass
 class GapDiagnostics:
@@ -391,16 +167,12 @@ def gap_diagnostics(sc, runs, progress) -> GapDiagnostics:
     pop, cap = settings["population"], settings["max_evals"]
     caps = {}
     for max_evals in (2 * cap + pop, 10 * cap):
-        out = []
-        for seed in _bar(range(runs), f"{sc.label} G3-PCX cap {max_evals}", progress):
-            t0 = time.perf_counter()
-            r = solvers.solve("g3pcx", sc.model, sc.legs, rng=seed, polish=False, max_evals=max_evals)
-            out.append(Run(r.success, int(r.nfev), time.perf_counter() - t0, float(r.fun), list(r.history)))
-        caps[max_evals] = out
+        caps[max_evals] = [timed_solve("g3pcx", sc.model, sc.legs, seed, polish=False, max_evals=max_evals)
+                           for seed in _bar(range(runs), f"{sc.label} G3-PCX cap {max_evals}", progress)]
     return GapDiagnostics(caps)
 
 
-# -- 7. the baselines: 004 Table II (SA, GA, GA-SA) and 003's DE on 001's protocols ---------
+# -- the baselines: 004 Table II (SA, GA, GA-SA) and 003's DE on 001's protocols ---------
 #: 004 Table II rows reproduced: (solver, solver parameters); SA at each published chain length
 TABLE2_CONFIGS = (("sa", {"chain_length": 20}), ("sa", {"chain_length": 50}), ("sa", {"chain_length": 100}),
                   ("rcga", {}), ("gasa", {}))
@@ -422,14 +194,7 @@ def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> Baselines:
             out.table2.append(table2_protocol(model, name, runs=table2_runs, **params))
     for key, sc in scenarios.items():
         population = solvers.DEFAULT_POPULATION["de"](sc.model)
-        rows = []
-        for polish in (False, True):
-            cfg = Config("de", population, None, polish)
-            n = hex_runs if key == "hexapod" and not polish else runs
-            warm_up(sc.model, sc.legs, cfg)
-            row = TableRow(cfg)
-            for seed in _bar(range(n), f"{sc.label} DE {cfg.mode}", progress):
-                row.runs.append(run_ours(sc.model, sc.legs, cfg, seed))
-            rows.append(row)
-        out.de[key] = rows
+        out.de[key] = [table_row(sc, Config("de", population, None, polish),
+                                 hex_runs if key == "hexapod" and not polish else runs, progress)
+                       for polish in (False, True)]
     return out

@@ -46,5 +46,6 @@ TABLE_NAME = {"planar_3rpr": "001 Table 5", "hexapod_66": "001 Table 8"}
 #: 002 section 5.5.2
 ALL_SOLUTIONS = {"count": 16, "runs": 100, "time_s": 35.0, "accuracy_mm": (0.15, 2.5), "init_range": (-2000, 2000)}
 
-#: pure G3-PCX on the 3-RPR with faithful implementations, measured when the gap was first investigated
+#: success (%) of pure G3-PCX on 001 Table 5's protocol in earlier runs of this project with faithful
+#: implementations (pypop7, pymoo, and a minimal one written from Deb's description), for comparison
 FAITHFUL_3RPR = {"pypop7": 10, "pymoo": 0, "minimal faithful": 10}

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_tools.stats import distribution
+
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",
           "pymoo": "tab:brown"}
 #: the papers' other populations of the same solver (001 Tables 5 and 8)
@@ -102,7 +104,8 @@ def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) ->
         if row.latency_s is not None and row.method == "lm" and row.jac == "analytic":
             ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
                     label="scipy least_squares lm, analytic J")
-    p50, p99 = np.percentile(ms, [50, 99])
+    d = distribution(ms)
+    p50, p99 = d["p50"], d["p99"]
     ax.axvline(p50, color="k", ls="--", lw=1, label=f"p50 {p50:.3f} ms")
     ax.axvline(p99, color="k", ls="-", lw=1, label=f"p99 {p99:.3f} ms")
     ax.axvline(target_ms, color="tab:red", ls=":", lw=1.5, label=f"target p99 ≤ {target_ms:g} ms")

@@ -14,19 +14,19 @@ number of successful runs.
 
 004 states no cap on the iterations; :data:`TABLE2_MAX_EVALS` is far above every
 published mean (the costliest, GA-SA, is about 18 generations x 36 annealed
-children x 10,000 proposals = 6.5 M evaluations under :mod:`.gasa`'s reading),
+children x 10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s reading),
 so it only stops runs that stall.  The refinement is off (the papers'
 algorithms alone).  Evaluations are machine-independent; CPU times are not
 (004 ran C++ on a 1.74 GHz dual core).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from glpma_ros.solvers import sa
+from glpma_tools.stats import Z_95, mean_ci
 
 #: 004 section IV.A: "initialize the population with real numbers in the range of [-10, 10]"
 TABLE2_INIT_RANGE = (-10.0, 10.0)
@@ -40,8 +40,6 @@ TABLE2_RUNS = 50
 TABLE2_MAX_EVALS = 20_000_000
 #: evaluation cap of the untimed call that loads the compiled kernels
 WARMUP_EVALS = 1_000
-#: two-sided 95 % normal quantile, for the confidence intervals Table II reports
-Z_95 = 1.959964
 
 
 @dataclass(frozen=True)
@@ -109,14 +107,6 @@ class Table2Result:
         return self.successes / self.runs
 
 
-def _mean_ci(values):
-    if not values:
-        return math.nan, math.nan
-    v = np.asarray(values, dtype=float)
-    ci = Z_95 * v.std(ddof=1) / math.sqrt(len(v)) if len(v) > 1 else math.nan
-    return float(v.mean()), float(ci)
-
-
 def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> Table2Result:
     """Run ``solver_name`` ``runs`` times (seeds ``seed0, seed0 + 1, ...``) on
     004's protocol with ``model``'s example leg lengths; ``params`` go to the
@@ -143,8 +133,8 @@ def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> 
             successes += 1
             ok_its.append(r.nit)
             ok_evs.append(r.nfev)
-    mean_it, ci_it = _mean_ci(ok_its)
-    mean_ev, ci_ev = _mean_ci(ok_evs)
+    mean_it, ci_it = mean_ci(ok_its, Z_95)
+    mean_ev, ci_ev = mean_ci(ok_evs, Z_95)
     return Table2Result(solver=solver_name, runs=runs, successes=successes, mean_iterations=mean_it,
                         iterations_ci=ci_it, mean_evaluations=mean_ev, evaluations_ci=ci_ev,
                         mean_fitness=float(np.mean(fits)), mean_time_s=float(np.mean(times)),

@@ -1,24 +1,45 @@
-"""BENCHMARKS.md: every table beside the papers' figures and the peers'."""
+"""BENCHMARKS.md from the measurements: the header, the summary and the order of the sections
+(:mod:`.sections`, :mod:`.reliability`).  The prose lives in ``templates/*.md`` (see :func:`prose`)."""
 from __future__ import annotations
 
-import math
+import functools
 import os
+import re
 from datetime import datetime, timezone
+from importlib.resources import files
+from string import Template
 
 import numpy as np
 
-from glpma_ros import solvers
-from .common import fmt, fmt_ci, percentiles_ms, ratio, summarize, table
-from .experiments import DEADLINE_MARGIN_MS, STOP_AFTER, STOP_OVERRUN_FACTOR
-from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE_NAME
-from .peers import PEER_LABEL, PYMOO_BOUND_FACTOR
+from glpma_tools.stats import distribution
+from .common import summarize
+from .papers import TABLE_NAME
 from .scenarios import LATENCY_TARGET_MS
+from .timing import DEADLINE_MARGIN_MS
 
-SOLVER_LABEL = {"rcga": "RCGA", "g3pcx": "G3-PCX", "glpma": "GLPMA"}
+SOLVER_LABEL = {"rcga": "RCGA", "g3pcx": "G3-PCX", "glpma": "GLPMA", "de": "DE"}
+_BLOCK = re.compile(r"^<!-- (\w+) -->$", re.M)
 
 
-def _rel(path, md_path):
+@functools.lru_cache(maxsize=None)
+def _blocks(section: str) -> dict:
+    text = files(__package__).joinpath("templates").joinpath(f"{section}.md").read_text(encoding="utf-8")
+    parts = _BLOCK.split(text)
+    return {parts[i]: parts[i + 1].strip() for i in range(1, len(parts), 2)}
+
+
+def prose(section: str, block: str = "intro", **values) -> str:
+    """The paragraph ``block`` of ``templates/<section>.md`` with its ``$name`` fields filled in."""
+    return Template(_blocks(section)[block]).substitute(values)
+
+
+def rel(path, md_path) -> str:
+    """``path`` relative to the report's directory (for image links)."""
     return os.path.relpath(path, os.path.dirname(os.path.abspath(md_path)))
+
+
+def timestamp() -> str:
+    return datetime.now(timezone.utc).astimezone().strftime("%Y-%m-%d %H:%M %Z")
 
 
 def header(res) -> list[str]:
@@ -30,393 +51,12 @@ def header(res) -> list[str]:
            f"- Revision: {res['revision']}",
            f"- Machine: {m['cpu']}, {m['cores']} cores, {m['os']}; Python {m['python']}, NumPy {m['numpy']}, "
            f"Numba {m['numba']}, SciPy {m['scipy']}, pypop7 {m['pypop7']}, pymoo {m['pymoo']}",
-           "- Timings are wall-clock (`time.perf_counter`) around each call, after one warm-up solve per "
-           "configuration (Numba compiles on the first call). The machine may be shared with other jobs, so "
-           "times are noisy; evaluation counts are machine-independent. Latency and deadline tables also count "
-           "the calls during which the process was preempted (the thread's involuntary context switches grew, "
-           "`getrusage`) and give the figures without them.",
+           prose("header", "timings"),
            "- Load average (1/5/15 min) at the start of each section: "
            + "; ".join(f"{name} {load}" for name, load in res.get("load", [])) + ".",
-           "- *pure* = the evolutionary algorithm alone (`polish=False`, the papers' setting); "
-           "*default* = with the Levenberg-Marquardt refinement (`polish=True`). Seeds 0..N-1.",
-           "- Evaluations: one fitness evaluation of one individual counts one; in the refinement one "
-           "residual-and-Jacobian evaluation counts one. 'evals' columns average over the successful runs "
-           "(± the 95% confidence half-width, Student t); the papers print mean ± a spread column.",
-           ""]
+           prose("header", "modes"), ""]
     if res.get("quick"):
-        out += ["> **--quick run**: few runs per row; the figures are indicative only.", ""]
-    return out
-
-
-def paper_table(sc, rows) -> list[str]:
-    kind = sc.model.kind
-    pub = PUBLISHED[kind]
-    st = solvers.PAPER_SETTINGS[kind]
-    lo, hi = st["init_range"]
-    body = []
-    for row in rows:
-        c = row.config
-        s = summarize(row.runs)
-        p = pub.get(c.key)
-        body.append([SOLVER_LABEL[c.solver], c.pop_label, c.mode, s.runs,
-                     fmt(s.success_pct, 3) + " %", f"{p.success:g} %" if p else "—",
-                     fmt_ci(s.evals_mean, s.evals_ci), f"{p.evals:,.0f} ± {p.evals_pm:,.0f}" if p else "—",
-                     ratio(s.evals_mean, p.evals if p else None),
-                     fmt(s.time_median_ms), fmt(s.time_mean_ms),
-                     fmt(p.time_s * 1e3) if p else "—", ratio(s.time_mean_ms, p.time_s * 1e3 if p else None),
-                     fmt(s.fun_median, 2)])
-    runs_pure = sorted({len(r.runs) for r in rows if not r.config.polish})
-    runs_pol = sorted({len(r.runs) for r in rows if r.config.polish})
-    out = [f"### {sc.label}: {TABLE_NAME[kind]}", "",
-           f"Init U[{lo:g}, {hi:g}]^{sc.model.n_vars}, unbounded search, success = fitness < 1e-20 within "
-           f"{st['max_evals']:,} evaluations; {'/'.join(map(str, runs_pure))} runs per pure row and "
-           f"{'/'.join(map(str, runs_pol))} per default row (the paper: 100)."
-           + (" GLPMA: ls_interval 5, ls_intensity " + str(st["ls_intensity"]) + "." if "ls_intensity" in st else ""),
-           "",
-           table(["method", "pop", "mode", "runs", "success", "paper", "evals (ours)", "evals (paper)",
-                  "evals ours/paper", "time median ms", "time mean ms", "paper ms", "time ours/paper",
-                  "median final f"], body), ""]
-    return out
-
-
-def peers_section(res) -> list[str]:
-    out = ["## Pure G3-PCX against peer implementations", "",
-           "Identical fitness (the same compiled function, called through a counter), the papers' "
-           "initial range, evaluation cap and population (3-RPR 100, hexapod 200), Deb's defaults "
-           "(3 parents, 2 children, 2 replaced, sigma 0.1), success = first evaluation below 1e-20 within "
-           f"the cap. pypop7 `G3PCX` runs unbounded (its boundaries only set the initial range); pymoo "
-           f"`G3PCX` needs bounds for its polynomial mutation: {PYMOO_BOUND_FACTOR:g} times the initial "
-           "range's half-width around its centre, initial population sampled from the initial range. "
-           "Time ratios compare mean time per run with ours (the peers' per-evaluation Python overhead "
-           "dominates); evaluation ratios compare mean evaluations over all runs (failures count the cap).",
-           ""]
-    for key, data in res["peers"].items():
-        sc = res["scenarios"][key]
-        ours_rows = [r for r in res["tables"].get(key, []) if r.config.solver == "g3pcx" and not r.config.polish
-                     and r.config.population == solvers.PAPER_SETTINGS[sc.model.kind]["population"]]
-        ours = summarize(ours_rows[0].runs) if ours_rows else None
-        p = PUBLISHED[sc.model.kind][("g3pcx", solvers.PAPER_SETTINGS[sc.model.kind]["population"], None)]
-        body = []
-        if ours:
-            body.append(["ours `g3pcx` (pure)", ours.runs, fmt(ours.success_pct, 3) + " %",
-                         fmt_ci(ours.evals_mean, ours.evals_ci), fmt(ours.evals_all_mean), fmt(ours.fun_median, 2),
-                         fmt(ours.time_mean_ms), "1×", "1×"])
-        for row in data:
-            label = PEER_LABEL[row.name]
-            if row.status != "run":
-                body.append([label, "—", row.status, "—", "—", "—", "—", "—", "—"])
-                continue
-            s = summarize(row.runs)
-            body.append([label, s.runs, fmt(s.success_pct, 3) + " %", fmt_ci(s.evals_mean, s.evals_ci),
-                         fmt(s.evals_all_mean), fmt(s.fun_median, 2), fmt(s.time_mean_ms),
-                         ratio(s.time_mean_ms, ours.time_mean_ms if ours else None),
-                         ratio(s.evals_all_mean, ours.evals_all_mean if ours else None)])
-        body.append([f"paper ({TABLE_NAME[sc.model.kind]})", 100, f"{p.success:g} %",
-                     f"{p.evals:,.0f} ± {p.evals_pm:,.0f}", "—", "—", fmt(p.time_s * 1e3), "—", "—"])
-        out += [f"### {sc.label}", "",
-                table(["implementation", "runs", "success", "evals to success", "mean evals (all runs)",
-                       "median final f", "time/run ms", "time vs ours", "evals vs ours"], body), ""]
-        notes = [f"{PEER_LABEL[r.name]}: {r.note}" for r in data if r.status != "run" and r.note]
-        if notes:
-            out += ["Not run: " + "; ".join(notes) + ".", ""]
-    return out
-
-
-def gap_section(res) -> list[str]:
-    if "3rpr" not in res["peers"] and "3rpr" not in res["tables"]:
-        return []
-    pop = solvers.PAPER_SETTINGS["planar_3rpr"]["population"]
-    cap = solvers.PAPER_SETTINGS["planar_3rpr"]["max_evals"]
-    ours_rows = [r for r in res["tables"].get("3rpr", []) if r.config.solver == "g3pcx" and not r.config.polish
-                 and r.config.population == pop]
-    series = []
-    if ours_rows:
-        series.append(("ours", ours_rows[0].runs))
-    for row in res["peers"].get("3rpr", []):
-        if row.status == "run":
-            series.append((PEER_LABEL[row.name], row.runs))
-    diag = res.get("gap")
-    thresholds = (1e-20, 1e-16, 1e-12, 1e-8)
-    body = []
-    for label, runs in series:
-        n = len(runs)
-        body.append([label, n] + [fmt(100.0 * sum(r.fun < t for r in runs) / n, 3) + " %" for t in thresholds])
-    measured = {label: 100.0 * sum(r.success for r in runs) / len(runs) for label, runs in series}
-
-    def m(label):
-        return fmt(measured[label], 3) + " %" if label in measured else "not run"
-
-    out = ["## Why the papers' pure G3-PCX figures do not reproduce", "",
-           f"001 Table 5 reports 90 % success for pure G3-PCX on the 3-RPR (population {pop}, {cap:,} "
-           "evaluations, U[-50, 50]^3) in 2,984 evaluations on average. Faithful implementations measured when the gap was first investigated reached "
-           "10 % for pypop7, 0 % for pymoo and 10 % for a minimal faithful implementation. Measured in this "
-           f"run: ours {m('ours')}, pypop7 {m(PEER_LABEL['pypop7'])}, pymoo {m(PEER_LABEL['pymoo'])} "
-           f"(reference figures: {', '.join(f'{k} {v} %' for k, v in FAITHFUL_3RPR.items())}).", "",
-           "Success rate within the paper's cap at looser thresholds, from the same runs' final fitness: "
-           "the runs do approach a solution, but the steady-state G3-PCX (two children per generation) "
-           "converges linearly and most runs are still above 1e-20 when the cap is reached.", "",
-           table(["implementation", "runs"] + [f"f < {t:.0e}" for t in thresholds], body), ""]
-    if diag:
-        rows = []
-        for max_evals, runs in diag.caps.items():
-            s = summarize(runs)
-            q = np.percentile([r.nfev for r in runs if r.success], [50, 90]) if s.successes else (math.nan,) * 2
-            rows.append([f"{max_evals:,}", s.runs, fmt(s.success_pct, 3) + " %", fmt_ci(s.evals_mean, s.evals_ci),
-                         fmt(float(q[0])), fmt(float(q[1]))])
-        out += ["Our pure G3-PCX with a larger evaluation cap (same seeds). "
-                f"{2 * cap + pop:,} is the cap the paper would effectively have had if it had counted "
-                f"generations (two children each) instead of evaluations; {10 * cap:,} shows how many "
-                "evaluations the runs need to reach 1e-20 at all.", "",
-                table(["cap", "runs", "success", "evals to success", "median", "90th percentile"], rows), ""]
-    out += _gap_reading(res, measured, diag, cap)
-    return out
-
-
-def _gap_reading(res, measured, diag, cap) -> list[str]:
-    """The conclusion, written from the measured figures."""
-    rates = [f"{label} {v:.0f} %" for label, v in measured.items()]
-    spread = (max(measured.values()) - min(measured.values())) if measured else math.nan
-    text = [f"Reading: with the protocol exactly as printed (Deb's G3-PCX, population 100, {cap:,} evaluations, "
-            f"fitness < 1e-20) the implementations measured here reach {', '.join(rates) or 'n/a'}"]
-    if measured and max(measured.values()) < 50:
-        text.append(f", all far below the paper's 90 % and within {spread:.0f} points of one another: the "
-                    "paper's figure does not follow from G3-PCX as specified")
-    text.append(".")
-    if diag:
-        caps = sorted(diag.caps)
-        s2 = summarize(diag.caps[caps[0]])
-        s10 = summarize(diag.caps[caps[-1]])
-        text.append(f" Raising the cap to {caps[0]:,} (what counting generations of two children as one "
-                    f"evaluation would allow) gives {s2.success_pct:.0f} %; with {caps[-1]:,} evaluations "
-                    f"{s10.success_pct:.0f} % of the runs get there, after "
-                    f"{s10.evals_mean:,.0f} evaluations on average ({ratio(s10.evals_mean, 2984)} the paper's 2,984).")
-    text.append(" The paper leaves out what would close the gap (its evaluation counting, sigma values, bounds "
-                "or restarts, the units of the fitness); we report the protocol as printed and never relabel a "
-                "refined result as a pure one.")
-    pol = [r for r in res["tables"].get("3rpr", []) if r.config.polish]
-    if pol:
-        sums = [summarize(r.runs) for r in pol]
-        lo, hi = min(x.success_pct for x in sums), max(x.success_pct for x in sums)
-        rate = f"{lo:.0f} %" if lo == hi else f"{lo:.0f}–{hi:.0f} %"
-        text.append(f" With the refinement (`default` rows) the solvers reach 1e-20 in {rate} of the runs "
-                    f"after {min(x.evals_mean for x in sums):,.0f}–{max(x.evals_mean for x in sums):,.0f} "
-                    "evaluations on average.")
-    return ["".join(text), ""]
-
-
-def all_solutions_section(res) -> list[str]:
-    out = ["## All real assembly modes (002 section 5.5.2)", "",
-           "`solve_all(model, legs, runs=N, seed=s)`: N independent polished G3-PCX searches from a wide "
-           "initial range, de-duplicated by distance. Deviation = largest coordinate difference (hexapod: the "
-           "nine B1-B3 coordinates, mm) or largest platform-joint distance (3-RPR, mm) between a published "
-           "solution and the nearest solution found.", ""]
-    body = []
-    for key, r in res["all_solutions"].items():
-        sc = res["scenarios"][key]
-        counts = [c for _, c, _, _ in r.repeats]
-        times = [t for _, _, t, _ in r.repeats]
-        devs = [d for _, _, d in r.deviations]
-        dev = f"{min(devs):.3g} – {max(devs):.3g}" if devs and all(map(math.isfinite, devs)) else "—"
-        matched = sum(d < 5.0 for d in devs)
-        if key == "hexapod":
-            paper = (f"{ALL_SOLUTIONS['count']} from {ALL_SOLUTIONS['runs']} runs, U[-2000, 2000]^9, "
-                     f"< {ALL_SOLUTIONS['time_s']:g} s, 0.15 – 2.5 mm from exact")
-        else:
-            paper = "2 (001 section 5.3; 004 Table IV)"
-        body.append([sc.label, r.runs, f"U[{r.init_range[0]:g}, {r.init_range[1]:g}]", len(r.repeats),
-                     "/".join(map(str, counts)), f"{np.median(times):.3f} ({min(times):.3f} – {max(times):.3f})",
-                     f"{matched}/{len(sc.published)}", dev, r.unmatched_found, paper])
-    out += [table(["manipulator", "runs", "init range", "repeats", "distinct found (per repeat)",
-                   "wall s median (min – max)", "published matched (< 5 mm)", "deviation mm (min – max)",
-                   "found, not published", "paper"], body), ""]
-    if "hexapod" in res["all_solutions"]:
-        out += ["The 16 published hexapod solutions are printed to 3 decimals, and the geometry's joints 4-6 were "
-                "recovered from them (config/hexapod_66_rolland.yaml), so deviations of a few hundredths of a mm "
-                "are the resolution of the published table, not solver error (our solutions satisfy the leg "
-                "equations to round-off).", ""]
-    return out
-
-
-def tracking_section(res, md_path) -> list[str]:
-    out = ["## Warm tracking latency (solve only)", "",
-           "The `Estimator` (GLPMA, warm start around the previous estimate, refinement, widening and cold "
-           "fallback) along a smooth trajectory on one assembly mode; each step's leg lengths from exact inverse "
-           "kinematics. 3-RPR: closed loop (circle of 10 mm radius, angle ± 5°); hexapod: helix (30 mm radius, "
-           "two turns, 100 mm rise) with rotation (yaw ± 10°, roll/pitch ± 3°). Time = `estimate()` alone "
-           "(no transport). Error = largest platform-joint distance to the true pose.", ""]
-    body = []
-    for key, t in res["tracking"].items():
-        sc = res["scenarios"][key]
-        st = t.stats
-        target = LATENCY_TARGET_MS[key]
-        calm = percentiles_ms(t.latency_s[~t.preempted]) if np.any(~t.preempted) else st
-        verdict = "met" if st["p99"] <= target else (
-            "**missed** (met without preemption)" if calm["p99"] <= target else "**missed**")
-        body.append([sc.label, t.steps, f"{t.budget_ms:g}", fmt(st["p50"]), fmt(st["p99"]), fmt(st["max"]),
-                     int(np.sum(t.preempted)), fmt(calm["p99"]), fmt(calm["max"]), f"≤ {target:g}", verdict,
-                     f"{np.max(t.errors):.2e}", f"{np.max(t.leg_residual):.2e}",
-                     ", ".join(f"{k} {v}" for k, v in sorted(t.statuses.items())),
-                     ", ".join(f"{k} {v}" for k, v in sorted(t.stages.items())), fmt(float(np.mean(t.evaluations)))])
-    out += [table(["manipulator", "steps", "budget ms", "p50 ms", "p99 ms", "max ms", "preempted steps",
-                   "p99 ms not preempted", "max ms not preempted", "target p99", "",
-                   "max error mm", "max leg residual mm", "status", "stage", "mean evals"], body), ""]
-    for key in res["tracking"]:
-        fig = res["figures"].get(f"latency_{key}")
-        if fig:
-            out += [f"![{res['scenarios'][key].label} latency]({_rel(fig, md_path)})", ""]
-    return out
-
-
-def scipy_section(res) -> list[str]:
-    out = ["## Warm solve against `scipy.optimize.least_squares`", "",
-           "Every step of the tracking runs above, scipy starts from the same warm start as the Estimator "
-           "(its previous estimate) with `xtol = ftol = gtol = 1e-15` (round-off, so accuracy is comparable). "
-           "'analytic': leg residuals in pose space with the model's analytic Jacobian "
-           "(`pose_residuals_jacobian`; hexapod rotation as exp(w) R0, exact Jacobian); '2-point': the solver "
-           "variables' residual vector (`model.residuals`; hexapod: 9 variables incl. rigidity terms) with "
-           "finite differences. Accuracy = max |IK(x) − legs| over the legs. Ratio = ours / scipy on the median.",
-           ""]
-    for key, rows in res["scipy"].items():
-        sc = res["scenarios"][key]
-        t = res["tracking"][key]
-        ours = percentiles_ms(t.latency_s)
-        calm = percentiles_ms(t.latency_s[~t.preempted])
-        body = [["ours: Estimator (warm, GLPMA + LM)", fmt(ours["p50"]), fmt(ours["p99"]), fmt(calm["p99"]),
-                 fmt(ours["mean"]),
-                 f"{np.median(t.leg_residual):.1e}", f"{np.max(t.leg_residual):.1e}",
-                 fmt(float(np.mean(t.evaluations))), "1×"]]
-        for r in rows:
-            label = f"scipy `{r.method}`, {r.jac}"
-            if r.status != "run":
-                body.append([label, "—", "—", "—", "—", "—", "—", "—", r.status])
-                continue
-            s = percentiles_ms(r.latency_s)
-            c = percentiles_ms(r.latency_s[~r.preempted]) if r.preempted is not None else s
-            body.append([label, fmt(s["p50"]), fmt(s["p99"]), fmt(c["p99"]), fmt(s["mean"]),
-                         f"{np.median(r.leg_residual):.1e}",
-                         f"{np.max(r.leg_residual):.1e}", fmt(float(np.mean(r.nfev))), ratio(ours["p50"], s["p50"])])
-        out += [f"### {sc.label} ({t.steps} steps)", "",
-                table(["solver", "p50 ms", "p99 ms", "p99 ms not preempted", "mean ms", "median max leg residual",
-                       "worst max leg residual", "mean evals", "ours/scipy (p50)"], body), ""]
-    out += ["scipy is a single local solve: it has no population, no assembly-mode check and no fallback when the "
-            "start is poor, which the Estimator provides (its evaluation count includes the warm population).", ""]
-    return out
-
-
-def deadline_section(res, md_path) -> list[str]:
-    rows = res["deadline"]
-    body = []
-    for r in rows:
-        over = r.overrun_ms
-        pre = r.preempted if r.preempted is not None else np.zeros(len(over), dtype=bool)
-        calm = over[~pre]
-        body.append([r.case, r.solver, f"{r.budget_ms:g}", len(over) if not r.stopped_early else f"{len(over)} (stopped)",
-                     fmt(100.0 * float(np.mean(over <= DEADLINE_MARGIN_MS)), 4) + " %",
-                     fmt(float(np.percentile(r.elapsed_s * 1e3, 99))), f"{float(np.max(over)):+.3f}",
-                     int(np.sum(pre)),
-                     (fmt(100.0 * float(np.mean(calm <= DEADLINE_MARGIN_MS)), 4) + " %") if calm.size else "—",
-                     f"{float(np.max(calm)):+.3f}" if calm.size else "—"])
-    total = np.concatenate([r.overrun_ms for r in rows]) if rows else np.array([])
-    pre_all = np.concatenate([r.preempted if r.preempted is not None else np.zeros(len(r.elapsed_s), dtype=bool)
-                              for r in rows]) if rows else np.array([], dtype=bool)
-    out = ["## Deadline honouring", "",
-           "Cold searches that cannot converge (legs with no real assembly, or pure hexapod runs that need far "
-           "more than a few ms), `budget_s` given, evaluation cap 10^9 so that only the deadline stops them; every "
-           "registered solver. The Estimator row runs the node's logic cold (its stages share the budget; its "
-           "default evaluation cap may end a stage first). "
-           f"On time = returned within budget + {DEADLINE_MARGIN_MS} ms (wall clock around the call). "
-           f"'(stopped)': the cell was cut after {STOP_AFTER} solves that all overran by more than "
-           f"{STOP_OVERRUN_FACTOR:g} x the budget.", ""]
-    if total.size:
-        calm = total[~pre_all]
-        out += [f"Overall: {100.0 * float(np.mean(total <= DEADLINE_MARGIN_MS)):.2f} % of {total.size} solves on "
-                f"time, worst overrun {float(np.max(total)):+.3f} ms; {int(np.sum(pre_all))} solves were preempted "
-                f"by other processes, and without them {100.0 * float(np.mean(calm <= DEADLINE_MARGIN_MS)):.2f} % "
-                f"are on time, worst overrun {float(np.max(calm)):+.3f} ms." if calm.size else "", ""]
-        late = sorted({r.solver for r in rows if r.preempted is not None and np.any(
-            r.overrun_ms[~r.preempted] > DEADLINE_MARGIN_MS)})
-        if late:
-            out += ["Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".", ""]
-    out += [table(["case", "solver", "budget ms", "solves", "on time", "p99 elapsed ms", "worst overrun ms",
-                   "preempted", "on time, not preempted", "worst overrun, not preempted"], body), ""]
-    fig = res["figures"].get("deadline")
-    if fig:
-        out += [f"![deadline overruns]({_rel(fig, md_path)})", ""]
-    return out
-
-
-def _flatten(d, prefix=""):
-    for k, v in d.items():
-        if isinstance(v, dict):
-            yield from _flatten(v, f"{prefix}{k}.")
-        elif isinstance(v, (list, tuple)) and len(v) > 8:
-            yield f"{prefix}{k}", f"{len(v)} items"
-        else:
-            yield f"{prefix}{k}", v
-
-
-def dds_section(res) -> list[str]:
-    d = res["dds"]
-    out = ["## DDS end to end (node + mock controller)", ""]
-    if d.get("status") != "run":
-        return out + [f"Skipped: {d.get('reason', 'not requested')}.", ""]
-    out += [f"From `{d['function']}`.", ""]
-    for label, r in d["results"].items():
-        if r["status"] != "run":
-            out += [f"- {label}: not run ({r['reason']})"]
-            continue
-        out += [f"### {label}", "", table(["quantity", "value"],
-                                          [[k, fmt(v) if isinstance(v, (int, float)) and not isinstance(v, bool)
-                                            else str(v)] for k, v in _flatten(r["stats"])]), ""]
-    return out + [""]
-
-
-def baselines_section(res) -> list[str]:
-    b = res["baselines"]
-    out = ["## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE", ""]
-    if b.table2:
-        out += ["004's protocol: the 3-RPR example, init U[-10, 10]^3, population 40 (SA: one chain), a run stops "
-                "at fitness < 1e-4, no refinement; iterations = Markov chains (SA) or generations (GA, GA-SA), "
-                "mean ± 95 % CI over the successful runs. 'GA' is our RCGA (Wright's crossover, non-uniform "
-                "mutation): 004's GA (N-U) row.", ""]
-        rows = []
-        for r in b.table2:
-            p = r.published
-            chain = r.published.markov_chain if p is not None and p.markov_chain else "—"
-            rows.append([r.solver, chain, r.runs, f"{100 * r.success_rate:.0f} %",
-                         f"{100 * p.successes / p.runs:.0f} %" if p else "—",
-                         fmt_ci(r.mean_iterations, r.iterations_ci),
-                         fmt_ci(p.iterations, p.iterations_ci) if p else "—",
-                         fmt_ci(r.mean_evaluations, r.evaluations_ci), fmt(r.mean_fitness), fmt(p.fitness) if p else "—",
-                         fmt(r.mean_time_s * 1e3), fmt(p.cpu_s * 1e3) if p else "—"])
-        out += [table(["solver", "chain", "runs", "success", "paper", "iterations (ours)", "iterations (paper)",
-                       "evaluations (ours)", "mean f", "paper f", "time ms", "paper ms"], rows), ""]
-    if b.de:
-        out += ["DE/rand/1/bin (003 Algorithm 1: F dithered in [0.5, 1], CR in [0.8, 1], Np = 10 D) on 001's "
-                "protocols (success = fitness < 1e-20 within the papers' evaluation cap).", ""]
-        rows = []
-        for key, trows in b.de.items():
-            for row in trows:
-                s = summarize(row.runs)
-                rows.append([res["scenarios"][key].label, row.config.mode, row.config.population, s.runs,
-                             f"{s.success_pct:.0f} %", fmt_ci(s.evals_mean, s.evals_ci), fmt(s.time_median_ms),
-                             fmt(s.fun_median)])
-        out += [table(["manipulator", "mode", "Np", "runs", "success", "evals to success", "time median ms",
-                       "median final f"], rows), ""]
-    return out
-
-
-def figures_section(res, md_path) -> list[str]:
-    figs = [(k, v) for k, v in res["figures"].items() if k.startswith("success_")]
-    if not figs:
-        return []
-    out = ["## Success vs evaluations", "",
-           "Left: share of runs below 1e-20 by evaluation count (exact: a run stops at success). Right: median "
-           "best fitness of the pure runs from `SolveResult.history` (one point per compiled chunk of generations: a "
-           "3-RPR RCGA/GLPMA run is a single chunk, so those curves are not drawn) and the peers' best-so-far "
-           "traces; the default (refined) runs converge in their first chunk and appear on the left only.", ""]
-    for _, path in figs:
-        out += [f"![{os.path.basename(path)}]({_rel(path, md_path)})", ""]
+        out += [prose("header", "quick"), ""]
     return out
 
 
@@ -424,15 +64,12 @@ def summary_section(res) -> list[str]:
     lines = ["## Summary", ""]
     for key, rows in res["tables"].items():
         sc = res["scenarios"][key]
-        parts = []
-        for row in rows:
-            s = summarize(row.runs)
-            parts.append(f"{SOLVER_LABEL[row.config.solver]} {row.config.pop_label} {row.config.mode}: "
-                         f"{s.success_pct:.0f} %")
+        parts = [f"{SOLVER_LABEL[row.config.solver]} {row.config.pop_label} {row.config.mode}: "
+                 f"{summarize(row.runs).success_pct:.0f} %" for row in rows]
         lines.append(f"- {sc.label} ({TABLE_NAME[sc.model.kind]} protocol): " + "; ".join(parts) + ".")
     for key, t in res["tracking"].items():
         st = t.stats
-        calm = percentiles_ms(t.latency_s[~t.preempted]) if np.any(~t.preempted) else st
+        calm = distribution(t.latency_s[~t.preempted], 1e3) if np.any(~t.preempted) else st
         lines.append(f"- {res['scenarios'][key].label} warm tracking: p50 {st['p50']:.3f} ms, p99 {st['p99']:.3f} ms "
                      f"({calm['p99']:.3f} ms over the {int(np.sum(~t.preempted))} steps not preempted; "
                      f"target ≤ {LATENCY_TARGET_MS[key]:g}), max error {np.max(t.errors):.1e} mm.")
@@ -443,73 +80,48 @@ def summary_section(res) -> list[str]:
         total = np.concatenate([r.overrun_ms for r in res["deadline"]])
         calm = np.concatenate([r.overrun_ms[~r.preempted] for r in res["deadline"]])
         lines.append(f"- Deadlines: {100.0 * float(np.mean(total <= DEADLINE_MARGIN_MS)):.2f} % within budget + "
-                     f"{DEADLINE_MARGIN_MS} ms, worst overrun {float(np.max(total)):+.3f} ms; without the preempted "
-                     f"solves {100.0 * float(np.mean(calm <= DEADLINE_MARGIN_MS)):.2f} %, worst "
-                     f"{float(np.max(calm)):+.3f} ms.")
+                     f"{DEADLINE_MARGIN_MS} ms, worst overrun {float(np.max(total)):+.3f} ms" +
+                     (f"; without the preempted solves {100.0 * float(np.mean(calm <= DEADLINE_MARGIN_MS)):.2f} %, "
+                      f"worst {float(np.max(calm)):+.3f} ms." if calm.size else "."))
     return lines + [""]
 
 
-def render(res, md_path) -> str:
+def figures_section(res, md_path) -> list[str]:
+    figs = [(k, v) for k, v in res["figures"].items() if k.startswith("success_")]
+    if not figs:
+        return []
+    out = ["## Success vs evaluations", "", prose("figures"), ""]
+    for _, path in figs:
+        out += [f"![{os.path.basename(path)}]({rel(path, md_path)})", ""]
+    return out
+
+
+def render(res, md_path, reliability=None, reliability_source=None) -> str:
+    """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
+    ``reliability_source`` (None: there are none yet)."""
+    from . import sections as s
+    from .reliability import reliability_section
     parts = header(res) + summary_section(res)
     if res["tables"]:
         parts += ["## The papers' tables (001 Tables 5 and 8)", ""]
         for key, rows in res["tables"].items():
-            parts += paper_table(res["scenarios"][key], rows)
+            parts += s.paper_table(res["scenarios"][key], rows)
     parts += figures_section(res, md_path)
     if res["peers"]:
-        parts += peers_section(res)
+        parts += s.peers_section(res)
     if res["peers"] or res["gap"]:
-        parts += gap_section(res)
+        parts += s.gap_section(res)
     if res["all_solutions"]:
-        parts += all_solutions_section(res)
+        parts += s.all_solutions_section(res)
     if res["tracking"]:
-        parts += tracking_section(res, md_path)
+        parts += s.tracking_section(res, md_path)
     if res["scipy"]:
-        parts += scipy_section(res)
+        parts += s.scipy_section(res)
     if res["deadline"]:
-        parts += deadline_section(res, md_path)
+        parts += s.deadline_section(res, md_path)
     if res.get("baselines") is not None:
-        parts += baselines_section(res)
+        parts += s.baselines_section(res)
     if res.get("dds") is not None:
-        parts += dds_section(res)
-    parts += kept_sections(md_path)
+        parts += s.dds_section(res)
+    parts += reliability_section(reliability, reliability_source)
     return "\n".join(parts).rstrip() + "\n"
-
-
-#: the sections this report writes (heading prefixes); any other "## " section already in the
-#: file (``## Reliability`` from ``glpma-fk stress``) is carried over, after ours
-OWN_HEADINGS = ("## Summary", "## The papers' tables", "## Success vs evaluations", "## Pure G3-PCX against",
-                "## Why the papers' pure G3-PCX", "## All real assembly modes", "## Warm tracking latency",
-                "## Warm solve against", "## Deadline honouring", "## DDS end to end", "## Baselines")
-
-
-def foreign_sections(text: str) -> list[str]:
-    """The lines of every ``## `` section of ``text`` that this report does not write."""
-    kept, current = [], None
-    for line in text.splitlines():
-        if line.startswith("## "):
-            current = None if line.startswith(OWN_HEADINGS) else [line]
-            if current is not None:
-                kept.append(current)
-        elif current is not None:
-            current.append(line)
-    out = []
-    for sec in kept:
-        while sec and not sec[-1].strip():
-            sec.pop()
-        out += ([""] if out else []) + sec
-    return out
-
-
-def kept_sections(md_path) -> list[str]:
-    """Sections of the existing report that another command writes -- ``## Reliability``, by
-    ``glpma-fk stress`` (``glpma_ros/stress.py``) -- carried over unchanged."""
-    if not md_path or not os.path.exists(md_path):
-        return []
-    with open(md_path, encoding="utf-8") as f:
-        lines = foreign_sections(f.read())
-    return [""] + lines if lines else []
-
-
-def timestamp() -> str:
-    return datetime.now(timezone.utc).astimezone().strftime("%Y-%m-%d %H:%M %Z")

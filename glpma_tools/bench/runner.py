@@ -1,12 +1,13 @@
 """``glpma-fk bench``: argument parsing and the order of the experiments."""
 from __future__ import annotations
 
-import argparse
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
+from glpma_ros.cli import OneLineParser
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds")
@@ -14,7 +15,7 @@ SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines",
 #: default run counts: (full, --quick)
 DEFAULTS = {
     "runs": (100, 10),                # ours, every row except pure hexapod
-    "hexapod_runs": (100, 5),         # ours, pure hexapod rows (0.1-0.5 s each)
+    "hexapod_runs": (100, 5),         # ours, pure hexapod rows (up to 500,000 evaluations each)
     "peer_runs": (100, 5),            # peers on the 3-RPR
     "peer_hexapod_runs": (None, 0),   # peers on the hexapod: None = PEER_HEXAPOD_RUNS
     "track_steps": (1000, 300),
@@ -24,17 +25,23 @@ DEFAULTS = {
     "dds_steps": (1000, 200),
     "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
 }
-#: pypop7 ~18 s and pymoo ~85 s per 500,000-evaluation hexapod run on the reference machine
+#: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
+#: where a full run writes its report and figures, and reads the stress test's figures
+DEFAULT_MARKDOWN = REPO_ROOT / "BENCHMARKS.md"
+DEFAULT_OUT = REPO_ROOT / "doc" / "bench"
+DEFAULT_RELIABILITY = DEFAULT_OUT / "reliability.json"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+def build_parser() -> OneLineParser:
+    p = OneLineParser(
         prog="glpma-fk bench",
         description="Reproduce the papers' tables (001 Tables 5 and 8, 002's all-solutions experiment) against "
                     "peer implementations, measure warm-tracking latency and deadline honouring, and write "
                     "BENCHMARKS.md with figures.")
-    p.add_argument("--quick", action="store_true", help="few runs per row (about a minute)")
+    p.add_argument("--quick", action="store_true",
+                   help="few runs per row (a few minutes); writes into a scratch directory unless --out or "
+                        "--markdown is given")
     p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", default=None,
                    help="restrict to these manipulators")
     p.add_argument("--sections", choices=SECTIONS, nargs="+", default=None,
@@ -57,14 +64,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solve-all-repeats", type=int, help="solve_all repetitions with seeds 0.. (default 5)")
     p.add_argument("--dds-steps", type=int, help="messages of the DDS end-to-end run (default 1000)")
     p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
-    p.add_argument("--out", type=Path, default=REPO_ROOT / "doc" / "bench", help="directory for the PNGs")
-    p.add_argument("--markdown", type=Path, default=REPO_ROOT / "BENCHMARKS.md", help="report path")
+    p.add_argument("--out", type=Path, default=None,
+                   help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
+                        "scratch directory)")
+    p.add_argument("--markdown", type=Path, default=None,
+                   help="report path (default BENCHMARKS.md; --quick: BENCHMARKS.md in the --out directory)")
+    p.add_argument("--reliability", type=Path, default=DEFAULT_RELIABILITY, metavar="JSON",
+                   help="figures of `glpma-fk stress` for the Reliability section (default doc/bench/reliability.json)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--save-data", type=Path, default=None, help="also pickle the measurements to this file")
     p.add_argument("--render", type=Path, default=None, metavar="PICKLE",
                    help="run nothing: redraw the figures and rewrite the report from --save-data output")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
+
+
+def output_paths(args) -> tuple[Path, Path]:
+    """(figures directory, report path): the repository's for a full run; a --quick run writes
+    beside what is given, else into a new scratch directory, never over the committed report."""
+    out, md = args.out, args.markdown
+    if not args.quick:
+        return (out or DEFAULT_OUT).resolve(), (md or DEFAULT_MARKDOWN).resolve()
+    if out is None:
+        out = md.parent if md is not None else Path(tempfile.mkdtemp(prefix="glpma_bench_quick_"))
+    return out.resolve(), (md or out / "BENCHMARKS.md").resolve()
 
 
 def _count(args, name):
@@ -92,10 +115,9 @@ def main(argv=None) -> int:
         if isinstance(exc.code, str):
             print(f"error: {exc.code}", file=sys.stderr)
             return 2
-        return int(exc.code or 0)
+        return 0 if exc.code in (0, None) else 2
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import experiments as ex
-    from . import report
+    from . import dds, deadlines, experiments as ex, report, tracking
     from .scenarios import load
 
     t_start = time.perf_counter()
@@ -105,9 +127,8 @@ def main(argv=None) -> int:
             res["load"].append((section, load_average()))
         print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
-    if args.markdown:
-        args.markdown = args.markdown.resolve()
-    out_dir = args.out.resolve()
+    out_dir, args.markdown = output_paths(args)
+    say(f"report: {args.markdown}; figures: {out_dir}")
     if args.render:
         res = load_saved(args.render)
         return finish(res, args, out_dir, say)
@@ -134,8 +155,8 @@ def main(argv=None) -> int:
                     by_peer = {n: args.peer_hexapod_runs for n in PEER_HEXAPOD_RUNS}
                 elif args.quick:
                     by_peer = {n: 0 for n in PEER_HEXAPOD_RUNS}
-                    by_peer.update({f"{n}_why": "skipped in --quick (500,000 evaluations per run: "
-                                                f"~18 s pypop7, ~85 s pymoo)" for n in PEER_HEXAPOD_RUNS})
+                    by_peer.update({f"{n}_why": "skipped in --quick (500,000 evaluations of Python overhead per run)"
+                                    for n in PEER_HEXAPOD_RUNS})
                 else:
                     by_peer = dict(PEER_HEXAPOD_RUNS)
             else:
@@ -152,18 +173,18 @@ def main(argv=None) -> int:
     if "tracking" in sections:
         for k, sc in scenarios.items():
             say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
-            res["tracking"][k] = ex.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
-            res["scipy"][k] = ex.scipy_warm(sc, res["tracking"][k], progress)
+            res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
+            res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
-        res["deadline"] = ex.deadlines(list(scenarios.values()), args.budgets_ms, max(1, counts["deadline_solves"]),
-                                       progress, args.deadline_solvers)
+        res["deadline"] = deadlines.deadlines(list(scenarios.values()), args.budgets_ms,
+                                              max(1, counts["deadline_solves"]), progress, args.deadline_solvers)
     if "baselines" in sections:
         say("baselines: 004 Table II, DE on 001's protocols", "baselines")
         res["baselines"] = ex.baselines(scenarios, counts["table2_runs"], runs, hex_runs, progress)
     if "dds" in sections:
         say("DDS end to end", "dds")
-        res["dds"] = ex.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
+        res["dds"] = dds.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
         if res["dds"].get("status") != "run":
             print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
 
@@ -200,9 +221,9 @@ def load_saved(path):
 
 def finish(res, args, out_dir, say) -> int:
     """Figures and the report from the measurements."""
-    from . import experiments as ex
-    from . import plots, report
+    from . import plots, reliability, report
     from .scenarios import LATENCY_TARGET_MS
+    from .timing import DEADLINE_MARGIN_MS
     scenarios = res["scenarios"]
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -229,12 +250,16 @@ def finish(res, args, out_dir, say) -> int:
                     res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
         if res["deadline"]:
             res["figures"]["deadline"] = plots.deadline_plot(out_dir / "deadline.png", res["deadline"],
-                                                             ex.DEADLINE_MARGIN_MS)
-    text = report.render(res, args.markdown)
-    if args.markdown:
-        args.markdown.parent.mkdir(parents=True, exist_ok=True)
-        args.markdown.write_text(text)
-        say(f"wrote {args.markdown}")
-    else:
-        print(text)
+                                                             DEADLINE_MARGIN_MS)
+    try:
+        stress_figures = reliability.load(args.reliability)
+    except (OSError, ValueError) as exc:
+        print(f"error: glpma-fk bench: cannot read {args.reliability}: {exc}", file=sys.stderr)
+        return 2
+    rpath = args.reliability.resolve()
+    source = str(rpath.relative_to(REPO_ROOT)) if rpath.is_relative_to(REPO_ROOT) else str(rpath)
+    text = report.render(res, args.markdown, stress_figures, source)
+    args.markdown.parent.mkdir(parents=True, exist_ok=True)
+    args.markdown.write_text(text)
+    say(f"wrote {args.markdown}")
     return 0

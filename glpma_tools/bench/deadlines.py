@@ -1,0 +1,70 @@
+"""Deadline honouring: cold searches that cannot converge, stopped only by their time budget
+(every registered solver, and the Estimator as the node runs it)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from glpma_ros import solvers
+from glpma_ros.estimator import Estimator
+from .timing import infeasible_legs, timed_calls, warm_up
+
+#: the bench's deadline cells are small: a short warm-up is enough
+WARM_UP_QUIET = 3
+WARM_UP_MAX_CALLS = 30
+#: evaluation cap that never ends a search before its deadline
+NO_CAP = 10**9
+
+
+@dataclass
+class DeadlineRow:
+    case: str
+    solver: str
+    budget_ms: float
+    elapsed_s: np.ndarray
+    short: str = ""
+    preempted: np.ndarray = None
+    stopped_early: bool = False
+
+    @property
+    def label(self):
+        return f"{self.short} | {self.solver}"
+
+    @property
+    def overrun_ms(self):
+        return self.elapsed_s * 1e3 - self.budget_ms
+
+
+def _row(case, solver, b, short, call, n, progress) -> DeadlineRow:
+    warm_up(call, b, WARM_UP_QUIET, WARM_UP_MAX_CALLS)
+    calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
+    return DeadlineRow(case, solver, b, calls.elapsed_s, short, calls.preempted, calls.stopped_early)
+
+
+def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRow]:
+    rows = []
+    names = list(names or solvers.SOLVERS)
+    for sc in scenarios:
+        model = sc.model
+        infeasible = infeasible_legs(model)
+        cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible, True)]
+        if sc.key == "hexapod":
+            cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
+                             sc.legs, False))
+        for case, short, legs, polish in cases:
+            for solver in names:
+                for b in budgets_ms:
+                    def call(seed, solver=solver, legs=legs, polish=polish, b=b):
+                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3, max_evals=NO_CAP)
+                    rows.append(_row(case, solver, b, short, call, n, progress))
+        # the estimator, cold, on legs without a solution: every stage runs until the deadline
+        case = f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)"
+        for b in budgets_ms:
+            est = Estimator(model, time_budget_s=b / 1e3)
+
+            def call(_, est=est):
+                est.reset()
+                est.estimate(infeasible)
+            rows.append(_row(case, "Estimator", b, f"{sc.label} infeasible, cold", call, n, progress))
+    return rows

@@ -1,0 +1,99 @@
+"""Warm tracking: the Estimator along the simulated loop (solve time per step, accuracy), and
+``scipy.optimize.least_squares`` from the same warm starts."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glpma_ros.estimator import Estimator
+from glpma_tools.sim.trajectories import variables_along
+from glpma_tools.stats import distribution
+from .peers import SCIPY_VARIANTS, ScipyWarm, available
+from .timing import timed_calls, warm_up
+
+#: steps of the loop the warm-up solves (on an Estimator of its own)
+WARM_UP_STEPS = 19
+
+
+@dataclass
+class Tracking:
+    steps: int
+    budget_ms: float
+    latency_s: np.ndarray
+    errors: np.ndarray            # distance to the true pose (config unit)
+    leg_residual: np.ndarray      # max |IK(x) - legs| per step
+    statuses: dict
+    stages: dict
+    evaluations: np.ndarray
+    starts: np.ndarray            # the warm start of each step (previous estimate)
+    legs: np.ndarray
+    truth: np.ndarray
+    preempted: np.ndarray         # the step was preempted by another process (involuntary context switch)
+
+    @property
+    def stats(self) -> dict:
+        return distribution(self.latency_s, 1e3)
+
+
+def max_leg_residual(model, x, legs) -> float:
+    return float(np.max(np.abs(model.inverse_kinematics(x) - legs)))
+
+
+def tracking(sc, steps, budget_ms, progress) -> Tracking:
+    """``steps`` Estimator solves along one loop from the scenario's start, warm from the previous one."""
+    model = sc.model
+    traj = variables_along(model, sc.start, steps + 1)
+    legs_all = np.array([model.inverse_kinematics(x) for x in traj])
+    spare = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)
+    warm_up(lambda i: spare.estimate(legs_all[1 + i % WARM_UP_STEPS]), budget_ms)
+    est = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)
+    starts = []
+
+    def step(i):
+        starts.append(np.array(est.last_x, dtype=float))
+        return est.estimate(legs_all[i + 1])
+
+    calls = timed_calls(step, steps, budget_ms, f"{sc.label} tracking", progress, stop_early=False)
+    err, res, statuses, stages = [], [], {}, {}
+    for k, e in enumerate(calls.results, start=1):
+        statuses[e.status] = statuses.get(e.status, 0) + 1
+        stages[e.start] = stages.get(e.start, 0) + 1
+        ok = e.x is not None and np.all(np.isfinite(e.x))
+        err.append(model.distance(e.x, traj[k]) if ok else math.inf)
+        res.append(max_leg_residual(model, e.x, legs_all[k]) if ok else math.inf)
+    return Tracking(steps, budget_ms, calls.elapsed_s, np.array(err), np.array(res), statuses, stages,
+                    np.array([e.evaluations for e in calls.results]), np.array(starts), legs_all[1:], traj[1:],
+                    calls.preempted)
+
+
+@dataclass
+class ScipyRow:
+    method: str
+    jac: str
+    latency_s: np.ndarray = None
+    leg_residual: np.ndarray = None
+    nfev: np.ndarray = None
+    preempted: np.ndarray = None
+    status: str = "run"
+    note: str = ""
+
+
+def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
+    why = available("scipy")
+    if why is not None:
+        print(f"bench: scipy {why}; its rows are marked 'not installed'")
+        return [ScipyRow(m, j, status="not installed", note=why) for m, j in SCIPY_VARIANTS]
+    out = []
+    model = sc.model
+    m = min(WARM_UP_STEPS, len(trk.legs))
+    for method, jac in SCIPY_VARIANTS:
+        solver = ScipyWarm(model, method, jac)
+        warm_up(lambda i: solver.solve(trk.starts[i % m], trk.legs[i % m]), trk.budget_ms)
+        calls = timed_calls(lambda k: solver.solve(trk.starts[k], trk.legs[k]), len(trk.legs), trk.budget_ms,
+                            f"{sc.label} scipy {method}/{jac}", progress, stop_early=False)
+        res = [max_leg_residual(model, x, trk.legs[k]) for k, (x, _) in enumerate(calls.results)]
+        out.append(ScipyRow(method, jac, calls.elapsed_s, np.array(res), np.array([n for _, n in calls.results]),
+                            calls.preempted))
+    return out
