@@ -1,6 +1,6 @@
 """The threads both transports share: :class:`SolveLoop` solves the newest pending input (an
-input replaced before it was picked up counts as dropped) and publishes its pose;
-:class:`AssemblyModesLoop` answers ``~/request_assembly_modes`` off the real-time path."""
+input replaced before it was picked up counts as dropped) and publishes its pose and extra
+outputs; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes`` off the real-time path."""
 from __future__ import annotations
 
 import threading
@@ -41,47 +41,127 @@ class LatestInput:
 
 
 class SolveLoop:
-    """The worker thread both transports use: solve the newest input, publish its pose."""
+    """Solves the newest input and publishes its pose (then its extra outputs), one input at a
+    time.  Two ways in:
 
-    def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver"):
+    * :meth:`offer` (the DDS transport's reader threads): solve in the calling thread at once
+      unless a solve is in progress -- then the input waits in a one-slot mailbox, replacing
+      (and dropping) any input already waiting, and the thread that is solving takes it next;
+      no thread hand-off on the way from input to pose;
+    * :meth:`submit` (the rclpy transport's callbacks): the input goes to the mailbox and the
+      loop's own thread (started by :meth:`start`) solves it.
+
+    Either way the newest input wins and every input replaced unsolved counts as dropped."""
+
+    def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver", publish_extras=None):
+        """``publish(PoseOutput)``; ``publish_extras(ExtraOutputs)`` (TF, covariance, twist,
+        markers; None: not published)."""
         self.service = service
         self.publish = publish
-        self.mailbox = LatestInput()
-        self._stop = threading.Event()
+        self.publish_extras = publish_extras
+        self._cond = threading.Condition()
+        self._pending = None            # the input waiting for the solver
+        self._busy = False              # a thread is solving (and will take _pending next)
+        self._closed = False
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> "SolveLoop":
+        """Start the loop's own thread (needed for :meth:`submit`, not for :meth:`offer`)."""
         self._thread.start()
         return self
 
+    def _item(self, legs_m, stamp_ns: int, arrival: float | None):
+        self.service.note_input(legs_m, stamp_ns)
+        return legs_m, int(stamp_ns), time.perf_counter() if arrival is None else arrival
+
     def submit(self, legs_m, stamp_ns: int) -> None:
         """Called by the transport on arrival of leg lengths (metres), ``stamp_ns`` = arrival time."""
-        arrival = time.perf_counter()
-        self.service.note_input(legs_m, stamp_ns)
-        if self.mailbox.put((legs_m, int(stamp_ns), arrival)):
-            self.service.note_dropped(1)
+        self._wait_or_replace(self._item(legs_m, stamp_ns, None))
 
-    def submit_joint_state(self, names, positions, stamp_ns: int) -> None:
+    def submit_joint_state(self, names, positions, stamp_ns: int, velocities=()) -> None:
         """Called by the transport on arrival of a JointState, ``stamp_ns`` = its header.stamp.
         The legs are picked out by the solver thread (a rejection is counted there)."""
-        self.submit(JointStateInput(tuple(names), tuple(positions)), stamp_ns)
+        self.submit(JointStateInput(tuple(names), tuple(positions), tuple(velocities)), stamp_ns)
+
+    def offer(self, legs_m, stamp_ns: int, arrival: float | None = None) -> bool:
+        """Solve an input (leg lengths in metres or a :class:`JointStateInput`) in this thread
+        unless another is being solved; then it waits for that solve to end (replacing and
+        dropping an input already waiting).  Returns True when this thread solved it (and
+        whatever arrived meanwhile)."""
+        item = self._item(legs_m, stamp_ns, arrival)
+        with self._cond:
+            if self._busy or self._pending is not None or self._closed:
+                replaced = self._pending is not None
+                self._pending = item
+                self._cond.notify()
+            else:
+                self._busy = True
+                replaced = None
+        if replaced is not None:
+            if replaced:
+                self.service.note_dropped(1)
+            return False
+        self._drain(item)
+        return True
+
+    def _wait_or_replace(self, item) -> None:
+        with self._cond:
+            replaced = self._pending is not None
+            self._pending = item
+            self._cond.notify()
+        if replaced:
+            self.service.note_dropped(1)
+
+    def _drain(self, item) -> None:
+        """Solve ``item``, then every input that arrived meanwhile, newest first; clears busy."""
+        while item is not None:
+            try:
+                self._solve(item)
+            except Exception as exc:  # noqa: BLE001 - the loop must survive anything
+                self.service.log.error(f"internal error in the solve loop: {exc!r}")
+            with self._cond:
+                item, self._pending = self._pending, None
+                if item is None or self._closed:
+                    self._busy = False
+                    item = None
+
+    def _solve(self, item) -> None:
+        outcome = self.service.handle(*item)
+        if outcome.pose is None:
+            return
+        try:
+            self.publish(outcome.pose)
+        except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
+            self.service.log.error(f"publishing the pose failed: {exc!r}")
+            return
+        if self.publish_extras is None:
+            return
+        t0 = time.perf_counter()
+        try:
+            extras = self.service.extras(outcome)
+            if extras is not None:
+                self.publish_extras(extras)
+        except Exception as exc:  # noqa: BLE001
+            self.service.log.error(f"publishing tf / covariance / twist / markers failed: {exc!r}")
+        self.service.note_extras_time(time.perf_counter() - t0)
 
     def _run(self) -> None:
-        while not self._stop.is_set():
-            item = self.mailbox.get(timeout=0.1)
-            if item is None:
-                continue
-            outcome = self.service.handle(*item)
-            if outcome.pose is not None:
-                try:
-                    self.publish(outcome.pose)
-                except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
-                    self.service.log.error(f"publishing the pose failed: {exc!r}")
+        while True:
+            with self._cond:
+                while not self._closed and (self._pending is None or self._busy):
+                    self._cond.wait(0.1)
+                if self._closed:
+                    return
+                item, self._pending = self._pending, None
+                self._busy = True
+            self._drain(item)
 
     def stop(self, timeout: float = 2.0) -> None:
-        self._stop.set()
-        self.mailbox.close()
-        self._thread.join(timeout)
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread.is_alive():
+            self._thread.join(timeout)
 
 
 class AssemblyModesLoop:

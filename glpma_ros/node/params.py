@@ -74,7 +74,27 @@ PARAMETERS = (
     ParamSpec("tolerance", DOUBLE, 1e-20,
               "Convergence threshold on the fitness (sum of squared leg residuals, config unit squared)",
               range=(0.0, 1.0), min_exclusive=True),
-    ParamSpec("frame_id", STRING, "base", "header.frame_id of pose_estimate (the manipulator's base frame)"),
+    ParamSpec("frame_id", STRING, "base",
+              "header.frame_id of pose_estimate and of every other output (the manipulator's base frame)"),
+    ParamSpec("child_frame_id", STRING, "platform",
+              "The platform frame: child_frame_id of the transform frame_id -> child_frame_id broadcast on /tf"),
+    ParamSpec("publish_tf", BOOL, True,
+              "Broadcast every published pose on /tf (tf2_msgs/TFMessage, frame_id -> child_frame_id, same stamp)"),
+    ParamSpec("publish_covariance", BOOL, True,
+              "Publish pose_estimate_cov (geometry_msgs/PoseWithCovarianceStamped): the pose with the first-order "
+              "covariance sigma^2 (J^T J)^-1 of leg-length noise leg_noise_std"),
+    ParamSpec("leg_noise_std", DOUBLE, 1e-5,
+              "Standard deviation of the leg-length measurements (metres) behind pose_estimate_cov",
+              range=(0.0, 1.0), min_exclusive=True),
+    ParamSpec("publish_twist", BOOL, True,
+              "Publish twist_estimate (geometry_msgs/TwistStamped, base frame): from the joint_states velocities "
+              "(forward velocity kinematics) when present, else the finite difference of consecutive poses"),
+    ParamSpec("publish_markers", BOOL, False,
+              "Publish ~/markers (visualization_msgs/MarkerArray): base and platform joints, legs coloured by length, "
+              "the platform polygon"),
+    ParamSpec("markers_period_s", DOUBLE, 0.1,
+              "Least time between two ~/markers messages (by the poses' stamps); 0 = with every pose",
+              range=(0.0, 3600.0)),
     ParamSpec("initial_pose", DOUBLE_ARRAY, [],
               "Solver variables (config unit, radians) that select the assembly mode to start from; "
               "3-RPR: x y theta, hexapod: x1 y1 z1 x2 y2 z2 x3 y3 z3; empty = cold start. "
@@ -123,7 +143,7 @@ def coerce(name: str, value):
             raise InputError(f"parameter '{name}' must be a string, got {value!r}")
         if spec.choices and value not in spec.choices:
             raise InputError(f"parameter '{name}' must be one of {', '.join(spec.choices)}, got {value!r}")
-        if name in ("frame_id", "manipulator_config") and not value.strip():
+        if name in ("frame_id", "child_frame_id", "manipulator_config") and not value.strip():
             raise InputError(f"parameter '{name}' must not be empty")
         return value
     if t == BOOL:

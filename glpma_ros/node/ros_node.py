@@ -6,24 +6,40 @@ descriptions and ranges), changes are validated and applied by
 :class:`~glpma_ros.node.loops.SolveLoop` (newest input only), assembly-modes requests
 through :class:`~glpma_ros.node.loops.AssemblyModesLoop`, and messages are
 converted here.  Importable only where rclpy is.
+
+Executor: a ``SingleThreadedExecutor`` (the recommended one for this node), spinning in a
+thread of its own.  Its callbacks only convert messages and hand each input to the
+:class:`~glpma_ros.node.loops.SolveLoop`'s solver thread (newest input wins, the rest count as
+dropped), so the executor is never blocked by a solve: the diagnostics timer and the parameter
+services keep answering, and no input waits in the middleware's queue (where a full queue
+would lose inputs without counting them).  A ``MultiThreadedExecutor`` adds a thread pool and
+futures to every callback and buys nothing here.  Signals: rclpy's own handler is not installed
+(``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
+the context is still valid and then shuts down -- no "publisher's context is invalid" at Ctrl-C.
 """
 from __future__ import annotations
 
 import array
+import signal
 import sys
+import threading
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from geometry_msgs.msg import (Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, TransformStamped,
+                               TwistStamped)
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Empty, Float64MultiArray
+from std_msgs.msg import ColorRGBA, Empty, Float64MultiArray
+from tf2_msgs.msg import TFMessage
+from visualization_msgs.msg import Marker, MarkerArray
 
 from . import params as P
 from ..errors import GlpmaError
@@ -31,6 +47,8 @@ from .loops import AssemblyModesLoop, SolveLoop
 from .ros_args import check_params_files
 from .service import FkService
 
+#: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
+TF_DEPTH = 100
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
              P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
@@ -60,6 +78,7 @@ def _plain(value):
 class FkNode(Node):
     def __init__(self, **node_kwargs):
         super().__init__(P.NODE_NAME, **node_kwargs)
+        self._stopped = False
         for spec in P.PARAMETERS:
             # an empty array has no inferable type: declare the type without a default
             default = ARRAY_PARAMETER_TYPES[spec.type] if spec.type in P.ARRAY_TYPES and not spec.default \
@@ -73,11 +92,18 @@ class FkNode(Node):
         qos = QoSProfile(depth=values["qos_depth"], history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
         self.pose_pub = self.create_publisher(PoseStamped, "pose_estimate", qos)
+        # every output has its publisher from the start: the publish_* parameters switch them at runtime
+        tf_qos = QoSProfile(depth=max(values["qos_depth"], TF_DEPTH), history=HistoryPolicy.KEEP_LAST,
+                            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+        self.tf_pub = self.create_publisher(TFMessage, "/tf", tf_qos)
+        self.cov_pub = self.create_publisher(PoseWithCovarianceStamped, "pose_estimate_cov", qos)
+        self.twist_pub = self.create_publisher(TwistStamped, "twist_estimate", qos)
+        self.markers_pub = self.create_publisher(MarkerArray, "~/markers", qos)
         self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
         latched = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.modes_pub = self.create_publisher(PoseArray, "~/assembly_modes", latched)
-        self.loop = SolveLoop(self.service, self._publish_pose).start()
+        self.loop = SolveLoop(self.service, self._publish_pose, publish_extras=self._publish_extras).start()
         self.modes = AssemblyModesLoop(self.service, self._publish_modes).start()
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
             self.create_subscription(JointState, "joint_states", self._on_joint_state, qos)
@@ -100,8 +126,8 @@ class FkNode(Node):
 
     def _on_joint_state(self, msg: JointState) -> None:
         stamp = msg.header.stamp
-        self.loop.submit_joint_state(list(msg.name), list(msg.position),
-                                     stamp.sec * 1_000_000_000 + stamp.nanosec)
+        self.loop.submit_joint_state(msg.name, msg.position, stamp.sec * 1_000_000_000 + stamp.nanosec,
+                                     msg.velocity)
 
     def _on_request_modes(self, _msg: Empty) -> None:
         self.modes.request(self.get_clock().now().nanoseconds)
@@ -126,6 +152,49 @@ class FkNode(Node):
         o.x, o.y, o.z, o.w = pose.orientation
         self.pose_pub.publish(msg)
 
+    def _publish_extras(self, ex) -> None:
+        """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
+        sec, nanosec = divmod(ex.stamp_ns, 1_000_000_000)
+        if ex.child_frame_id is not None:
+            t = TransformStamped()
+            t.header.stamp.sec, t.header.stamp.nanosec = sec, nanosec
+            t.header.frame_id = ex.frame_id
+            t.child_frame_id = ex.child_frame_id
+            tr, rot = t.transform.translation, t.transform.rotation
+            tr.x, tr.y, tr.z = ex.position
+            rot.x, rot.y, rot.z, rot.w = ex.orientation
+            self.tf_pub.publish(TFMessage(transforms=[t]))
+        if ex.covariance is not None:
+            msg = PoseWithCovarianceStamped()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+            msg.header.frame_id = ex.frame_id
+            p, o = msg.pose.pose.position, msg.pose.pose.orientation
+            p.x, p.y, p.z = ex.position
+            o.x, o.y, o.z, o.w = ex.orientation
+            msg.pose.covariance = ex.covariance
+            self.cov_pub.publish(msg)
+        if ex.twist is not None:
+            msg = TwistStamped()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+            msg.header.frame_id = ex.frame_id
+            v, w = msg.twist.linear, msg.twist.angular
+            (v.x, v.y, v.z), (w.x, w.y, w.z) = ex.twist
+            self.twist_pub.publish(msg)
+        if ex.markers is not None:
+            self.markers_pub.publish(MarkerArray(markers=[self._marker(m, ex) for m in ex.markers]))
+
+    @staticmethod
+    def _marker(m, ex) -> Marker:
+        marker = Marker(ns=m.ns, id=m.id, type=m.type, action=m.action,
+                        points=[Point(x=x, y=y, z=z) for x, y, z in m.points],
+                        colors=[ColorRGBA(r=r, g=g, b=b, a=a) for r, g, b, a in m.colors])
+        marker.header.stamp.sec, marker.header.stamp.nanosec = divmod(ex.stamp_ns, 1_000_000_000)
+        marker.header.frame_id = ex.frame_id
+        marker.pose.orientation.w = 1.0
+        marker.scale.x, marker.scale.y, marker.scale.z = m.scale
+        marker.color.r, marker.color.g, marker.color.b, marker.color.a = m.color
+        return marker
+
     def _publish_diagnostics(self) -> None:
         report = self.service.diagnostics()
         msg = DiagnosticArray()
@@ -139,35 +208,69 @@ class FkNode(Node):
         ok, reason = self.service.set_parameters({p.name: _plain(p.value) for p in parameters})
         return SetParametersResult(successful=ok, reason=reason)
 
-    def destroy_node(self):
+    def stop(self) -> None:
+        """Stop the solver and assembly-modes threads and log the summary (the context must
+        still be valid: the log goes to /rosout too).  Idempotent."""
+        if self._stopped:
+            return
+        self._stopped = True
         self.loop.stop()
         self.modes.stop()
         self.get_logger().info(f"stopped: {self.service.summary()}")
+
+    def destroy_node(self):
+        if rclpy.ok(context=self.context):
+            self.stop()
+        else:                       # the context is gone: no logging through rosout any more
+            self._stopped = True
+            self.loop.stop()
+            self.modes.stop()
         return super().destroy_node()
 
 
 def main(args=None) -> int:
-    """Entry point of ``fk_node``; ``args`` are the arguments after the program name."""
+    """Entry point of ``fk_node``; ``args`` are the arguments after the program name.
+    SIGINT / SIGTERM end it with status 0 after logging the summary."""
     try:   # a params-file mistake (e.g. a manipulator YAML) in one line, before rcl's parser sees it
         check_params_files(sys.argv[1:] if args is None else args)
     except GlpmaError as exc:
         print(f"glpma_fk: error: {exc}", file=sys.stderr)
         return 2
-    rclpy.init(args=None if args is None else [sys.argv[0], *args])
-    node = None
+    rclpy.init(args=None if args is None else [sys.argv[0], *args],
+               signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    node = executor = None
     try:
         node = FkNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = threading.Thread(target=_spin, args=(executor, stop), name="glpma_fk-executor", daemon=True)
+        spinner.start()
+        stop.wait()                 # returns on a signal (the handler runs in this thread)
+        node.stop()
     except (GlpmaError, ParameterException) as exc:
         print(f"glpma_fk: error: {exc}", file=sys.stderr)
         return 2
     finally:
+        if executor is not None:
+            executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return 0
+
+
+def _spin(executor, stop: threading.Event) -> None:
+    """The executor's thread: spin until shut down; an external shutdown stops the node too."""
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+    finally:
+        stop.set()
 
 
 if __name__ == "__main__":

@@ -10,7 +10,8 @@ transports share are in :mod:`.loops`.
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
 ``SolveLoop.submit(msg.data, arrival_ns)`` (``input_type`` float64_multi_array) or
 ``SolveLoop.submit_joint_state(msg.name, msg.position, msg.header.stamp)`` (``joint_state``) in,
-``publish(PoseOutput)`` out, ``service.diagnostics()`` every ``diagnostics_period_s``, and
+``publish(PoseOutput)`` out -- then ``publish_extras(service.extras(outcome))``: TF, covariance,
+twist and markers (:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s``, and
 ``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
 ``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
 received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
@@ -35,6 +36,7 @@ from ..config import check_units, load_manipulator, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
 from ..precompile import COMPILED_S
+from .outputs import OutputBuilder
 from .stats import LogThrottle, Statistics, percentiles_ms
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3   # diagnostic_msgs/DiagnosticStatus levels
@@ -61,10 +63,12 @@ class PoseOutput:
 
 @dataclass(frozen=True)
 class JointStateInput:
-    """A ``sensor_msgs/JointState`` as far as the node reads it: joint names and positions (metres)."""
+    """A ``sensor_msgs/JointState`` as far as the node reads it: joint names, positions (metres)
+    and velocities (m/s; empty when the message has none)."""
 
     names: tuple
     positions: tuple
+    velocities: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -87,6 +91,8 @@ class Outcome:
     reason: str | None = None
     estimate: object = None     # the estimator's Estimate, when it ran
     latency_s: float = 0.0
+    legs: np.ndarray | None = None         # the input's leg lengths, config unit
+    leg_rates_m: np.ndarray | None = None  # their rates (m/s) from a JointState's velocities, if any
 
 
 @dataclass
@@ -126,6 +132,8 @@ class FkService:
         self.params = values
         self.stats = Statistics()
         self._check_joint_names(values["joint_names"])
+        self._check_frames(values)
+        self.outputs = OutputBuilder(self.model)
         self._throttle = LogThrottle()
         self._lock = threading.RLock()          # estimator, parameters, statistics
         self._drop_lock = threading.Lock()      # the dropped counters only
@@ -147,6 +155,12 @@ class FkService:
             raise InputError(f"parameter 'joint_names' must name the {self.model.n_legs} legs in order "
                              f"(or be empty for {', '.join(default_joint_names(self.model.n_legs))}), "
                              f"got {len(names)} names")
+
+    @staticmethod
+    def _check_frames(values: dict) -> None:
+        if values["child_frame_id"] == values["frame_id"]:
+            raise InputError(f"parameters 'frame_id' and 'child_frame_id' must differ (a transform from "
+                             f"'{values['frame_id']}' to itself), got both {values['frame_id']!r}")
 
     def _build_estimator(self, values: dict, warm_x) -> Estimator:
         def opt(name):           # 0 = the papers' setting
@@ -227,6 +241,8 @@ class FkService:
             self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, time.perf_counter() - t0)
         # everything loaded so far lives as long as the node: keep it out of the cyclic
         # collector's scans, whose pauses would otherwise land in the real-time path
+        from ..covariance import warm_up as warm_up_covariance
+        warm_up_covariance()
         gc.collect()
         gc.freeze()
         return time.perf_counter() - t0
@@ -239,26 +255,42 @@ class FkService:
         self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s{left}")
 
     # -- inputs -------------------------------------------------------------------------------
-    def legs_from_joint_state(self, names, positions) -> list:
-        """The leg lengths (metres, leg order) in a JointState's ``names`` / ``positions``: each
-        leg by its name in :attr:`joint_names`, in any order; other joints are ignored.
-        :class:`InputError` with the reason when a leg is missing or named twice, or when there
-        are not as many positions as names."""
-        names, positions = list(names), list(positions)
+    def _leg_indices(self, names, positions) -> list:
+        """Where each leg of :attr:`joint_names` is in a JointState's ``names``."""
+        names = list(names)
         if len(names) != len(positions):
             raise InputError(f"joint_states has {len(names)} names but {len(positions)} positions")
         index: dict = {}
         for i, name in enumerate(names):
             index.setdefault(name, []).append(i)
-        legs = []
+        found_at = []
         for leg in self.joint_names:
             found = index.get(leg)
             if not found:
                 raise InputError(f"joint_states has no joint '{leg}'")
             if len(found) > 1:
                 raise InputError(f"joint_states names joint '{leg}' {len(found)} times")
-            legs.append(positions[found[0]])
-        return legs
+            found_at.append(found[0])
+        return found_at
+
+    def legs_from_joint_state(self, names, positions) -> list:
+        """The leg lengths (metres, leg order) in a JointState's ``names`` / ``positions``: each
+        leg by its name in :attr:`joint_names`, in any order; other joints are ignored.
+        :class:`InputError` with the reason when a leg is missing or named twice, or when there
+        are not as many positions as names."""
+        positions = list(positions)
+        return [positions[i] for i in self._leg_indices(names, positions)]
+
+    def leg_rates_from_joint_state(self, js: JointStateInput):
+        """The legs' rates (m/s, leg order) from a JointState's velocities, or None when it has
+        none (``velocity`` empty, as the message allows) or they are not finite."""
+        if not js.velocities or len(js.velocities) != len(js.names):
+            return None
+        try:
+            rates = np.array([js.velocities[i] for i in self._leg_indices(js.names, js.positions)], dtype=float)
+        except (InputError, TypeError, ValueError):
+            return None
+        return rates if np.all(np.isfinite(rates)) else None
 
     def _legs_m(self, legs_m):
         """An input (leg lengths in metres, or a :class:`JointStateInput`) as leg lengths in metres."""
@@ -266,10 +298,12 @@ class FkService:
             return self.legs_from_joint_state(legs_m.names, legs_m.positions)
         return legs_m
 
-    def handle_joint_state(self, names, positions, stamp_ns: int, arrival: float | None = None) -> Outcome:
-        """Solve one ``sensor_msgs/JointState``: ``names``, ``positions`` (metres) and its
-        ``header.stamp`` (ns), which goes on the pose.  Same path as :meth:`handle`."""
-        return self.handle(JointStateInput(tuple(names), tuple(positions)), stamp_ns, arrival)
+    def handle_joint_state(self, names, positions, stamp_ns: int, arrival: float | None = None,
+                           velocities=()) -> Outcome:
+        """Solve one ``sensor_msgs/JointState``: ``names``, ``positions`` (metres), ``velocities``
+        (m/s, may be empty) and its ``header.stamp`` (ns), which goes on the pose.  Same path as
+        :meth:`handle`."""
+        return self.handle(JointStateInput(tuple(names), tuple(positions), tuple(velocities)), stamp_ns, arrival)
 
     def note_input(self, legs_m, stamp_ns: int) -> None:
         """Remember the last input received (whatever becomes of it), for ~/assembly_modes."""
@@ -299,7 +333,8 @@ class FkService:
             st = self.stats
             st.handled += 1
             try:
-                estimate = self.estimator.estimate(self._config_unit(legs_m))
+                legs = self._config_unit(legs_m)
+                estimate = self.estimator.estimate(legs)
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
             except Exception as exc:  # noqa: BLE001 - the node must survive anything
@@ -319,7 +354,20 @@ class FkService:
                              tuple(float(v) * self.metres_per_unit for v in pose.position),
                              tuple(float(v) for v in pose.orientation))
             st.published += 1
-            return Outcome(out, None, estimate, self._finish(arrival))
+            rates = self.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
+            return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
+
+    def extras(self, outcome: Outcome):
+        """TF, covariance, twist and markers (:class:`~glpma_ros.node.outputs.ExtraOutputs`) of a
+        published pose, as the ``publish_*`` parameters ask; None when every one is off.  Called
+        by the thread that solved ``outcome``, after the pose went out."""
+        extras = self.outputs.build(outcome, self.params)
+        return extras if extras.any else None
+
+    def note_extras_time(self, seconds: float) -> None:
+        """Time spent on the extra outputs of one pose: building, converting, writing."""
+        with self._lock:
+            self.stats.extras_s.append(seconds)
 
     def _finish(self, arrival: float) -> float:
         latency = time.perf_counter() - arrival
@@ -435,6 +483,7 @@ class FkService:
                                          f"(restart the node to change it)")
                     values[name] = value
                 self._check_joint_names(values["joint_names"])
+                self._check_frames(values)
                 initial_x = self._initial_variables(values["initial_pose"])
                 warm_x = initial_x if values["initial_pose"] != self.params["initial_pose"] else self._warm_x
                 estimator = self._build_estimator(values, warm_x)
@@ -443,6 +492,8 @@ class FkService:
             except (TypeError, ValueError) as exc:
                 return False, f"invalid parameters: {exc}"
             changed = {k: v for k, v in values.items() if v != self.params[k]}
+            if "initial_pose" in changed:
+                self.outputs.reset()        # tracking restarts: no velocity across the jump
             self.params, self.estimator = values, estimator
             self._initial_x, self._warm_x = initial_x, warm_x
             if changed:
@@ -458,6 +509,7 @@ class FkService:
             period["dropped"], st.dropped_reported = st.dropped - st.dropped_reported, st.dropped
             solve = percentiles_ms(st.solve_s)
             latency = percentiles_ms(st.latency_s)
+            extras = percentiles_ms(st.extras_s)
             last = st.last_estimate
             cond_last = last.conditioning if last is not None else math.nan
             with self._modes_lock:
@@ -498,6 +550,17 @@ class FkService:
                 ("tolerance", f"{self.params['tolerance']:g}"),
                 ("manipulator", f"{self.model.kind} ({self.model.unit})"),
                 ("frame_id", self.frame_id),
+                ("outputs", ", ".join(name for name, on in (
+                    ("pose_estimate", True), ("/tf", self.params["publish_tf"]),
+                    ("pose_estimate_cov", self.params["publish_covariance"]),
+                    ("twist_estimate", self.params["publish_twist"]),
+                    ("~/markers", self.params["publish_markers"])) if on)),
+                ("child_frame_id", self.params["child_frame_id"]),
+                ("leg noise std (m)", f"{self.params['leg_noise_std']:g}"),
+                ("covariance capped (singular pose)", self.outputs.capped),
+                ("twist source", self.outputs.twist_source or "none yet"),
+                ("extra outputs time p50 (ms)", f"{extras[0]:.4g}"),
+                ("extra outputs time p99 (ms)", f"{extras[1]:.4g}"),
             ]
             values += modes
             values += [(f"rejected: {reason}", n) for reason, n in st.reasons.most_common()]
@@ -514,6 +577,10 @@ class FkService:
                 problems.append(f"{period['modes_failed']} assembly-modes requests failed")
             if last is not None and last.converged and last.near_singular:
                 problems.append(f"near a singularity (conditioning {cond_last:.2g})")
+            if self.outputs.capped > st.capped_reported:
+                problems.append(f"pose at a singularity: covariance capped "
+                                f"({self.outputs.capped - st.capped_reported} times)")
+            st.capped_reported = self.outputs.capped
             if problems:
                 level, message = WARN, "; ".join(problems)
             elif st.handled + st.dropped == 0:

@@ -63,6 +63,8 @@ class Statistics:
         self.evaluations: deque = deque(maxlen=WINDOW)
         self.residual_m: deque = deque(maxlen=WINDOW)
         self.conditioning: deque = deque(maxlen=WINDOW)
+        self.extras_s: deque = deque(maxlen=WINDOW)   # TF, covariance, twist, markers of a pose
+        self.capped_reported = 0      # covariances capped at a singularity, at the last report
         self.last_estimate = None
         self.last_reason = ""
         self.period = Counter()       # events since the last diagnostics report

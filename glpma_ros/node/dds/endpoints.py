@@ -23,6 +23,12 @@ from .messages import type_hash
 LEG_LENGTHS = "leg_lengths"
 JOINT_STATES = "joint_states"
 POSE_ESTIMATE = "pose_estimate"
+POSE_ESTIMATE_COV = "pose_estimate_cov"
+TWIST_ESTIMATE = "twist_estimate"
+TF = "/tf"
+MARKERS = "~/markers"
+#: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
+TF_DEPTH = 100
 DIAGNOSTICS = "/diagnostics"
 ASSEMBLY_MODES = "~/assembly_modes"
 REQUEST_ASSEMBLY_MODES = "~/request_assembly_modes"

@@ -10,11 +10,12 @@ so that ``PoseStamped()`` is a valid message, as in rclpy.
 from dataclasses import dataclass, field
 
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import byte, float64, int32, sequence, uint8, uint32
+from cyclonedds.idl.types import array, byte, float32, float64, int32, sequence, uint8, uint32
 
-# RIHS01 type hashes of the Jazzy definitions (doc/interface.md; std_msgs/msg/Empty computed by
-# glpma_ros/node/dds/rihs.py, which reproduces the documented five, and checked in the tests);
-# rmw_cyclonedds_cpp expects them in every endpoint's USER_DATA as ``typehash=<hash>;``.
+# RIHS01 type hashes of the Jazzy definitions, computed by rihs.py (the tests compare the two);
+# each was checked against the hash Jazzy's own rosidl_generator_type_description gives for the
+# Jazzy .msg files.  rmw_cyclonedds_cpp expects them in every endpoint's USER_DATA as
+# ``typehash=<hash>;``.
 TYPE_HASHES = {
     "std_msgs/msg/Float64MultiArray":
         "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
@@ -28,6 +29,14 @@ TYPE_HASHES = {
         "RIHS01_af0cc36d190e104d546d168d6b39df04fa4b4ccecf59cb4c9ed328d3d5004aa0",
     "std_msgs/msg/Empty":
         "RIHS01_20b625256f32d5dbc0d04fee44f43c41e51c70d3502f84b4a08e7a9c26a96312",
+    "tf2_msgs/msg/TFMessage":
+        "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+    "geometry_msgs/msg/PoseWithCovarianceStamped":
+        "RIHS01_26432f9803e43727d3c8f668d1fdb3c630f548af631e2f4e31382371bfea3b6e",
+    "geometry_msgs/msg/TwistStamped":
+        "RIHS01_5f0fcd4f81d5d06ad9b4c4c63e3ea51b82d6ae4d0558f1d475229b1121db6f64",
+    "visualization_msgs/msg/MarkerArray":
+        "RIHS01_86cb8800b6fb05b5eff1abd7a56f62a5641d3ae9a1c29e78e67e704f1d067dcf",
 }
 
 
@@ -44,6 +53,12 @@ class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
 
     def to_ns(self) -> int:
         return self.sec * 1_000_000_000 + self.nanosec
+
+
+@dataclass
+class Duration(IdlStruct, typename="builtin_interfaces::msg::dds_::Duration_"):
+    sec: int32 = 0
+    nanosec: uint32 = 0
 
 
 # -- std_msgs -------------------------------------------------------------------------
@@ -76,6 +91,14 @@ class MultiArrayLayout(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayLayou
 class Float64MultiArray(IdlStruct, typename="std_msgs::msg::dds_::Float64MultiArray_"):
     layout: MultiArrayLayout = field(default_factory=MultiArrayLayout)
     data: sequence[float64] = field(default_factory=list)
+
+
+@dataclass
+class ColorRGBA(IdlStruct, typename="std_msgs::msg::dds_::ColorRGBA_"):
+    r: float32 = 0.0
+    g: float32 = 0.0
+    b: float32 = 0.0
+    a: float32 = 0.0
 
 
 # -- geometry_msgs ----------------------------------------------------------------------
@@ -112,7 +135,64 @@ class PoseArray(IdlStruct, typename="geometry_msgs::msg::dds_::PoseArray_"):
     poses: sequence[Pose] = field(default_factory=list)
 
 
+@dataclass
+class PoseWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWithCovariance_"):
+    pose: Pose = field(default_factory=Pose)
+    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)
+
+
+@dataclass
+class PoseWithCovarianceStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWithCovarianceStamped_"):
+    header: Header = field(default_factory=Header)
+    pose: PoseWithCovariance = field(default_factory=PoseWithCovariance)
+
+
+@dataclass
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64 = 0.0
+    y: float64 = 0.0
+    z: float64 = 0.0
+
+
+@dataclass
+class Twist(IdlStruct, typename="geometry_msgs::msg::dds_::Twist_"):
+    linear: Vector3 = field(default_factory=Vector3)
+    angular: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
+class TwistStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_"):
+    header: Header = field(default_factory=Header)
+    twist: Twist = field(default_factory=Twist)
+
+
+@dataclass
+class Transform(IdlStruct, typename="geometry_msgs::msg::dds_::Transform_"):
+    translation: Vector3 = field(default_factory=Vector3)
+    rotation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass
+class TransformStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TransformStamped_"):
+    header: Header = field(default_factory=Header)
+    child_frame_id: str = ""
+    transform: Transform = field(default_factory=Transform)
+
+
+# -- tf2_msgs ----------------------------------------------------------------------------
+@dataclass
+class TFMessage(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
+    transforms: sequence[TransformStamped] = field(default_factory=list)
+
+
 # -- sensor_msgs ------------------------------------------------------------------------
+@dataclass
+class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedImage_"):
+    header: Header = field(default_factory=Header)
+    format: str = ""
+    data: sequence[uint8] = field(default_factory=list)
+
+
 @dataclass
 class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
     header: Header = field(default_factory=Header)
@@ -120,6 +200,54 @@ class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
     position: sequence[float64] = field(default_factory=list)
     velocity: sequence[float64] = field(default_factory=list)
     effort: sequence[float64] = field(default_factory=list)
+
+
+# -- visualization_msgs -----------------------------------------------------------------
+@dataclass
+class UVCoordinate(IdlStruct, typename="visualization_msgs::msg::dds_::UVCoordinate_"):
+    u: float32 = 0.0
+    v: float32 = 0.0
+
+
+@dataclass
+class MeshFile(IdlStruct, typename="visualization_msgs::msg::dds_::MeshFile_"):
+    filename: str = ""
+    data: sequence[uint8] = field(default_factory=list)
+
+
+@dataclass
+class Marker(IdlStruct, typename="visualization_msgs::msg::dds_::Marker_"):
+    # type and action constants of the .msg file (the ones the node uses)
+    SPHERE_LIST = 7
+    LINE_STRIP = 4
+    LINE_LIST = 5
+    ADD = 0
+    DELETEALL = 3
+
+    header: Header = field(default_factory=Header)
+    ns: str = ""
+    id: int32 = 0
+    type: int32 = 0
+    action: int32 = 0
+    pose: Pose = field(default_factory=Pose)
+    scale: Vector3 = field(default_factory=Vector3)
+    color: ColorRGBA = field(default_factory=ColorRGBA)
+    lifetime: Duration = field(default_factory=Duration)
+    frame_locked: bool = False
+    points: sequence[Point] = field(default_factory=list)
+    colors: sequence[ColorRGBA] = field(default_factory=list)
+    texture_resource: str = ""
+    texture: CompressedImage = field(default_factory=CompressedImage)
+    uv_coordinates: sequence[UVCoordinate] = field(default_factory=list)
+    text: str = ""
+    mesh_resource: str = ""
+    mesh_file: MeshFile = field(default_factory=MeshFile)
+    mesh_use_embedded_materials: bool = False
+
+
+@dataclass
+class MarkerArray(IdlStruct, typename="visualization_msgs::msg::dds_::MarkerArray_"):
+    markers: sequence[Marker] = field(default_factory=list)
 
 
 # -- diagnostic_msgs --------------------------------------------------------------------
@@ -158,6 +286,10 @@ ROS_TYPE_NAMES = {
     JointState: "sensor_msgs/msg/JointState",
     PoseArray: "geometry_msgs/msg/PoseArray",
     Empty: "std_msgs/msg/Empty",
+    TFMessage: "tf2_msgs/msg/TFMessage",
+    PoseWithCovarianceStamped: "geometry_msgs/msg/PoseWithCovarianceStamped",
+    TwistStamped: "geometry_msgs/msg/TwistStamped",
+    MarkerArray: "visualization_msgs/msg/MarkerArray",
 }
 
 

@@ -3,14 +3,21 @@
 Same topics, types, QoS and parameters as the rclpy node (``ros_node.py``);
 both run :class:`~glpma_ros.node.service.FkService` through
 :class:`~glpma_ros.node.loops.SolveLoop` and
-:class:`~glpma_ros.node.loops.AssemblyModesLoop`.  Threads: a reader thread takes leg
-lengths (or joint states) and assembly-modes requests as they arrive and keeps only the
-newest pending input; the solver thread solves it and publishes the pose; the
-assembly-modes thread hands requests to its worker process and publishes the
-PoseArray; the main thread publishes
-``/diagnostics`` every ``diagnostics_period_s`` and handles signals (SIGINT and
-SIGTERM stop the node, SIGHUP re-reads the ``--ros-args`` parameters, i.e. the
-params files, and applies the changed ones).
+:class:`~glpma_ros.node.loops.AssemblyModesLoop`.
+
+Threads.  Two reader threads take turns as the *leader* (leader/followers, Schmidt et al.,
+*Pattern-Oriented Software Architecture* vol. 2): the leader waits for leg lengths (or joint
+states) and assembly-modes requests, takes them (the newest input wins, older ones count as
+dropped), hands the leadership over and solves the input itself -- pose, then TF, covariance,
+twist and markers -- unless a solve is in progress, in which case the input waits for it
+(:meth:`SolveLoop.offer <glpma_ros.node.loops.SolveLoop.offer>`).  So an input goes from the
+DDS reader to the solver without a thread switch, and inputs arriving during a solve are
+still taken (and counted) at once.  The hot messages are encoded and decoded by
+:mod:`.cdr` rather than by the binding's generic serializer.  The assembly-modes thread hands
+requests to its worker process and publishes the PoseArray; the main thread publishes
+``/diagnostics`` every ``diagnostics_period_s`` and handles signals (SIGINT and SIGTERM stop
+the node, SIGHUP re-reads the ``--ros-args`` parameters, i.e. the params files, and applies
+the changed ones).
 
 Run: ``python -m glpma_ros.node.dds.node --ros-args --params-file config/params_3rpr.yaml``.
 Prints one line ``[glpma_fk] ready: ...`` on stdout once it can take inputs;
@@ -31,21 +38,17 @@ from ...errors import GlpmaError, InputError
 from ..loops import AssemblyModesLoop, SolveLoop
 from ..ros_args import node_values, parse_ros_args, split_transport
 from ..service import FkService
-from . import endpoints
+from ..service import JointStateInput
+from . import cdr, endpoints
 from .messages import (DiagnosticArray, DiagnosticStatus, Empty, Float64MultiArray, Header, JointState, KeyValue,
-                       Point, Pose, PoseArray, PoseStamped, Quaternion, Time)
+                       MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
+                       TFMessage, Time, TwistStamped)
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
 #: samples taken per read; the newest is solved, the others count as dropped
 TAKE_BATCH = 256
-
-
-def pose_message(pose) -> PoseStamped:
-    """:class:`~glpma_ros.node.service.PoseOutput` -> ``geometry_msgs/PoseStamped``."""
-    x, y, z = pose.position
-    qx, qy, qz, qw = pose.orientation
-    return PoseStamped(header=Header(stamp=Time.from_ns(pose.stamp_ns), frame_id=pose.frame_id),
-                       pose=Pose(position=Point(x, y, z), orientation=Quaternion(qx, qy, qz, qw)))
+#: threads taking turns at reading and solving (one reads while the other solves)
+READER_THREADS = 2
 
 
 def pose_array_message(modes) -> PoseArray:
@@ -81,9 +84,21 @@ class DdsNode:
         self.joint_state = service.input_type == P.INPUT_JOINT_STATE
         self.input_name = endpoints.JOINT_STATES if self.joint_state else endpoints.LEG_LENGTHS
         self.topics = {name: topic(name) for name in (self.input_name, endpoints.POSE_ESTIMATE,
+                                                       endpoints.POSE_ESTIMATE_COV, endpoints.TWIST_ESTIMATE,
+                                                       endpoints.TF, endpoints.MARKERS,
                                                        endpoints.DIAGNOSTICS, endpoints.ASSEMBLY_MODES,
                                                        endpoints.REQUEST_ASSEMBLY_MODES)}
+        # every output has its writer from the start: the publish_* parameters switch them at runtime
         self.pose_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE], PoseStamped, depth)
+        self.tf_writer = participant.writer(self.topics[endpoints.TF], TFMessage, max(depth, endpoints.TF_DEPTH))
+        self.cov_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE_COV], PoseWithCovarianceStamped,
+                                             depth)
+        self.twist_writer = participant.writer(self.topics[endpoints.TWIST_ESTIMATE], TwistStamped, depth)
+        self.markers_writer = participant.writer(self.topics[endpoints.MARKERS], MarkerArray, depth)
+        self._encode = cdr.Encoder()
+        self._raw_pose, self._raw_tf, self._raw_cov, self._raw_twist, self._raw_markers = (
+            cdr.RawWriter(w) for w in (self.pose_writer, self.tf_writer, self.cov_writer, self.twist_writer,
+                                       self.markers_writer))
         self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray, depth)
         # latched: a late subscriber gets the last answer
         self.modes_writer = participant.writer(self.topics[endpoints.ASSEMBLY_MODES], PoseArray, 1,
@@ -91,42 +106,64 @@ class DdsNode:
         self.input_reader = participant.reader(self.topics[self.input_name],
                                                JointState if self.joint_state else Float64MultiArray, depth)
         self.request_reader = participant.reader(self.topics[endpoints.REQUEST_ASSEMBLY_MODES], Empty, depth)
-        self.loop = SolveLoop(service, self._publish_pose)
+        self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras)
         self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
         self._stop = threading.Event()
         self._waitset, self._guard = endpoints.reader_waitset(participant, [self.input_reader, self.request_reader])
-        self._reader_thread = threading.Thread(target=self._read_loop, name="glpma_fk-reader", daemon=True)
+        self._lead = threading.Lock()           # held by the thread that waits for input
+        self._reader_threads = [threading.Thread(target=self._read_loop, name=f"glpma_fk-reader-{i}", daemon=True)
+                                for i in range(READER_THREADS)]
 
     def start(self) -> "DdsNode":
-        self.loop.start()
         self.modes.start()
-        self._reader_thread.start()
+        for thread in self._reader_threads:
+            thread.start()
         return self
 
     # -- data path -------------------------------------------------------------------------
     def _read_loop(self) -> None:
         while not self._stop.is_set():
-            self._waitset.wait(duration(milliseconds=200))
-            self._take_inputs()
-            self._take_requests()
+            with self._lead:
+                if self._stop.is_set():
+                    return
+                self._waitset.wait(duration(milliseconds=200))
+                item = self._take_input()
+                self._take_requests()
+            if item is not None:
+                self.loop.offer(*item)
 
-    def _take_inputs(self) -> None:
+    def _take_input(self):
+        """The newest input taken, as ``(legs or JointStateInput, stamp_ns, arrival)``, or None;
+        the others taken with it count as dropped."""
         try:
-            samples = self.input_reader.take(TAKE_BATCH)
-        except Exception as exc:  # noqa: BLE001 - e.g. a sample that does not deserialize
+            samples = cdr.take_raw(self.input_reader, TAKE_BATCH)
+        except Exception as exc:  # noqa: BLE001
             self.service.log.warning(f"could not take {self.input_name}: {exc}")
-            return
-        arrival_ns = time.time_ns()
-        valid = [s for s in samples if isinstance(s, (JointState if self.joint_state else Float64MultiArray))]
+            return None
+        arrival, arrival_ns = time.perf_counter(), time.time_ns()
+        valid = [data for data, info in samples if info.valid_data]
         if not valid:
-            return
+            return None
         if len(valid) > 1:
             self.service.note_dropped(len(valid) - 1)
-        newest = valid[-1]
+        try:
+            return self._decode(valid[-1], arrival_ns) + (arrival,)
+        except Exception as exc:  # noqa: BLE001 - a sample that does not deserialize
+            self.service.log.warning(f"could not read {self.input_name}: {exc}")
+            return None
+
+    def _decode(self, data: bytes, arrival_ns: int) -> tuple:
+        fast = cdr.little_endian_cdr(data)
         if self.joint_state:
-            self.loop.submit_joint_state(list(newest.name), list(newest.position), newest.header.stamp.to_ns())
-        else:
-            self.loop.submit(list(newest.data), arrival_ns)
+            if fast:
+                stamp_ns, names, positions, velocities = cdr.joint_state_fields(data)
+            else:
+                msg = JointState.deserialize(data)
+                stamp_ns, names, positions, velocities = (msg.header.stamp.to_ns(), tuple(msg.name),
+                                                          tuple(msg.position), tuple(msg.velocity))
+            return JointStateInput(names, positions, velocities), stamp_ns
+        return (cdr.float64_multi_array_data(data) if fast else tuple(Float64MultiArray.deserialize(data).data),
+                arrival_ns)
 
     def _take_requests(self) -> None:
         try:
@@ -140,7 +177,22 @@ class DdsNode:
             self.modes.request(time.time_ns())
 
     def _publish_pose(self, pose) -> None:
-        self.pose_writer.write(pose_message(pose))
+        self._raw_pose.write(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
+                                                       pose.orientation))
+
+    def _publish_extras(self, ex) -> None:
+        """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
+        enc = self._encode
+        if ex.child_frame_id is not None:
+            self._raw_tf.write(enc.tf_message(ex.stamp_ns, ex.frame_id, ex.child_frame_id, ex.position,
+                                              ex.orientation))
+        if ex.covariance is not None:
+            self._raw_cov.write(enc.pose_with_covariance_stamped(ex.stamp_ns, ex.frame_id, ex.position,
+                                                                 ex.orientation, ex.covariance))
+        if ex.twist is not None:
+            self._raw_twist.write(enc.twist_stamped(ex.stamp_ns, ex.frame_id, *ex.twist))
+        if ex.markers is not None:
+            self._raw_markers.write(enc.marker_array(ex.stamp_ns, ex.frame_id, ex.markers))
 
     def _publish_modes(self, modes) -> None:
         self.modes_writer.write(pose_array_message(modes))
@@ -170,7 +222,8 @@ class DdsNode:
     def close(self) -> None:
         self._stop.set()
         self._guard.set(True)
-        self._reader_thread.join(2.0)
+        for thread in self._reader_threads:
+            thread.join(2.0)
         self.loop.stop()
         self.modes.stop()
 

@@ -3,10 +3,12 @@
 A ROS 2 Jazzy type hash is the SHA-256 of the type's description (its fields and, sorted by
 name, the descriptions of every type it refers to) written as JSON in one canonical way
 (``rosidl_generator_type_description``: ``separators=(', ', ': ')``, keys in declaration
-order, default values left out).  :func:`type_hash` reproduces the five hashes of
-doc/interface.md and gives the one of ``std_msgs/msg/Empty`` (whose IDL struct carries the
-member ``uint8 structure_needs_at_least_one_member`` that rosidl adds to an empty message);
-``messages.TYPE_HASHES`` holds the results, the tests compare the two.  Pure Python.
+order, default values left out).  :func:`type_hash` gives the hash of every type the node
+publishes or subscribes to -- including ``std_msgs/msg/Empty``, whose IDL struct carries the
+member ``uint8 structure_needs_at_least_one_member`` that rosidl adds to an empty message --
+identical to the one Jazzy's ``rosidl_generator_type_description`` writes for the Jazzy
+``.msg`` files and that ``ros2 topic info -v`` reports.  ``messages.TYPE_HASHES`` holds the
+results, the tests compare the two.  Pure Python.
 """
 from __future__ import annotations
 
@@ -18,6 +20,8 @@ FIELD_TYPE_IDS = {"int8": 2, "uint8": 3, "int16": 4, "uint16": 5, "int32": 6, "u
                   "uint64": 9, "float32": 10, "float64": 11, "char": 13, "bool": 15, "byte": 16,
                   "string": 17}
 NESTED_TYPE = 1
+#: added to the id of a fixed-size array (``T[N]``, capacity N)
+ARRAY_OFFSET = 48
 #: added to the id of an unbounded sequence (``T[]``)
 UNBOUNDED_SEQUENCE_OFFSET = 144
 
@@ -44,16 +48,46 @@ DEFINITIONS = {
                                              ("values", "diagnostic_msgs/msg/KeyValue[]")],
     "diagnostic_msgs/msg/DiagnosticArray": [("header", "std_msgs/msg/Header"),
                                             ("status", "diagnostic_msgs/msg/DiagnosticStatus[]")],
+    # the node's further outputs: TF, covariance, twist, markers
+    "builtin_interfaces/msg/Duration": [("sec", "int32"), ("nanosec", "uint32")],
+    "std_msgs/msg/ColorRGBA": [("r", "float32"), ("g", "float32"), ("b", "float32"), ("a", "float32")],
+    "geometry_msgs/msg/Vector3": [("x", "float64"), ("y", "float64"), ("z", "float64")],
+    "geometry_msgs/msg/Transform": [("translation", "geometry_msgs/msg/Vector3"),
+                                    ("rotation", "geometry_msgs/msg/Quaternion")],
+    "geometry_msgs/msg/TransformStamped": [("header", "std_msgs/msg/Header"), ("child_frame_id", "string"),
+                                           ("transform", "geometry_msgs/msg/Transform")],
+    "tf2_msgs/msg/TFMessage": [("transforms", "geometry_msgs/msg/TransformStamped[]")],
+    "geometry_msgs/msg/PoseWithCovariance": [("pose", "geometry_msgs/msg/Pose"), ("covariance", "float64[36]")],
+    "geometry_msgs/msg/PoseWithCovarianceStamped": [("header", "std_msgs/msg/Header"),
+                                                    ("pose", "geometry_msgs/msg/PoseWithCovariance")],
+    "geometry_msgs/msg/Twist": [("linear", "geometry_msgs/msg/Vector3"), ("angular", "geometry_msgs/msg/Vector3")],
+    "geometry_msgs/msg/TwistStamped": [("header", "std_msgs/msg/Header"), ("twist", "geometry_msgs/msg/Twist")],
+    "sensor_msgs/msg/CompressedImage": [("header", "std_msgs/msg/Header"), ("format", "string"),
+                                        ("data", "uint8[]")],
+    "visualization_msgs/msg/UVCoordinate": [("u", "float32"), ("v", "float32")],
+    "visualization_msgs/msg/MeshFile": [("filename", "string"), ("data", "uint8[]")],
+    "visualization_msgs/msg/Marker": [
+        ("header", "std_msgs/msg/Header"), ("ns", "string"), ("id", "int32"), ("type", "int32"),
+        ("action", "int32"), ("pose", "geometry_msgs/msg/Pose"), ("scale", "geometry_msgs/msg/Vector3"),
+        ("color", "std_msgs/msg/ColorRGBA"), ("lifetime", "builtin_interfaces/msg/Duration"),
+        ("frame_locked", "bool"), ("points", "geometry_msgs/msg/Point[]"), ("colors", "std_msgs/msg/ColorRGBA[]"),
+        ("texture_resource", "string"), ("texture", "sensor_msgs/msg/CompressedImage"),
+        ("uv_coordinates", "visualization_msgs/msg/UVCoordinate[]"), ("text", "string"),
+        ("mesh_resource", "string"), ("mesh_file", "visualization_msgs/msg/MeshFile"),
+        ("mesh_use_embedded_materials", "bool")],
+    "visualization_msgs/msg/MarkerArray": [("markers", "visualization_msgs/msg/Marker[]")],
 }
 
 
 def _field_type(type_name: str) -> tuple[dict, str]:
-    sequence = type_name.endswith("[]")
-    base = type_name[:-2] if sequence else type_name
+    """``T``, ``T[]`` (unbounded sequence) or ``T[N]`` (array of N) as a FieldType."""
+    base, capacity, offset = type_name, 0, 0
+    if type_name.endswith("]"):
+        base, size = type_name[:-1].split("[")
+        capacity, offset = (int(size), ARRAY_OFFSET) if size else (0, UNBOUNDED_SEQUENCE_OFFSET)
     type_id, nested = (FIELD_TYPE_IDS[base], "") if base in FIELD_TYPE_IDS else (NESTED_TYPE, base)
-    if sequence:
-        type_id += UNBOUNDED_SEQUENCE_OFFSET
-    return {"type_id": type_id, "capacity": 0, "string_capacity": 0, "nested_type_name": nested}, nested
+    return {"type_id": type_id + offset, "capacity": capacity, "string_capacity": 0,
+            "nested_type_name": nested}, nested
 
 
 def _description(name: str) -> tuple[dict, set]:

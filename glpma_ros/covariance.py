@@ -1,0 +1,249 @@
+"""Uncertainty and velocity of the platform pose from the leg Jacobian at the solution.
+
+A parallel manipulator's leg lengths are a function of its pose, ``l = f(p, R)``.  For a
+small motion of the platform -- a displacement ``dp`` of its origin and a small rotation
+``dw`` about the **fixed** base axes, ``R <- exp([dw]x) R`` -- each leg changes by
+
+    dl_i = u_i . dp + ((R CB_i) x u_i) . dw,        u_i = (B_i - A_i) / |B_i - A_i|,
+
+i.e. ``dl = J [dp; dw]`` with the rows of ``J`` = ``[u_i, (R CB_i) x u_i]``: the same Jacobian as
+:meth:`Hexapod66.pose_residuals_jacobian <glpma_ros.models.hexapod_66.Hexapod66.pose_residuals_jacobian>`
+(whose rotation parameter is exactly that left-applied rotation vector); for the planar 3-RPR
+it is the same formula in the plane, columns ``(x, y, rotation about z)`` = the columns of
+:meth:`Planar3RPR.pose_residuals_jacobian <glpma_ros.models.planar_3rpr.Planar3RPR.pose_residuals_jacobian>`.
+The tests check :func:`leg_jacobian` against both models' Jacobians.  It is compiled here
+because the node evaluates it for every input, where NumPy's overhead costs more than the
+arithmetic.
+
+* **Covariance** (first-order propagation; e.g. Hartley & Zisserman, *Multiple View
+  Geometry*, 2nd ed., section 5.2.3): with independent leg-length errors of standard
+  deviation ``sigma``, the least-squares pose has ``Sigma = sigma^2 (J^T J)^-1`` -- a 6x6
+  matrix in the order of ``geometry_msgs/PoseWithCovariance`` (x, y, z, rotation about the
+  fixed x, y, z axes; metres, radians).  For the planar 3-RPR, z and the rotations about x and y
+  are not measured at all: they get :data:`UNOBSERVED_VARIANCE`, as ``robot_localization``
+  expects of an unmeasured axis.
+* **Singularities**: ``Sigma`` is formed from the singular value decomposition of ``J`` with
+  the rotation columns scaled by the platform size (so that all columns are lengths).  Near a
+  singularity the smallest singular value goes to zero and the covariance grows as its
+  inverse square; no direction gets more than :data:`VARIANCE_CAP`, so that the matrix stays
+  finite (and symmetric positive semi-definite) even at a singularity, where ``capped`` is
+  reported.
+* **Velocity** (forward velocity kinematics): leg rates ``dl/dt = J t`` for the platform twist
+  ``t = (v, w)`` -- ``v`` the velocity of the platform origin, ``w`` the angular velocity, both
+  in the base frame.  ``t`` is the least-squares solution by the same decomposition (exact
+  when ``J`` is square and regular; the 3-RPR gives ``(vx, vy, wz)``).
+
+Everything here is in metres and radians: the model's geometry is converted once.
+No ROS import.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: variance (m^2, rad^2) of a pose component the manipulator does not measure (the planar
+#: 3-RPR's z, roll and pitch): robot_localization's convention for "not measured"
+UNOBSERVED_VARIANCE = 1e6
+#: largest variance of any direction of the scaled pose (m^2; a rotation counted as the arc
+#: it sweeps at the platform's size): at a singularity the first-order covariance is infinite
+VARIANCE_CAP = 1e6
+#: the columns (x, y, z, rotation about x, y, z) the spatial models measure, and the planar ones
+SPATIAL_COLUMNS = np.arange(6)
+PLANAR_COLUMNS = np.array([0, 1, 5])
+#: first rotation column
+ROTATION = 3
+#: the Jacobi SVD treats two columns as orthogonal when their cosine is below this
+JACOBI_TOLERANCE = 1e-15
+#: sweeps after which the Jacobi SVD stops (a 6x6 converges in 5-8)
+JACOBI_MAX_SWEEPS = 30
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def leg_jacobian(base, platform, position, quaternion, J):
+    """Fill ``J`` (n, 6) with ``d l_i / d(p, w)`` at the pose (``position``, unit ``quaternion``
+    [x, y, z, w] rotating platform to base); ``base``, ``platform``: the joints A_i (base frame)
+    and CB_i (platform frame), (n, 3), same length unit as ``position``."""
+    qx, qy, qz, qw = quaternion[0], quaternion[1], quaternion[2], quaternion[3]
+    norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+    qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
+    r00 = 1.0 - 2.0 * (qy * qy + qz * qz)
+    r01 = 2.0 * (qx * qy - qz * qw)
+    r02 = 2.0 * (qx * qz + qy * qw)
+    r10 = 2.0 * (qx * qy + qz * qw)
+    r11 = 1.0 - 2.0 * (qx * qx + qz * qz)
+    r12 = 2.0 * (qy * qz - qx * qw)
+    r20 = 2.0 * (qx * qz - qy * qw)
+    r21 = 2.0 * (qy * qz + qx * qw)
+    r22 = 1.0 - 2.0 * (qx * qx + qy * qy)
+    for i in range(base.shape[0]):
+        cx, cy, cz = platform[i, 0], platform[i, 1], platform[i, 2]
+        wx = r00 * cx + r01 * cy + r02 * cz           # R CB_i
+        wy = r10 * cx + r11 * cy + r12 * cz
+        wz = r20 * cx + r21 * cy + r22 * cz
+        ex = position[0] + wx - base[i, 0]            # B_i - A_i
+        ey = position[1] + wy - base[i, 1]
+        ez = position[2] + wz - base[i, 2]
+        n = math.sqrt(ex * ex + ey * ey + ez * ez)
+        ux, uy, uz = ex / n, ey / n, ez / n
+        J[i, 0], J[i, 1], J[i, 2] = ux, uy, uz
+        J[i, 3] = wy * uz - wz * uy                   # (R CB_i) x u_i
+        J[i, 4] = wz * ux - wx * uz
+        J[i, 5] = wx * uy - wy * ux
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def jacobi_svd(A, V):
+    """One-sided Jacobi SVD (Hestenes 1958; Demmel & Veselic 1992): rotate pairs of columns
+    of ``A`` (n, k; overwritten) until they are orthogonal, accumulating the rotations in
+    ``V`` (k, k).  Afterwards ``A_in V = A``: the column norms of ``A`` are the singular
+    values (returned), ``A[:, c] / s[c]`` the left singular vectors.  High relative accuracy
+    for the small singular values, which decide the covariance near a singularity."""
+    n, k = A.shape
+    V[:, :] = 0.0
+    for c in range(k):
+        V[c, c] = 1.0
+    for _ in range(JACOBI_MAX_SWEEPS):
+        rotated = False
+        for p in range(k - 1):
+            for q in range(p + 1, k):
+                alpha = beta = gamma = 0.0
+                for i in range(n):
+                    alpha += A[i, p] * A[i, p]
+                    beta += A[i, q] * A[i, q]
+                    gamma += A[i, p] * A[i, q]
+                if abs(gamma) <= JACOBI_TOLERANCE * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for i in range(n):
+                    ap, aq = A[i, p], A[i, q]
+                    A[i, p] = c * ap - s * aq
+                    A[i, q] = s * ap + c * aq
+                for i in range(k):
+                    vp, vq = V[i, p], V[i, q]
+                    V[i, p] = c * vp - s * vq
+                    V[i, q] = s * vp + c * vq
+        if not rotated:
+            break
+    sv = np.empty(k)
+    for c in range(k):
+        acc = 0.0
+        for i in range(n):
+            acc += A[i, c] * A[i, c]
+        sv[c] = math.sqrt(acc)
+    return sv
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def covariance_and_twist(J, columns, length, sigma, cap, unobserved, rates, work, V, cov, twist):
+    """Sigma (6x6, into ``cov``) and, when ``rates`` has one entry per leg, the least-squares
+    twist (into ``twist``) from the measured ``columns`` of ``J``; ``work`` (n, k) and ``V``
+    (k, k) are scratch.  Returns True when a singular value was raised to the cap."""
+    n, k = work.shape
+    for c in range(k):
+        inv = 1.0 / length if columns[c] >= ROTATION else 1.0
+        for i in range(n):
+            work[i, c] = J[i, columns[c]] * inv
+    s = jacobi_svd(work, V)                       # work = U diag(s)
+    floor = sigma / math.sqrt(cap)
+    capped = False
+    for c in range(k):
+        if not s[c] > floor:                      # also catches NaN
+            s[c] = floor
+            capped = True
+    cov[:, :] = 0.0
+    for c in range(6):
+        cov[c, c] = unobserved
+    for a in range(k):
+        sa = length if columns[a] >= ROTATION else 1.0
+        for b in range(a, k):
+            sb = length if columns[b] >= ROTATION else 1.0
+            acc = 0.0
+            for m in range(k):
+                acc += V[a, m] * V[b, m] / (s[m] * s[m])
+            value = sigma * sigma * acc / (sa * sb)
+            cov[columns[a], columns[b]] = value
+            cov[columns[b], columns[a]] = value
+    twist[:] = 0.0
+    if rates.size == n:
+        for a in range(k):
+            sa = length if columns[a] >= ROTATION else 1.0
+            acc = 0.0
+            for m in range(k):
+                proj = 0.0                        # (U^T rates)_m = (work^T rates)_m / s_m
+                for i in range(n):
+                    proj += work[i, m] * rates[i]
+                acc += V[a, m] * proj / (s[m] * s[m])
+            twist[columns[a]] = acc / sa
+    return capped
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pose_covariance_twist(base, platform, position, scale, quaternion, columns, length, sigma, cap, unobserved,
+                          rates, J, work, V, cov, twist):
+    """:func:`leg_jacobian` at (``position * scale``, ``quaternion``), then
+    :func:`covariance_and_twist`: one compiled call per input."""
+    p = np.empty(3)
+    for c in range(3):
+        p[c] = position[c] * scale if c < position.size else 0.0
+    leg_jacobian(base, platform, p, quaternion, J)
+    return covariance_and_twist(J, columns, length, sigma, cap, unobserved, rates, work, V, cov, twist)
+
+
+class PoseJacobian:
+    """The leg Jacobian of one manipulator at a pose, in metres, with the covariance and the
+    twist it gives.  Buffers are preallocated: one call per input, no allocation besides the
+    decomposition's."""
+
+    def __init__(self, model):
+        mpu = float(model.metres_per_unit)
+        self.planar = model.base.shape[1] == 2
+        pad = (lambda a: np.hstack((a, np.zeros((a.shape[0], 1))))) if self.planar else (lambda a: a)
+        self.base = np.ascontiguousarray(pad(model.base) * mpu)
+        self.platform = np.ascontiguousarray(pad(model.platform) * mpu)
+        self.columns = PLANAR_COLUMNS if self.planar else SPATIAL_COLUMNS
+        #: platform size (m) that turns rotations into lengths for the decomposition
+        self.length = float(model.scale) * mpu
+        self.J = np.zeros((model.n_legs, 6))
+        self.covariance = np.zeros((6, 6))
+        self.twist = np.zeros(6)
+        self._work = np.zeros((model.n_legs, self.columns.size))
+        self._V = np.zeros((self.columns.size, self.columns.size))
+        self._no_rates = np.zeros(0)
+
+    def at(self, position_m, quaternion) -> np.ndarray:
+        """The Jacobian (n, 6) at a pose (metres, unit quaternion [x, y, z, w]); the planar
+        model's columns 2-4 (z, rotations about x and y) are zero."""
+        leg_jacobian(self.base, self.platform, np.asarray(position_m, dtype=float),
+                     np.asarray(quaternion, dtype=float), self.J)
+        return self.J
+
+    def solve(self, position, quaternion, sigma_m: float, leg_rates_m=None, unit: float = 1.0) -> bool:
+        """Fill :attr:`J` at the pose (``position * unit`` metres, unit quaternion [x, y, z, w];
+        float arrays), :attr:`covariance` (6x6, ROS order, m^2 / rad^2) for leg noise ``sigma_m``
+        (metres) and, given ``leg_rates_m`` (m/s, leg order, a float array), :attr:`twist` (vx,
+        vy, vz, wx, wy, wz; m/s, rad/s, base frame).  Returns True when the covariance was capped
+        (the pose is at a singularity, to within the noise)."""
+        rates = self._no_rates if leg_rates_m is None else leg_rates_m
+        return pose_covariance_twist(self.base, self.platform, position, unit, quaternion, self.columns,
+                                     self.length, sigma_m, VARIANCE_CAP, UNOBSERVED_VARIANCE, rates, self.J,
+                                     self._work, self._V, self.covariance, self.twist)
+
+
+def warm_up() -> None:
+    """Compile (or load) the kernels before the first input."""
+    from types import SimpleNamespace
+    angles = np.linspace(0.0, 2.0 * np.pi, 7)[:-1]
+    ring = np.column_stack((np.cos(angles), np.sin(angles), np.zeros(6)))
+    for base in (ring[::2, :2], ring):
+        model = SimpleNamespace(base=base, platform=0.5 * base, metres_per_unit=1.0, scale=1.0,
+                                n_legs=base.shape[0])
+        jac = PoseJacobian(model)
+        for rates in (None, np.zeros(base.shape[0])):
+            jac.solve(np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, 0.0, 1.0]), 1e-5, rates)
+        jac.at(np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))

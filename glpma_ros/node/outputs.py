@@ -1,0 +1,192 @@
+"""What the node publishes for a solved input besides the pose, transport-free.
+
+For every pose published on ``pose_estimate`` (each switchable by a parameter):
+
+* ``publish_tf``: the transform ``frame_id`` -> ``child_frame_id`` on ``/tf`` -- the pose itself,
+  same stamp, same numbers;
+* ``publish_covariance``: ``pose_estimate_cov``, the pose with the 6x6 covariance of
+  :class:`~glpma_ros.covariance.PoseJacobian` for leg noise ``leg_noise_std``;
+* ``publish_twist``: ``twist_estimate``, from the ``joint_states`` velocities by the forward
+  velocity kinematics when the input carries them, else the finite difference
+  (:mod:`glpma_ros.velocity`) of this pose and the previous one;
+* ``publish_markers``: ``~/markers``, at most one every ``markers_period_s`` (by the stamps).
+
+:class:`OutputBuilder` turns an :class:`~glpma_ros.node.service.Outcome` into
+:class:`ExtraOutputs`; the transports turn those into messages.  One builder per service,
+called by the one thread that solves at a time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..covariance import PoseJacobian
+from ..models.rotations import matrix_from_quaternion
+from ..velocity import finite_difference_twist
+
+#: ``twist_estimate`` sources, as /diagnostics names them
+TWIST_FROM_VELOCITIES = "joint_states velocities (forward velocity kinematics)"
+TWIST_FROM_POSES = "finite difference of consecutive poses"
+#: a finite difference over a longer gap between two poses is no velocity (tracking was interrupted)
+TWIST_MAX_GAP_S = 1.0
+
+#: visualization_msgs/Marker types and action used here
+SPHERE_LIST, LINE_STRIP, LINE_LIST = 7, 4, 5
+ADD = 0
+#: marker sizes relative to the manipulator's size (its ``scale``): joint spheres, line widths
+JOINT_SIZE = 0.04
+LINE_WIDTH = 0.01
+#: colours (r, g, b, a)
+BASE_COLOUR = (0.55, 0.55, 0.6, 1.0)
+PLATFORM_COLOUR = (0.95, 0.65, 0.1, 1.0)
+SHORT_LEG_COLOUR = (0.1, 0.35, 1.0, 1.0)     # the shortest leg length of the colour range
+LONG_LEG_COLOUR = (1.0, 0.15, 0.1, 1.0)      # the longest
+
+
+@dataclass(frozen=True)
+class MarkerOutput:
+    """One ``visualization_msgs/Marker`` (ADD, identity pose, points in the header's frame, metres)."""
+
+    ns: str
+    id: int
+    type: int
+    scale: tuple
+    color: tuple
+    points: tuple = ()
+    colors: tuple = ()
+    action: int = ADD
+
+
+@dataclass(frozen=True)
+class ExtraOutputs:
+    """The further messages of one published pose; a field is None when its output is off
+    (or, for the twist, not available yet)."""
+
+    stamp_ns: int
+    frame_id: str
+    position: tuple                  # metres, as on pose_estimate
+    orientation: tuple
+    child_frame_id: str | None = None     # /tf when set
+    covariance: tuple | None = None       # 36 numbers, row-major, m^2 / rad^2
+    covariance_capped: bool = False
+    twist: tuple | None = None            # ((vx, vy, vz), (wx, wy, wz)), m/s and rad/s, base frame
+    twist_source: str | None = None
+    markers: tuple | None = None          # MarkerOutput, ...
+
+    @property
+    def any(self) -> bool:
+        return (self.child_frame_id is not None or self.covariance is not None or self.twist is not None
+                or self.markers is not None)
+
+
+def polygon_order(points: np.ndarray) -> list:
+    """Indices of ``points`` (n, 2 or 3) by angle about their centroid in their best-fit plane."""
+    centred = points - points.mean(axis=0)
+    if centred.shape[1] == 2:
+        u, v = centred[:, 0], centred[:, 1]
+    else:
+        _, _, vt = np.linalg.svd(centred)
+        u, v = centred @ vt[0], centred @ vt[1]
+    return [int(i) for i in np.argsort(np.arctan2(v, u))]
+
+
+def _as_3d(points: np.ndarray) -> np.ndarray:
+    return np.hstack((points, np.zeros((points.shape[0], 1)))) if points.shape[1] == 2 else points
+
+
+def _blend(a: tuple, b: tuple, t: float) -> tuple:
+    return tuple(float(x + (y - x) * t) for x, y in zip(a, b))
+
+
+class OutputBuilder:
+    """Builds :class:`ExtraOutputs` for the poses of one manipulator."""
+
+    def __init__(self, model):
+        self.model = model
+        self.metres_per_unit = float(model.metres_per_unit)
+        self.jacobian = PoseJacobian(model)
+        self.size_m = float(model.scale) * self.metres_per_unit
+        self.base_m = _as_3d(model.base) * self.metres_per_unit
+        self.platform_m = _as_3d(model.platform) * self.metres_per_unit
+        self._base_points = tuple(tuple(float(v) for v in a) for a in self.base_m)
+        self._base_loop = [int(i) for i in polygon_order(model.base)]
+        self._platform_loop = [int(i) for i in polygon_order(model.platform)]
+        limits = model.leg_limits
+        self._leg_range = ((limits[0] * self.metres_per_unit, limits[1] * self.metres_per_unit)
+                           if limits is not None else None)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous pose (no finite difference across a restart of tracking) and the
+        colour range of the legs seen so far."""
+        self._previous = None            # (stamp_ns, position (m), orientation)
+        self._last_markers_ns = None
+        self._seen = [math.inf, -math.inf]
+        self.capped = 0                  # covariances capped at a singularity so far
+        self.twist_source = None         # of the last twist published
+
+    def build(self, outcome, params: dict) -> ExtraOutputs:
+        """The outputs for ``outcome`` (a published pose) under ``params``."""
+        pose, estimate = outcome.pose, outcome.estimate
+        stamp_ns = pose.stamp_ns
+        rates = outcome.leg_rates_m if params["publish_twist"] else None
+        covariance = capped = None
+        if params["publish_covariance"] or rates is not None:
+            capped = self.jacobian.solve(estimate.pose.position, estimate.pose.orientation,
+                                         params["leg_noise_std"], rates, self.metres_per_unit)
+            if params["publish_covariance"]:
+                covariance = tuple(self.jacobian.covariance.ravel().tolist())
+                self.capped += bool(capped)
+        twist = source = None
+        if rates is not None:
+            t = self.jacobian.twist.tolist()
+            twist, source = (tuple(t[:3]), tuple(t[3:])), TWIST_FROM_VELOCITIES
+        elif params["publish_twist"] and self._previous is not None:
+            t0, p0, q0 = self._previous
+            if 0 < stamp_ns - t0 <= TWIST_MAX_GAP_S * 1e9:
+                twist = finite_difference_twist(p0, q0, t0 * 1e-9, pose.position, pose.orientation, stamp_ns * 1e-9)
+                source = TWIST_FROM_POSES
+        if source is not None:
+            self.twist_source = source
+        self._previous = (stamp_ns, pose.position, pose.orientation)
+        markers = None
+        if params["publish_markers"] and (self._last_markers_ns is None or
+                                          stamp_ns - self._last_markers_ns >= params["markers_period_s"] * 1e9):
+            markers = self.markers(pose.position, pose.orientation, outcome.legs * self.metres_per_unit)
+            self._last_markers_ns = stamp_ns
+        return ExtraOutputs(stamp_ns, pose.frame_id, pose.position, pose.orientation,
+                            params["child_frame_id"] if params["publish_tf"] else None,
+                            covariance, bool(capped), twist, source, markers)
+
+    def markers(self, position_m, orientation, legs_m) -> tuple:
+        """Base joints, platform joints, the legs (coloured by length: blue = short, red = long,
+        over ``leg_limits`` when the config has them, else over the lengths seen so far), the
+        base and platform polygons -- all in the base frame, metres."""
+        R = matrix_from_quaternion(orientation)
+        joints = np.asarray(position_m, dtype=float) + self.platform_m @ R.T          # B_i
+        platform_points = tuple(tuple(float(v) for v in b) for b in joints)
+        lo, hi = self._leg_range if self._leg_range is not None else self._seen_range(legs_m)
+        leg_points, leg_colours = [], []
+        for a, b, length in zip(self._base_points, platform_points, legs_m):
+            t = min(max((float(length) - lo) / (hi - lo), 0.0), 1.0) if hi > lo else 0.5
+            colour = _blend(SHORT_LEG_COLOUR, LONG_LEG_COLOUR, t)
+            leg_points += (a, b)
+            leg_colours += (colour, colour)
+        joint = (JOINT_SIZE * self.size_m,) * 3
+        line = (LINE_WIDTH * self.size_m, 0.0, 0.0)
+        return (
+            MarkerOutput("base_joints", 0, SPHERE_LIST, joint, BASE_COLOUR, self._base_points),
+            MarkerOutput("platform_joints", 1, SPHERE_LIST, joint, PLATFORM_COLOUR, platform_points),
+            MarkerOutput("legs", 2, LINE_LIST, line, LONG_LEG_COLOUR, tuple(leg_points), tuple(leg_colours)),
+            MarkerOutput("base", 3, LINE_STRIP, line, BASE_COLOUR,
+                         tuple(self._base_points[i] for i in self._base_loop + self._base_loop[:1])),
+            MarkerOutput("platform", 4, LINE_STRIP, line, PLATFORM_COLOUR,
+                         tuple(platform_points[i] for i in self._platform_loop + self._platform_loop[:1])),
+        )
+
+    def _seen_range(self, legs_m) -> tuple:
+        self._seen[0] = min(self._seen[0], float(np.min(legs_m)))
+        self._seen[1] = max(self._seen[1], float(np.max(legs_m)))
+        return self._seen[0], self._seen[1]
