@@ -1,1 +1,4 @@
-"""Simulation helpers shared by the demo, the benchmark and the stress test."""
+"""The simulated robot around the node, shared by the mock controller, the demo, the benchmark
+and the stress test: the motion (:mod:`.trajectories`), the controller's DDS side
+(:mod:`.controller`), pairing each pose with the input it answers (:mod:`.matching`) and the node
+as a child process (:mod:`.node_process`)."""
