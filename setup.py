@@ -20,8 +20,11 @@ setup(
     install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=0.10.5",
                       "matplotlib>=3.7", "tqdm>=4.60"],
     extras_require={
-        "test": ["pytest>=7", "hypothesis>=6"],
+        "test": ["pytest>=7", "hypothesis>=6", "rosbags>=0.10", "mcap>=1.1", "dask[distributed]>=2024.1"],
         "bench": ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
+        # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map.py)
+        "bag": ["rosbags>=0.10", "tqdm>=4.60"],
+        "map": ["matplotlib>=3.7", "dask[distributed]>=2024.1", "tqdm>=4.60"],
     },
     zip_safe=True,
     maintainer="glpma_ros developers",
