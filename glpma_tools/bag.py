@@ -186,6 +186,7 @@ class Summary:
     rejected: Counter = field(default_factory=Counter)   # reason -> inputs
     mode_changes: int = 0
     skipped_topics: dict = field(default_factory=dict)   # topic -> why it could not be copied
+    budget_ms: float = 0.0             # time budget per input
     warm_up_s: float = 0.0
     elapsed_s: float = 0.0             # reading, solving and writing (after the warm-up)
     solve_s: float = 0.0               # in the service alone
@@ -199,7 +200,7 @@ class Summary:
                 "input_topic": self.input_topic, "messages": self.messages, "inputs": self.inputs,
                 "converged": self.converged, "rejected": sum(self.rejected.values()),
                 "rejected_by_reason": dict(self.rejected.most_common()), "assembly_mode_changes": self.mode_changes,
-                "skipped_topics": self.skipped_topics, "warm_up_s": self.warm_up_s, "elapsed_s": self.elapsed_s,
+                "skipped_topics": self.skipped_topics, "budget_ms": self.budget_ms, "warm_up_s": self.warm_up_s, "elapsed_s": self.elapsed_s,
                 "solve_s": self.solve_s, "poses_per_s": self.poses_per_s}
 
     def text(self) -> str:
@@ -207,7 +208,7 @@ class Summary:
                  f"{self.input_topic}: {self.converged} converged, {sum(self.rejected.values())} rejected, "
                  f"{self.mode_changes} assembly-mode changes",
                  f"  {self.elapsed_s:.2f} s ({self.poses_per_s:,.0f} poses/s; solving {self.solve_s:.2f} s, "
-                 f"warm-up {self.warm_up_s:.1f} s before)"]
+                 f"warm-up {self.warm_up_s:.1f} s before; budget {self.budget_ms:g} ms per input)"]
         lines += [f"  rejected {n}: {reason}" for reason, n in self.rejected.most_common()]
         lines += [f"  not copied: {topic}: {why}" for topic, why in self.skipped_topics.items()]
         return "\n".join(lines)
@@ -289,7 +290,8 @@ class BagRun:
         except BaseException:
             self.reader.close()
             raise
-        self.summary = Summary(str(input_path), str(output_path), self.storage, input_topic)
+        self.summary = Summary(str(input_path), str(output_path), self.storage, input_topic,
+                               budget_ms=service.params["time_budget_ms"])
         self.status_name = f"{service.node_name}: forward kinematics"
         self.hardware_id = f"{self.model.kind}:{Path(str(getattr(self.model, 'source', ''))).name}"
         self._status_cache: dict = {}
@@ -307,8 +309,8 @@ class BagRun:
                              f"choose one with --legs-topic / --joint-states-topic")
         other = sorted(by_topic[topic] - {want})
         if other:
-            hint = (" (JointState input: --joint-names or -p input_type:=joint_state)" if JOINT_STATE in other
-                    else " (Float64MultiArray input: -p input_type:=float64_multi_array)"
+            hint = (" (JointState input: --joint-names or --input-type joint_state)" if JOINT_STATE in other
+                    else " (Float64MultiArray input: --input-type float64_multi_array)"
                     if FLOAT64_MULTI_ARRAY in other else "")
             raise InputError(f"topic {topic} has type {', '.join(other)}, expected {want}{hint}")
         for key, option in (("pose", "--pose-topic"), ("status", "--status-topic")):
@@ -558,14 +560,11 @@ def run(args, ros) -> int:
         raise InputError("--child-frame-id must not be empty")
     overrides = dict(ros.overrides)
     budget = OFFLINE_BUDGET_MS if args.budget_ms is None else args.budget_ms
-    given = overrides.get("time_budget_ms")
-    if given is not None and given != budget:
-        ros.warnings.append(f"time_budget_ms:={given} of the parameters replaced by {budget:g} offline "
-                            f"(--budget-ms sets it)")
+    replaced = overrides.get("time_budget_ms")
     overrides["time_budget_ms"] = budget
     if args.joint_names is not None:
         overrides["joint_names"] = args.joint_names
-        overrides.setdefault("input_type", P.INPUT_JOINT_STATE)
+        overrides["input_type"] = P.INPUT_JOINT_STATE
     if args.input_type is not None:
         overrides["input_type"] = args.input_type
     values, warnings = P.resolve(overrides)
@@ -579,6 +578,8 @@ def run(args, ros) -> int:
     log.setLevel(level if isinstance(level, int) else logging.WARNING)
     for warning in [*ros.warnings, *warnings]:
         log.warning(warning)
+    if replaced is not None and replaced != budget:
+        log.info(f"time_budget_ms:={replaced} of the parameters replaced by {budget:g} (--budget-ms)")
 
     from glpma_ros.service import FkService
     try:
