@@ -41,6 +41,7 @@ import math
 import shutil
 import struct
 import sys
+import textwrap
 import tempfile
 import time
 from collections import Counter
@@ -79,6 +80,8 @@ PROGRESS_EVERY = 500
 #: distinct status messages kept serialized (converged ones repeat; rejections rarely do)
 STATUS_CACHE_SIZE = 1024
 NS_PER_S = 1_000_000_000
+#: width of the --help texts
+HELP_WIDTH = 100
 #: CDR little-endian encapsulation header (rosbag2 and every ROS 2 rmw write it)
 CDR_LE = b"\x00\x01\x00\x00"
 _STAMP = struct.Struct("<iI")
@@ -200,8 +203,8 @@ class Summary:
                 "input_topic": self.input_topic, "messages": self.messages, "inputs": self.inputs,
                 "converged": self.converged, "rejected": sum(self.rejected.values()),
                 "rejected_by_reason": dict(self.rejected.most_common()), "assembly_mode_changes": self.mode_changes,
-                "skipped_topics": self.skipped_topics, "budget_ms": self.budget_ms, "warm_up_s": self.warm_up_s, "elapsed_s": self.elapsed_s,
-                "solve_s": self.solve_s, "poses_per_s": self.poses_per_s}
+                "skipped_topics": self.skipped_topics, "budget_ms": self.budget_ms, "warm_up_s": self.warm_up_s,
+                "elapsed_s": self.elapsed_s, "solve_s": self.solve_s, "poses_per_s": self.poses_per_s}
 
     def text(self) -> str:
         lines = [f"{self.output} ({self.storage}): {self.messages} messages copied, {self.inputs} inputs on "
@@ -482,8 +485,9 @@ def _parameter_help() -> str:
     lines = ["node parameters (after --ros-args: -p NAME:=VALUE, --params-file FILE; as for glpma-fk node):"]
     for spec in P.PARAMETERS:
         lines.append(f"  {spec.name} (default {spec.default if spec.default != [] else '[]'})")
-    lines.append("time_budget_ms is replaced by --budget-ms; qos_depth sets the depth offered by the new topics; the other real-time parameters "
-                 "(deadline_ms, diagnostics_period_s, assembly_modes_runs) have no effect here.")
+    lines.append(textwrap.fill("time_budget_ms is replaced by --budget-ms; qos_depth sets the depth offered by the "
+                               "new topics; the other real-time parameters (deadline_ms, diagnostics_period_s, "
+                               "assembly_modes_runs) have no effect here.", HELP_WIDTH))
     return "\n".join(lines)
 
 
@@ -491,11 +495,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f"{PROG} INPUT OUTPUT [options] [--ros-args -p NAME:=VALUE ... --params-file FILE]",
-        description="Estimate the platform pose for every leg_lengths (std_msgs/msg/Float64MultiArray) or "
+        description=textwrap.fill(
+                    "Estimate the platform pose for every leg_lengths (std_msgs/msg/Float64MultiArray) or "
                     "joint_states (sensor_msgs/msg/JointState) message of a recorded rosbag2 (MCAP or SQLite3) "
                     "with the node's estimator and parameters, and write a new bag: every input message copied "
                     "unchanged, plus pose_estimate (geometry_msgs/msg/PoseStamped), /tf (tf2_msgs/msg/TFMessage) "
                     "and ~/status (diagnostic_msgs/msg/DiagnosticStatus) per input. Topics are in metres.",
+                    HELP_WIDTH, break_on_hyphens=False),
         epilog=_parameter_help())
     p.add_argument("input", metavar="INPUT", help="rosbag2 directory (or a single .mcap / .db3 file); read only")
     p.add_argument("output", metavar="OUTPUT", help="rosbag2 directory to create")
@@ -514,8 +520,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--joint-names", nargs="+", default=None, metavar="NAME",
                    help="JointState input: the legs' joint names in leg order (parameter joint_names); "
                         "implies --input-type joint_state")
-    p.add_argument("--pose-topic", default="pose_estimate", metavar="TOPIC", help="default pose_estimate")
-    p.add_argument("--tf-topic", default="/tf", metavar="TOPIC", help="default /tf")
+    p.add_argument("--pose-topic", default="pose_estimate", metavar="TOPIC",
+                   help="output PoseStamped topic (default pose_estimate)")
+    p.add_argument("--tf-topic", default="/tf", metavar="TOPIC",
+                   help="output TFMessage topic (default /tf; a /tf already in INPUT gets the transforms added)")
     p.add_argument("--no-tf", action="store_true", help="write no transforms")
     p.add_argument("--child-frame-id", default="platform", metavar="FRAME",
                    help="child frame of the transforms (default platform; the parent is parameter frame_id)")

@@ -31,6 +31,7 @@ import json
 import math
 import os
 import sys
+import textwrap
 import time
 from collections import Counter
 from dataclasses import asdict, dataclass
@@ -56,6 +57,8 @@ Z_RANGE = (0.0, 2.0)
 #: default z of a hexapod slice, in units of the geometry's size (the platform well above the base)
 Z_DEFAULT = 1.0
 DEFAULT_RESOLUTION = 101
+#: width of the --help texts
+HELP_WIDTH = 100
 #: independent searches of solve_all per grid point
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
@@ -257,12 +260,25 @@ class MapResult:
                 f"  {modes}")
 
 
-def check_memory(n_points: int) -> None:
-    need = n_points * BYTES_PER_POINT
+def available_memory() -> int | None:
+    """Bytes of memory available to a new process (Linux ``MemAvailable``; else the free pages), or None."""
     try:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):
-        available = None
+        return None
+
+
+def check_memory(n_points: int) -> None:
+    """:class:`InputError` when the map would not fit in memory."""
+    need = n_points * BYTES_PER_POINT
+    available = available_memory()
     if available and need > MEMORY_SHARE * available:
         raise InputError(f"a grid of {n_points:,} points needs about {need / 2**30:.1f} GiB, more than "
                          f"{MEMORY_SHARE:.0%} of the {available / 2**30:.1f} GiB available; lower --resolution")
@@ -432,11 +448,12 @@ def make_spec(model, args) -> MapSpec:
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Assembly-mode map of a 2-D slice of the workspace: at every point of a grid over two pose "
-                    "coordinates (the others fixed), the number of real\nassembly modes of the legs of that pose "
-                    "(solve_all) and the conditioning of the pose. Writes DIR/assembly_modes.npz and a PNG with\n"
-                    "the mode-count regions and the singularity curves. Lengths in the config's unit, angles in "
-                    "degrees.",
+        description=textwrap.fill(
+            "Assembly-mode map of a 2-D slice of the workspace: at every point of a grid over two pose coordinates "
+            "(the others fixed), the number of real assembly modes of the legs of that pose (solve_all) and the "
+            "conditioning of the pose. Writes DIR/assembly_modes.npz and a PNG with the mode-count regions and "
+            "the singularity curves. Lengths in the config's unit, angles in degrees.",
+            HELP_WIDTH, break_on_hyphens=False),
         epilog="pose coordinates: planar_3rpr x y theta; hexapod_66 x y z roll pitch yaw (R = Rz(yaw) Ry(pitch) "
                "Rx(roll)).\ndefaults: x-y range = the base joints' bounding box +- half the geometry's size, z range "
                "0 .. 2 sizes,\nangles -180 .. 180; fixed angles 0 and z = the geometry's size.\n"
@@ -451,10 +468,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"points per axis: N, or N_A N_B (default {DEFAULT_RESOLUTION})")
     p.add_argument("--at", nargs="+", default=None, metavar="NAME=VALUE",
                    help="the fixed coordinates, e.g. --at theta=30 (3-RPR) or --at z=900 yaw=10 (hexapod)")
-    p.add_argument("--runs", type=int, default=DEFAULT_RUNS,
+    p.add_argument("--runs", type=int, default=DEFAULT_RUNS, metavar="N",
                    help=f"solve_all searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
-    p.add_argument("--seed", type=int, default=0, help="base seed; each point's seed derives from it and its index")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="base seed; each point's seed derives from it and its index")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 = in this process)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="run the chunks on this Dask distributed scheduler instead (workers need glpma_ros)")
