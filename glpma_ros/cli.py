@@ -1,4 +1,4 @@
-"""``glpma-fk``: solve, solve-all, precompile, modes, node, bench, demo, stress
+"""``glpma-fk``: solve, solve-all, precompile, modes, node, bench, demo, stress, bag, map
 (the command line of record: doc/interface.md)."""
 from __future__ import annotations
 
@@ -171,7 +171,9 @@ def build_parser() -> argparse.ArgumentParser:
     for name, helptext in (("node", "run the estimator node (rclpy or Cyclone DDS)"),
                            ("bench", "reproduce the papers' tables against peers; writes BENCHMARKS.md"),
                            ("demo", "node + mock controller over DDS, live progress, summary and figure"),
-                           ("stress", "reliability: overload, burst, restarts, deadlines against a real node")):
+                           ("stress", "reliability: overload, burst, restarts, deadlines against a real node"),
+                           ("bag", "poses for a recorded rosbag2, offline: pose_estimate, /tf and ~/status added"),
+                           ("map", "workspace map: real assembly modes and singularity curves over a 2-D grid")):
         q = sub.add_parser(name, help=helptext, add_help=False)
         q.add_argument("rest", nargs=argparse.REMAINDER)
     return p
@@ -252,6 +254,10 @@ def _delegated(command: str):
         from glpma_tools.demo import main
     elif command == "stress":
         from glpma_tools.stress import main
+    elif command == "bag":
+        from glpma_tools.bag import main
+    elif command == "map":
+        from glpma_tools.workspace_map import main
     else:
         return None
     return main

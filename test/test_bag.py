@@ -1,0 +1,262 @@
+"""glpma-fk bag: a bag written here with rosbags from a known trajectory goes through the
+node's service; the output bag holds the input unchanged plus poses that match the truth."""
+import hashlib
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime  # noqa: E402
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer  # noqa: E402
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+from conftest import CONFIG, ROOT  # noqa: E402
+from glpma_tools import bag as B  # noqa: E402
+from trajectories import rpr_loop  # noqa: E402
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+PARAMS = CONFIG / "params_3rpr.yaml"     # initial_pose = the published real_solutions[0]
+T0 = 1_700_000_000_123_456_789
+PERIOD_NS = 1_000_000                    # 1 kHz
+STEPS = 150
+CORRUPT = b"\x00\x01\x00\x00\x07\x00"    # a Float64MultiArray cut short
+#: QoS of the recorded input topic, to be copied as is
+SENSOR_QOS = Qos(QosHistory.KEEP_LAST, 5, QosReliability.BEST_EFFORT, QosDurability.VOLATILE, QosTime(0, 0),
+                 QosTime(0, 0), QosLiveliness.AUTOMATIC, QosTime(0, 0), False)
+
+
+def _float64_multi_array(values) -> bytes:
+    T = TS.types
+    msg = T[B.FLOAT64_MULTI_ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
+                                   data=np.asarray(values, dtype=float))
+    return bytes(TS.serialize_cdr(msg, B.FLOAT64_MULTI_ARRAY))
+
+
+def _string(text) -> bytes:
+    return bytes(TS.serialize_cdr(TS.types["std_msgs/msg/String"](data=text), "std_msgs/msg/String"))
+
+
+def _joint_state(stamp_ns, names, positions) -> bytes:
+    T = TS.types
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+                                      frame_id="")
+    msg = T[B.JOINT_STATE](header=header, name=list(names), position=np.asarray(positions, dtype=float),
+                           velocity=np.zeros(0), effort=np.zeros(0))
+    return bytes(TS.serialize_cdr(msg, B.JOINT_STATE))
+
+
+@pytest.fixture(scope="module")
+def truth(rpr, rpr_solutions):
+    """Solver variables along a loop from the published solution, and its legs in metres."""
+    xs = rpr_loop(rpr_solutions[0], STEPS)
+    legs_m = np.array([rpr.inverse_kinematics(x) for x in xs]) * rpr.metres_per_unit
+    return xs, legs_m
+
+
+def write_legs_bag(path: Path, storage: str, legs_m, corrupt_at=None) -> None:
+    """/leg_lengths at 1 kHz (a corrupt message between inputs ``corrupt_at - 1`` and
+    ``corrupt_at``), and /chatter (std_msgs/String) every 10 ms."""
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        legs = w.add_connection("/leg_lengths", B.FLOAT64_MULTI_ARRAY, typestore=TS, offered_qos_profiles=[SENSOR_QOS])
+        chatter = w.add_connection("/chatter", "std_msgs/msg/String", typestore=TS)
+        for i, row in enumerate(legs_m):
+            t = T0 + i * PERIOD_NS
+            if i == corrupt_at:
+                w.write(legs, t - PERIOD_NS // 2, CORRUPT)
+            w.write(legs, t, _float64_multi_array(row))
+            if i % 10 == 0:
+                w.write(chatter, t + 1, _string(f"tick {i}"))
+
+
+def read_bag(path: Path) -> dict:
+    """topic -> [(log time, raw bytes)] in the bag's order, and the connections."""
+    out = {}
+    with Reader(path) as r:
+        conns = {c.topic: c for c in r.connections}
+        for c, t, raw in r.messages():
+            out.setdefault(c.topic, []).append((t, bytes(raw)))
+    return out, conns
+
+
+def tree_digest(path: Path) -> str:
+    h = hashlib.sha256()
+    for f in sorted(path.rglob("*")):
+        if f.is_file():
+            h.update(f.name.encode() + f.read_bytes() + str(f.stat().st_mtime_ns).encode())
+    return h.hexdigest()
+
+
+def run_bag(*args):
+    return B.main([str(a) for a in args])
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_bag_poses_match_the_truth(tmp_path, truth, rpr, storage, capsys):
+    xs, legs_m = truth
+    src, dst = tmp_path / "in", tmp_path / "out"
+    write_legs_bag(src, storage, legs_m, corrupt_at=STEPS // 2)
+    before = tree_digest(src)
+    assert run_bag(src, dst, "--no-progress", "--json", "--ros-args", "--params-file", PARAMS) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert tree_digest(src) == before                      # the input bag is untouched
+
+    assert summary["storage"] == storage and summary["inputs"] == STEPS + 1
+    assert summary["converged"] == STEPS and summary["rejected"] == 1
+    (reason, n), = summary["rejected_by_reason"].items()
+    assert n == 1 and "cannot decode" in reason
+    assert summary["assembly_mode_changes"] == 0
+
+    inp, _ = read_bag(src)
+    out, conns = read_bag(dst)
+    for topic, messages in inp.items():                     # every input message, byte for byte
+        assert out[topic] == messages
+    assert conns["/leg_lengths"].ext.offered_qos_profiles == [SENSOR_QOS]
+    assert conns["/pose_estimate"].msgtype == B.POSE_STAMPED
+    assert conns["/tf"].msgtype == B.TF_MESSAGE
+    assert conns["/glpma_fk/status"].msgtype == B.DIAGNOSTIC_STATUS
+
+    stamps = [t for t, raw in inp["/leg_lengths"] if raw != CORRUPT]
+    poses = [(t, TS.deserialize_cdr(raw, B.POSE_STAMPED)) for t, raw in out["/pose_estimate"]]
+    assert [t for t, _ in poses] == stamps
+    for (t, msg), x in zip(poses, xs):
+        assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == t   # the receive time
+        assert msg.header.frame_id == "base"
+        p, q = msg.pose.position, msg.pose.orientation
+        truth_m = x[:2] * rpr.metres_per_unit
+        assert abs(p.x - truth_m[0]) < 1e-9 and abs(p.y - truth_m[1]) < 1e-9 and p.z == 0.0
+        assert abs(q.z - math.sin(x[2] / 2)) < 1e-9 and abs(q.w - math.cos(x[2] / 2)) < 1e-9
+    transforms = [TS.deserialize_cdr(raw, B.TF_MESSAGE).transforms[0] for _, raw in out["/tf"]]
+    assert len(transforms) == STEPS
+    assert transforms[7].child_frame_id == "platform" and transforms[7].header.frame_id == "base"
+    assert transforms[7].transform.translation.x == poses[7][1].pose.position.x
+
+    statuses = [(t, TS.deserialize_cdr(raw, B.DIAGNOSTIC_STATUS)) for t, raw in out["/glpma_fk/status"]]
+    assert [t for t, _ in statuses] == [t for t, _ in inp["/leg_lengths"]]
+    bad = [s for t, s in statuses if dict((kv.key, kv.value) for kv in s.values)["status"] != "converged"]
+    assert len(bad) == 1 and bad[0].level == 2 and "cannot decode" in bad[0].message
+    assert dict((kv.key, kv.value) for kv in bad[0].values)["status"] == "undecodable"
+
+    if storage == "mcap":                                   # readable by the mcap library too
+        from mcap.reader import make_reader
+        mcap_file, = dst.glob("*.mcap")
+        with open(mcap_file, "rb") as f:
+            reader = make_reader(f)
+            schemas = {c.topic: s.name for s, c, _ in reader.iter_messages()}
+            f.seek(0)
+            count = sum(1 for _ in make_reader(f).iter_messages())
+        assert schemas["/pose_estimate"] == B.POSE_STAMPED and schemas["/tf"] == B.TF_MESSAGE
+        assert count == sum(len(v) for v in out.values())
+    else:
+        assert list(dst.glob("*.db3"))
+
+
+def test_bag_joint_states_keep_their_stamps(tmp_path, truth, rpr, capsys):
+    """JointState input: legs picked by name among other joints, the pose keeps header.stamp;
+    a message without one of the legs is rejected with the reason; --storage converts."""
+    xs, legs_m = truth
+    src, dst = tmp_path / "in", tmp_path / "out"
+    names = ["wrist", "leg_c", "leg_a", "leg_b"]
+    stamps = [T0 - 5_000_000 + i * PERIOD_NS for i in range(40)]     # stamped 5 ms before reception
+    with Writer(src, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        js = w.add_connection("/robot/joint_states", B.JOINT_STATE, typestore=TS)
+        for i, stamp in enumerate(stamps):
+            a, b, c = legs_m[i]
+            w.write(js, T0 + i * PERIOD_NS, _joint_state(stamp, names, [0.3, c, a, b]))
+        w.write(js, T0 + 40 * PERIOD_NS, _joint_state(T0, ["leg_a", "leg_b"], [0.1, 0.1]))
+    assert run_bag(src, dst, "--no-progress", "--json", "--storage", "sqlite3", "--joint-states-topic",
+                   "/robot/joint_states", "--joint-names", "leg_a", "leg_b", "leg_c",
+                   "--ros-args", "--params-file", PARAMS) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["converged"] == 40 and summary["rejected_by_reason"] == {"joint_states has no joint 'leg_c'": 1}
+    out, _ = read_bag(dst)
+    assert list(dst.glob("*.db3"))
+    poses = [TS.deserialize_cdr(raw, B.POSE_STAMPED) for _, raw in out["/pose_estimate"]]
+    for msg, stamp, x in zip(poses, stamps, xs):
+        assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == stamp
+        assert abs(msg.pose.position.x - x[0] * rpr.metres_per_unit) < 1e-9
+
+
+def test_existing_output_refused_unless_overwrite(tmp_path, truth, capsys):
+    src, dst = tmp_path / "in", tmp_path / "out"
+    write_legs_bag(src, "mcap", truth[1][:5])
+    dst.mkdir()
+    (dst / "keep").write_text("x")
+    assert run_bag(src, dst, "--no-progress") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exists" in err and (dst / "keep").exists()
+    assert run_bag(src, dst, "--no-progress", "--overwrite", "--ros-args", "--params-file", PARAMS) == 0
+    assert not (dst / "keep").exists() and len(read_bag(dst)[0]["/pose_estimate"]) == 5
+    assert run_bag(src, src / "sub", "--no-progress", "--overwrite") == 2      # never inside the input
+
+
+def test_codecs_agree_with_rosbags():
+    rng = np.random.default_rng(5)
+    pose, tf = B.pose_stamped_codec(TS, "world_frame"), B.tf_codec(TS, "base", "platform_1")
+    assert pose.fast and tf.fast
+    for _ in range(50):
+        stamp = int(rng.integers(0, 2**31 * 1_000_000_000))  # builtin_interfaces/Time: int32 seconds
+        values = tuple(rng.normal(size=7))
+        sec, nanosec = divmod(stamp, 1_000_000_000)
+        assert pose.encode(stamp, values) == pose._serialize(sec, nanosec, values)
+        assert tf.encode(stamp, values) == tf._serialize(sec, nanosec, values)
+        data = rng.normal(size=int(rng.integers(0, 8)))
+        assert np.array_equal(B.decode_float64_multi_array(_float64_multi_array(data), TS), data)
+    T = TS.types        # a message with layout dimensions takes rosbags' path
+    dims = [T["std_msgs/msg/MultiArrayDimension"](label="legs", size=3, stride=3)]
+    msg = T[B.FLOAT64_MULTI_ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0),
+                                   data=np.array([1.0, 2.0, 3.0]))
+    raw = bytes(TS.serialize_cdr(msg, B.FLOAT64_MULTI_ARRAY))
+    assert B.decode_float64_multi_array(raw, TS).tolist() == [1.0, 2.0, 3.0]
+
+
+@pytest.fixture(scope="module")
+def small_bag(tmp_path_factory, truth):
+    path = tmp_path_factory.mktemp("bags") / "in"
+    write_legs_bag(path, "mcap", truth[1][:3])
+    return path
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "glpma_ros", "bag", *map(str, args)], capture_output=True,
+                          text=True, cwd=ROOT, timeout=300)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["{tmp}/missing", "{tmp}/out"], "does not exist"),
+    (["{tmp}", "{tmp}/../out2"], "cannot read bag"),
+    (["{bag}", "{tmp}/out", "--legs-topic", "/nope"], "has no topic /nope"),
+    (["{bag}", "{tmp}/out", "--legs-topic", "chatter"], "has type std_msgs/msg/String"),
+    (["{bag}", "{tmp}/out", "--ros-args", "-p", "solver:=newton"], "must be one of"),
+    (["{bag}", "{tmp}/out", "--ros-args", "-p", "manipulator_config:=missing.yaml"], "cannot read"),
+    (["{bag}", "{tmp}/out", "--pose-topic", "/chatter"], "already has a topic /chatter"),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, small_bag, args, words):
+    p = _cli(*[a.format(tmp=tmp_path, bag=small_bag) for a in args])
+    assert p.returncode == 2, p.stderr
+    assert p.stderr.count("\n") == 1 and p.stderr.startswith("error: glpma-fk bag:") and words in p.stderr, p.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_extra_names_the_pip_command(monkeypatch, capsys):
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "rosbags" else real(name, *a))
+    assert B.main(["in", "out"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install" in err and "[bag]" in err
+
+
+def test_help_describes_every_option():
+    p = _cli("--help")
+    assert p.returncode == 0
+    for option in ("--storage", "--overwrite", "--budget-ms", "--legs-topic", "--joint-states-topic",
+                   "--joint-names", "--pose-topic", "--tf-topic", "--status-topic", "--child-frame-id",
+                   "--ros-args", "time_budget_ms"):
+        assert option in p.stdout
