@@ -33,14 +33,12 @@ import numpy as np
 from . import params as P
 from .config import load_manipulator, resolve_config
 from .errors import InputError
-from .estimator import Estimator
+from .estimator import NEAR_SINGULAR, Estimator
 
 #: statistics cover the most recent inputs
 WINDOW = 2000
 #: distinct rejection reasons shown on /diagnostics (the rest are counted as "other")
 MAX_REASONS = 16
-#: a conditioning (reciprocal condition number) below this is reported as near-singular
-NEAR_SINGULAR = 1e-4
 #: seconds between two log lines of the same rejection reason
 LOG_THROTTLE_S = 1.0
 
