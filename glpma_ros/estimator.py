@@ -34,8 +34,9 @@ ends on is polished by the compiled Levenberg-Marquardt without a deadline
 (microseconds, bounded by its iteration cap): a polish that meets the leg
 criterion is ``converged`` however little of the search fitted in the budget;
 otherwise the best polished point decides: ``near_singular`` (leg Jacobian
-nearly singular, small residual), ``no_solution`` (a stationary point of the
-fitness with a residual: no real assembly there); only when neither holds is
+nearly singular, small residual), ``no_solution`` (a residual that the polish
+cannot lower: a stationary point of the fitness, or a polish that stalled; no
+real assembly there); only when neither holds is
 the status ``budget_exhausted`` (the time ran out) or ``max_evals`` (the
 evaluation caps did).
 """
@@ -48,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import solvers
+from .config import UNIT_TO_METRES
 from .errors import InputError
 from .models.base import Pose
 from .solvers import lm
@@ -73,12 +75,26 @@ SETTLE_MAX_ITER = lm.MAX_ITER
 NO_SOLUTION_RMS = 1e-6
 #: |J^T r| / (|J| |r|) below which the best point is a stationary point of the fitness
 STATIONARY = 1e-2
+#: a polish that lowered the fitness by less than this fraction over its last 10-20 iterations has
+#: stalled: Levenberg-Marquardt approaching a real assembly lowers it by more than 75 % per iteration
+#: even at a double root, while one creeping toward a singular least-squares point (where unreachable
+#: legs usually end) crawls
+STALLED = 0.1
 #: reciprocal condition number of the leg Jacobian below which a pose is near a
 #: singularity (assembly modes meet; the seed examples are at 0.02-0.13)
 NEAR_SINGULAR = 1e-3
 #: an unconverged best point near a singularity counts as "near singular" rather
 #: than "no solution" while its RMS residual is below this share of the scale
 NEAR_SINGULAR_RMS = 1e-2
+#: starts of the probe that decides a failed search: Levenberg-Marquardt from fixed starts drawn in the
+#: papers' initial range (on the seed examples one start in five or more converges on any feasible legs)
+PROBE_STARTS = 32
+#: seed of the probe's starts (fixed: the probe is the same work on every machine)
+PROBE_SEED = 0
+#: the unit of the papers' initial ranges (``solvers.PAPER_SETTINGS``; their manipulators are in mm)
+PAPER_UNIT = "mm"
+#: solver variables that are angles (radians: the same in every unit of length)
+ANGLE_VARIABLES = frozenset({"theta"})
 
 STATUS_CONVERGED = "converged"
 STATUS_NO_SOLUTION = "no_solution"
@@ -110,6 +126,16 @@ class Estimate:
         return self.conditioning < NEAR_SINGULAR
 
 
+def cold_range(model):
+    """The papers' initial range for ``model`` as per-variable ``(low, high)`` in its config unit:
+    the same physical range whatever the unit (lengths converted from :data:`PAPER_UNIT`, angles
+    kept)."""
+    low, high = solvers.PAPER_SETTINGS[model.kind]["init_range"]
+    factor = UNIT_TO_METRES[PAPER_UNIT] / UNIT_TO_METRES.get(model.unit, UNIT_TO_METRES[PAPER_UNIT])
+    f = np.array([1.0 if name in ANGLE_VARIABLES else factor for name in model.variable_names])
+    return low * f, high * f
+
+
 class Estimator:
     """Keeps the last solution and solves each new set of leg lengths from it.
 
@@ -131,6 +157,9 @@ class Estimator:
         self._lm = lm.LocalSolver(model)
         self._n = model.n_vars
         self._near_floor = MIN_SPREAD * model.scale
+        self._cold_range = cold_range(model)
+        self._probe_starts = np.ascontiguousarray(
+            np.random.default_rng(PROBE_SEED).uniform(*self._cold_range, size=(PROBE_STARTS, model.n_vars)))
         self.set_solver(solver, population=population, local_population=local_population,
                         ls_interval=ls_interval, ls_intensity=ls_intensity)
         self.reset(initial_pose)
@@ -196,7 +225,7 @@ class Estimator:
     def _polish(self, x, legs) -> lm.LocalResult:
         """The compiled Levenberg-Marquardt from ``x``, without a deadline; distance from the previous pose."""
         return self._lm.solve(np.ascontiguousarray(x, dtype=float), legs, max_iter=SETTLE_MAX_ITER,
-                              rtol=self.leg_rtol, x_ref=self.last_x)
+                              rtol=self.leg_rtol, x_ref=self.last_x, stall=STALLED)
 
     def _settle(self, result, legs):
         """``(point, status_point, evaluations)`` for a search's result: ``point`` is what the estimate
@@ -248,7 +277,7 @@ class Estimator:
                 break
             stage_deadline = now + share * max(deadline - now, 0.0)
             if spread is None:
-                result = self._run(legs, stage_deadline)
+                result = self._run(legs, stage_deadline, init_range=self._cold_range)
             else:
                 result = self._run(legs, stage_deadline, center=self.last_x, spread=model.spread_vector(spread))
             point, status_point, nfev = self._settle(result, legs)
@@ -259,6 +288,15 @@ class Estimator:
                 candidates.append((point.distance, point, stage))
                 if self.last_x is None or point.distance <= near:
                     break
+        probe = None
+        if not candidates:
+            # the probe: the same fixed work on every machine, whatever fitted in the budget
+            probe = self._lm.multistart(self._probe_starts, legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol,
+                                        x_ref=self.last_x, stall=STALLED)
+            evaluations += probe.nfev
+            tried.append((probe, "cold"))
+            if probe.converged and self.polish:
+                candidates.append((probe.distance, probe, "cold"))
         elapsed = time.perf_counter() - t0
         if candidates:
             _, p, stage = min(candidates, key=lambda c: c[0])
@@ -273,7 +311,8 @@ class Estimator:
         if cond < NEAR_SINGULAR and rms < NEAR_SINGULAR_RMS * model.scale:
             status, why = STATUS_NEAR_SINGULAR, (f"near a singularity: not converged (conditioning {cond:.2g}, "
                                                  f"RMS residual {rms:.3g} {model.unit})")
-        elif rms > NO_SOLUTION_RMS * model.scale and p.stationarity <= STATIONARY:
+        elif rms > NO_SOLUTION_RMS * model.scale and not probe.converged and \
+                (p.stationarity <= STATIONARY or p.progress < STALLED):
             status, why = STATUS_NO_SOLUTION, f"no real assembly found (RMS residual {rms:.3g} {model.unit})"
         elif out_of_time:
             status, why = STATUS_BUDGET, f"not converged within the budget (RMS residual {rms:.3g} {model.unit})"

@@ -5,8 +5,10 @@ Method.  Marquardt's damped Gauss-Newton step (Marquardt 1963; More 1978) on the
 
     (J^T J + lam diag(J^T J)) s = -J^T r
 
-solved by a Cholesky factorisation, with ``lam`` divided by ``LAMBDA_DOWN`` after a step that lowers
-``sum r_i^2`` and multiplied by ``LAMBDA_UP`` after one that does not.  The damping is scaled by
+solved by a Cholesky factorisation.  A step is taken when it lowers ``sum r_i^2``; the damping then
+shrinks by the gain ratio (actual / predicted decrease ``rho``: ``lam *= max(1/3, 1 - (2 rho - 1)^3)``),
+and after a refused step it grows by ``nu``, which doubles on every further refusal (Nielsen 1999;
+Madsen, Nielsen & Tingleff 2004, section 3.2).  The damping is scaled by
 ``diag(J^T J)`` (Marquardt's choice), so ``lam`` is dimensionless and the iterates do not depend on the
 unit of length nor on the units of the pose parameters.  The step lives in each model's pose
 parameterisation, where the platform is rigid by construction and the Jacobian is analytic:
@@ -62,13 +64,13 @@ LEG_RTOL = 1e-13
 POLISH_STEPS = 1
 #: initial (dimensionless, Marquardt-scaled) damping: the first step is nearly Gauss-Newton
 LAMBDA_INIT = 1e-6
-#: damping update on a rejected / accepted step (Nielsen-style factors)
-LAMBDA_UP = 10.0
-LAMBDA_DOWN = 0.1
 #: smallest damping kept (below it the step is Gauss-Newton to round-off anyway)
 LAMBDA_MIN = 1e-15
-#: consecutive rejected steps after which the iterate is at a stationary point (or at round-off)
-MAX_REJECTIONS = 6
+#: consecutive rejected steps after which the iterate is at a stationary point (or at round-off);
+#: the damping has then grown by 2^(1 + 2 + ... + 10) ~ 4e16
+MAX_REJECTIONS = 10
+#: iterations over which the progress figure (``I_PROGRESS``) is measured
+PROGRESS_WINDOW = 10
 #: default iteration cap of one local solve
 MAX_ITER = 100
 #: rotation angle below which Rodrigues' formula uses its second-order Taylor expansion
@@ -90,7 +92,10 @@ I_NFEV = 7            # residual-and-Jacobian evaluations
 I_NIT = 8             # iterations
 I_CONVERGED = 9       # 1.0 when converged (see the module docstring)
 I_INPUT_OK = 10       # 0.0 when the legs are not finite, not positive or outside [lo, hi] (nothing solved)
-N_INFO = 11
+I_PROGRESS = 11       # relative decrease of the leg fitness over the last PROGRESS_WINDOW to 2 PROGRESS_WINDOW
+#                       iterations (1.0 when fewer were run; 0.0 when the iteration stopped because no step
+#                       lowered it)
+N_INFO = 12
 
 # layout of the ``settings`` vector of ``lm_kernel``
 S_SCALE = 0           # the model's characteristic length
@@ -99,7 +104,10 @@ S_HI = 2
 S_RTOL = 3            # relative leg tolerance
 S_FTOL = 4            # leg-fitness threshold (inf: none)
 S_MAX_ITER = 5        # iteration cap
-S_COL_SCALE = 6       # then the model's pose_column_scale (n_pose values)
+S_STALL = 6           # stop when the leg fitness fell by less than this fraction over PROGRESS_WINDOW
+#                       iterations (0: never)
+S_N_RES = 7           # length of the model's residual vector
+S_COL_SCALE = 8       # then the model's pose_column_scale (n_pose values)
 
 #: length of a state vector: hexapod p (3) + R (9, row-major); 3-RPR uses its first 3 entries
 STATE_SIZE = 12
@@ -411,6 +419,19 @@ def _normal_equations(J, r, A, g):
 
 
 # -- the kernel -------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _reference_length(legs, settings):
+    """``max(scale, max leg)``, or -1.0 when a leg is not finite, not positive or outside the limits."""
+    ref = settings[S_SCALE]
+    lo, hi = settings[S_LO], settings[S_HI]
+    for i in range(legs.shape[0]):
+        li = legs[i]
+        if not (math.isfinite(li) and li > 0.0 and li >= lo and li <= hi):
+            return -1.0
+        ref = max(ref, li)
+    return ref
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, work):
     """Levenberg-Marquardt from solver variables ``x0`` for leg lengths ``legs``.
@@ -421,29 +442,67 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
     (empty: none).  Fills ``out`` = [solver variables (n_vars), position (3), quaternion [qx, qy, qz,
     qw], info (``N_INFO``, layout: the ``I_*`` constants)]; ``work``: :func:`workspace_size` floats.
     Nothing is allocated."""
+    ref = _reference_length(legs, settings)
+    if ref < 0.0:
+        out[:] = 0.0                          # I_INPUT_OK = 0: nothing solved
+        return
+    _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work)
+    if legs_ref.shape[0] == legs.shape[0]:
+        mv = 0.0
+        for i in range(legs.shape[0]):
+            mv = max(mv, abs(legs[i] - legs_ref[i]))
+        out[x0.shape[0] + 7 + I_MOVEMENT] = mv
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def multistart_kernel(kind, data, platform, legs, starts, x_ref, settings, out, work):
+    """Levenberg-Marquardt from each row of ``starts`` in turn until one converges.
+
+    Fills ``out`` (as :func:`lm_kernel`) with the first converged solve, or with the one of least leg
+    fitness; its ``I_NFEV`` / ``I_NIT`` count every start tried.  ``work``: :func:`workspace_size`
+    plus ``len(out)`` floats.  Returns the index of the start reported (-1 when the legs fail the
+    check)."""
+    ref = _reference_length(legs, settings)
+    out[:] = 0.0
+    if ref < 0.0:
+        return -1
+    n_out = out.shape[0]
+    base_info = n_out - N_INFO
+    trial_out = work[work.shape[0] - n_out:]
+    core = work[:work.shape[0] - n_out]
+    best = -1
+    nfev = 0.0
+    nit = 0.0
+    for k in range(starts.shape[0]):
+        _solve_one(kind, data, platform, legs, ref, starts[k], x_ref, settings, trial_out, core)
+        nfev += trial_out[base_info + I_NFEV]
+        nit += trial_out[base_info + I_NIT]
+        converged = trial_out[base_info + I_CONVERGED] == 1.0
+        if best < 0 or converged or trial_out[base_info + I_LEG_FITNESS] < out[base_info + I_LEG_FITNESS]:
+            out[:] = trial_out
+            best = k
+        if converged:
+            break
+    out[base_info + I_NFEV] = nfev
+    out[base_info + I_NIT] = nit
+    return best
+
+
+@njit(cache=True, error_model="numpy")
+def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
+    """The iteration of :func:`lm_kernel` for legs that passed the check (``ref``: reference length)."""
     n_legs = legs.shape[0]
     n_vars = x0.shape[0]
     n_pose = settings.shape[0] - S_COL_SCALE
     col_scale = settings[S_COL_SCALE:]
-    scale, lo, hi = settings[S_SCALE], settings[S_LO], settings[S_HI]
     rtol, ftol, max_iter = settings[S_RTOL], settings[S_FTOL], int(settings[S_MAX_ITER])
+    stall = settings[S_STALL]
     x_out = out[:n_vars]
     pose_out = out[n_vars:n_vars + 7]
     info = out[n_vars + 7:]
     for k in range(N_INFO):
         info[k] = 0.0
-    ref = scale
-    for i in range(n_legs):
-        li = legs[i]
-        if not (math.isfinite(li) and li > 0.0 and li >= lo and li <= hi):
-            return
-        ref = max(ref, li)
     info[I_INPUT_OK] = 1.0
-    if legs_ref.shape[0] == n_legs:
-        mv = 0.0
-        for i in range(n_legs):
-            mv = max(mv, abs(legs[i] - legs_ref[i]))
-        info[I_MOVEMENT] = mv
     # carve the work buffer
     o = 0
     r = work[o:o + n_legs]
@@ -472,7 +531,7 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
     o += n_legs * n_pose
     sv = work[o:o + n_pose]
     o += n_pose
-    rm = work[o:]                            # the rest: the model's residual vector (n_res)
+    rm = work[o:o + int(settings[S_N_RES])]  # the model's residual vector
     base = data[0]
     M = L[:3, :3]                            # scratch for the rotation of a step (L is free then)
 
@@ -485,34 +544,42 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
         ok = _kabsch_state(platform, x0, state, L[:3, :3], V[:3, :3], sv[:3])
     nfev = 0
     nit = 0
+    progress = 1.0
     if ok and max_iter > 0:
         f = _residuals_jacobian(kind, state, base, platform, legs, r, J)
         nfev += 1
         if f < math.inf:
             _normal_equations(J, r, A, g)
             lam = LAMBDA_INIT
+            nu = 2.0
             rejections = 0
             rmax = 0.0
             for i in range(n_legs):
                 rmax = max(rmax, abs(r[i]))
             done = rmax <= rtol * ref and f < ftol
             polish_left = POLISH_STEPS
+            f_mark = f                       # the fitness PROGRESS_WINDOW and 2 PROGRESS_WINDOW iterations ago
+            f_mark_before = math.inf
             while nit < max_iter:
                 if done:
                     if polish_left == 0 or f == 0.0:
                         break
                     polish_left -= 1
                 nit += 1
-                if not _damped_solve(A, lam, g, step, L):
-                    lam *= LAMBDA_UP
-                    rejections += 1
-                    if rejections > MAX_REJECTIONS or done:
-                        break
-                    continue
-                _retract(kind, state, step, trial, M)
-                f2 = _residuals_jacobian(kind, trial, base, platform, legs, r2, J2)
-                nfev += 1
+                f2 = math.inf
+                if _damped_solve(A, lam, g, step, L):
+                    _retract(kind, state, step, trial, M)
+                    f2 = _residuals_jacobian(kind, trial, base, platform, legs, r2, J2)
+                    nfev += 1
                 if f2 < f:
+                    # gain ratio against the decrease the linear model predicts (Nielsen 1999)
+                    predicted = 0.0
+                    for k in range(n_pose):
+                        predicted += step[k] * (lam * max(A[k, k], 1e-300) * step[k] - g[k])
+                    rho = (f - f2) / predicted if predicted > 0.0 else 1.0
+                    lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LAMBDA_MIN)
+                    nu = 2.0
+                    rejections = 0
                     for k in range(STATE_SIZE):
                         state[k] = trial[k]
                     for i in range(n_legs):
@@ -521,18 +588,26 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
                             J[i, k] = J2[i, k]
                     f = f2
                     _normal_equations(J, r, A, g)
-                    lam = max(lam * LAMBDA_DOWN, LAMBDA_MIN)
-                    rejections = 0
                     if not done:
                         rmax = 0.0
                         for i in range(n_legs):
                             rmax = max(rmax, abs(r[i]))
                         done = rmax <= rtol * ref and f < ftol
                 else:
-                    lam *= LAMBDA_UP
+                    lam *= nu
+                    nu *= 2.0
                     rejections += 1
                     if rejections > MAX_REJECTIONS or done:
                         break
+                if nit % PROGRESS_WINDOW == 0:
+                    f_mark_before = f_mark
+                    f_mark = f
+                    if not done and f_mark_before < math.inf and f_mark_before - f < stall * f_mark_before:
+                        break                    # stalled (S_STALL > 0 only)
+            if rejections > MAX_REJECTIONS and not done:
+                progress = 0.0                   # no step lowers the fitness: a stationary point
+            elif f_mark_before < math.inf and f_mark_before > 0.0:
+                progress = (f_mark_before - f) / f_mark_before
 
     # the returned variables: 3-RPR theta wrapped to (-pi, pi]; hexapod R re-orthonormalised
     if not ok:
@@ -542,6 +617,7 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
         info[I_MAX_RESIDUAL] = math.inf
         info[I_FITNESS] = math.inf
         info[I_STATIONARITY] = math.inf
+        info[I_PROGRESS] = 1.0
         info[I_DISTANCE] = _joint_distance(kind, platform, x_out, x_ref)
         return
     if kind == KIND_PLANAR_3RPR:
@@ -610,6 +686,7 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
     info[I_DISTANCE] = _joint_distance(kind, platform, x_out, x_ref)
     info[I_NFEV] = nfev
     info[I_NIT] = nit
+    info[I_PROGRESS] = progress
     info[I_CONVERGED] = 1.0 if (rmax <= rtol * ref and f < ftol) else 0.0
 
 
@@ -620,7 +697,7 @@ def make_settings(model, *, max_iter=None, rtol=None, ftol=math.inf) -> np.ndarr
     limits = model.leg_limits
     lo, hi = (-math.inf, math.inf) if limits is None else (float(limits[0]), float(limits[1]))
     head = [model.scale, lo, hi, LEG_RTOL if rtol is None else rtol, ftol,
-            MAX_ITER if max_iter is None else max_iter]
+            MAX_ITER if max_iter is None else max_iter, 0.0, model.n_res]
     return np.ascontiguousarray(np.concatenate((head, model.pose_column_scale)), dtype=float)
 
 
@@ -636,6 +713,7 @@ class LocalResult(NamedTuple):
     fitness: float            # the papers' fitness of x (the model's residual vector)
     conditioning: float       # reciprocal condition number of the leg Jacobian (0 = singular)
     stationarity: float       # |J^T r| / (|J| |r|), small at a stationary point
+    progress: float           # relative decrease of the leg fitness over the last 10-20 iterations
     distance: float           # platform-joint distance from x_ref (default: the start)
     movement: float           # max |legs - legs_ref| (0 without legs_ref)
     nfev: int
@@ -649,7 +727,7 @@ class LocalSolver:
     """The compiled local solve of one model with its own buffers (one per thread).
 
     :meth:`run` is the raw call (fills and returns a fresh ``out`` vector, see :func:`lm_kernel`);
-    :meth:`solve` wraps it in a :class:`LocalResult`."""
+    :meth:`solve` wraps it in a :class:`LocalResult`; :meth:`multistart` tries several starts."""
 
     def __init__(self, model):
         self.model = model
@@ -659,12 +737,11 @@ class LocalSolver:
         self.n_vars = int(model.n_vars)
         self.n_out = self.n_vars + 7 + N_INFO
         self.info_at = self.n_vars + 7
-        self.work = np.zeros(workspace_size(model.n_legs, model.n_pose, model.n_res))
+        self.work = np.zeros(workspace_size(model.n_legs, model.n_pose, model.n_res) + self.n_out)
         self.settings = make_settings(model)
         self._limits = model.leg_limits
 
-    def run(self, x0, legs, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None, legs_ref=_NO_LEGS):
-        """``x0``, ``legs``: contiguous float64 arrays of the model's sizes.  Returns ``out``."""
+    def _settings(self, max_iter, rtol, ftol, stall):
         settings = self.settings
         if self.model.leg_limits is not self._limits:          # the model's limits were changed
             self.settings = settings = make_settings(self.model)
@@ -672,16 +749,33 @@ class LocalSolver:
         settings[S_RTOL] = rtol
         settings[S_FTOL] = ftol
         settings[S_MAX_ITER] = max_iter
+        settings[S_STALL] = stall
+        return settings
+
+    def run(self, x0, legs, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None, legs_ref=_NO_LEGS,
+            stall=0.0):
+        """``x0``, ``legs``: contiguous float64 arrays of the model's sizes.  Returns ``out``."""
+        settings = self._settings(max_iter, rtol, ftol, stall)
         out = np.empty(self.n_out)
         lm_kernel(self.kind, self.data, self.platform, legs, x0, x0 if x_ref is None else x_ref, legs_ref,
                   settings, out, self.work)
         return out
 
     def solve(self, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None,
-              legs_ref=_NO_LEGS) -> LocalResult | None:
+              legs_ref=_NO_LEGS, stall=0.0) -> LocalResult | None:
         """:class:`LocalResult`, or None when the legs fail the check (not finite, not positive,
         outside the model's leg limits)."""
-        out = self.run(x0, legs, max_iter, rtol, ftol, x_ref, legs_ref)
+        return self.result(self.run(x0, legs, max_iter, rtol, ftol, x_ref, legs_ref, stall))
+
+    def multistart(self, starts, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None,
+                   stall=0.0) -> LocalResult | None:
+        """The first converged solve from the rows of ``starts`` (contiguous, float64), else the one of
+        least leg fitness; ``nfev`` / ``nit`` count every start tried.  ``x_ref`` default: the first
+        start."""
+        settings = self._settings(max_iter, rtol, ftol, stall)
+        out = np.empty(self.n_out)
+        multistart_kernel(self.kind, self.data, self.platform, legs, starts,
+                          starts[0] if x_ref is None else x_ref, settings, out, self.work)
         return self.result(out)
 
     def result(self, out) -> LocalResult | None:
@@ -690,7 +784,8 @@ class LocalSolver:
             return None
         return LocalResult(out[:n], out[n:n + 3], out[n + 3:n + 7], info[I_CONVERGED] == 1.0,
                            float(info[I_MAX_RESIDUAL]), float(info[I_LEG_FITNESS]), float(info[I_FITNESS]),
-                           float(info[I_CONDITIONING]), float(info[I_STATIONARITY]), float(info[I_DISTANCE]),
+                           float(info[I_CONDITIONING]), float(info[I_STATIONARITY]), float(info[I_PROGRESS]),
+                           float(info[I_DISTANCE]),
                            float(info[I_MOVEMENT]), int(info[I_NFEV]), int(info[I_NIT]))
 
 
