@@ -156,6 +156,7 @@ class Estimator:
         self.rng = np.random.default_rng(seed)
         self._lm = lm.LocalSolver(model)
         self._n = model.n_vars
+        self._warm_settings = None          # the warm stage's kernel settings, built on first use
         self._near_floor = MIN_SPREAD * model.scale
         self._cold_range = cold_range(model)
         self._probe_starts = np.ascontiguousarray(
@@ -199,22 +200,28 @@ class Estimator:
         if arr.shape != self.last_legs.shape:
             arr = np.array(model.check_legs(arr), dtype=float)
         # the warm stage: one compiled call (checks the legs, solves, measures)
-        out = self._lm.run(self.last_x, arr, WARM_MAX_ITER, self.leg_rtol, math.inf, None, self.last_legs)
+        settings = self._warm_settings
+        if settings is None or self._warm_key != (model.leg_limits, self.leg_rtol):
+            settings = self._warm_settings = lm.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol)
+            self._warm_key = (model.leg_limits, self.leg_rtol)
+        solver = self._lm
+        out = np.empty(solver.n_out)
+        lm.lm_kernel(solver.kind, solver.data, solver.platform, arr, self.last_x, self.last_x, self.last_legs,
+                     settings, out, solver.work)
         n = self._n
-        info = out[n + 7:]
+        info = out[n + 7:].tolist()
         if info[lm.I_INPUT_OK] == 0.0:
             model.check_legs(arr)                       # raises with the reason
         if info[lm.I_CONVERGED] == 1.0 and \
                 info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
             x = out[:n]
             self.last_x, self.last_legs = x, arr
-            cond = float(info[lm.I_CONDITIONING])
+            cond = info[lm.I_CONDITIONING]
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
             return Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]),
-                            float(info[lm.I_FITNESS]), int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
-                            self.solver, "warm start, leg residuals at round-off" + note,
-                            float(info[lm.I_MAX_RESIDUAL]))
-        return self._search(arr, t0, self._lm.result(out))
+                            info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
+                            self.solver, "warm start, leg residuals at round-off" + note, info[lm.I_MAX_RESIDUAL])
+        return self._search(arr, t0, solver.result(out))
 
     def _run(self, legs, deadline, **init):
         budget = max(deadline - time.perf_counter(), 0.0)

@@ -16,7 +16,7 @@ from ..estimator import Estimator
 from ..solve_all import solve_all, wide_range
 from .common import Run, involuntary_switches, percentiles_ms
 from .papers import PUBLISHED
-from .peers import PEER_SOLVERS, SCIPY_VARIANTS, PeerMissing, ScipyWarm, available
+from .peers import PEER_SOLVERS, SCIPY_VARIANTS, NumpyNewton, PeerMissing, ScipyWarm, available
 
 
 def _bar(iterable, desc, progress, total=None):
@@ -197,14 +197,17 @@ class ScipyRow:
 
 
 def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
-    why = available("scipy")
-    if why is not None:
-        print(f"bench: scipy {why}; its rows are marked 'not installed'")
-        return [ScipyRow(m, j, status="not installed", note=why) for m, j in SCIPY_VARIANTS]
-    out = []
+    """scipy's variants and a plain NumPy Newton iteration, each from the Estimator's warm starts."""
     model = sc.model
-    for method, jac in SCIPY_VARIANTS:
-        solver = ScipyWarm(model, method, jac)
+    solvers_ = [NumpyNewton(model)]
+    why = available("scipy")
+    if why is None:
+        solvers_ += [ScipyWarm(model, method, jac) for method, jac in SCIPY_VARIANTS]
+    else:
+        print(f"bench: scipy {why}; its rows are marked 'not installed'")
+    out = []
+    for solver in solvers_:
+        method, jac = solver.method, solver.jac
         for k in range(min(10, len(trk.legs))):      # warm-up
             solver.solve(trk.starts[k], trk.legs[k])
         lat, res, nfev, pre = [], [], [], []
@@ -218,6 +221,8 @@ def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
             res.append(max_leg_residual(model, x, trk.legs[k]))
             nfev.append(n)
         out.append(ScipyRow(method, jac, np.array(lat), np.array(res), np.array(nfev), np.array(pre, dtype=bool)))
+    if why is not None:
+        out += [ScipyRow(m, j, status="not installed", note=why) for m, j in SCIPY_VARIANTS]
     return out
 
 

@@ -292,21 +292,26 @@ def _damped_solve(A, lam, g, step, L):
 @njit(cache=True, error_model="numpy")
 def jacobi_svd(A, V, s):
     """One-sided Jacobi SVD (Hestenes 1958) of ``A`` (m x n, m >= n), in place: on return
-    ``A = U diag(s)`` (columns) and ``A_in V = U diag(s)``; singular values unsorted."""
+    ``A = U diag(s)`` (columns) and ``A_in V = U diag(s)``; singular values unsorted.  The squared
+    column norms are carried through each rotation (``alpha - t gamma``, ``beta + t gamma``) and
+    recomputed at every sweep, so a pair costs one dot product."""
     m, n = A.shape
     for i in range(n):
         for j in range(n):
             V[i, j] = 1.0 if i == j else 0.0
     for _ in range(JACOBI_SWEEPS):
+        for j in range(n):
+            acc = 0.0
+            for k in range(m):
+                acc += A[k, j] * A[k, j]
+            s[j] = acc
         rotated = False
         for p in range(n - 1):
             for q in range(p + 1, n):
-                alpha = 0.0
-                beta = 0.0
+                alpha = s[p]
+                beta = s[q]
                 gamma = 0.0
                 for k in range(m):
-                    alpha += A[k, p] * A[k, p]
-                    beta += A[k, q] * A[k, q]
                     gamma += A[k, p] * A[k, q]
                 if not abs(gamma) > JACOBI_TOL * math.sqrt(alpha * beta):
                     continue
@@ -323,6 +328,8 @@ def jacobi_svd(A, V, s):
                     vp = V[k, p]
                     V[k, p] = c * vp - sn * V[k, q]
                     V[k, q] = sn * vp + c * V[k, q]
+                s[p] = max(alpha - t * gamma, 0.0)
+                s[q] = max(beta + t * gamma, 0.0)
         if not rotated:
             break
     for j in range(n):
