@@ -1,20 +1,44 @@
-"""The per-message logic of the node: warm start, escalation, branch choice.
+"""The per-message logic of the node: warm start, escalation, branch choice, status.
 
 Rolland & Chandra (2016, section 5.5) show that an initial population drawn near
 one solution isolates that solution; Funes Lora et al. (2018) inject the
 previous pose into the population and keep the configuration nearest the
 previous one.  For every new set of leg lengths the estimator
 
-1. **warm**: runs the solver from a population around the previous estimate
-   (the previous estimate itself included), with a spread equal to how far the
-   legs moved, and polishes; accepted when it converges to a solution near the
-   previous one;
-2. **widened**: if not, the same with a spread ``WIDEN_FACTOR`` times larger;
-3. **cold**: if still not, a search from the papers' wide initial range;
+1. **warm** (with the refinement on, the node's everyday case): one compiled
+   Levenberg-Marquardt call from the previous estimate
+   (:mod:`glpma_ros.solvers.lm`); accepted when it converges to a solution near
+   the previous one;
+2. otherwise the population stages: **warm** (the solver's population around the
+   previous estimate, with a spread equal to how far the legs moved; without the
+   refinement this is the first stage), **widened** (the same with a spread
+   ``WIDEN_FACTOR`` times larger), **cold** (the papers' wide initial range);
 
 and, among the converged candidates, keeps the one nearest the previous pose,
-so that it does not jump assembly mode on a continuous trajectory.  Stages share
-the time budget (``STAGE_SHARE``): the deadline is hard.
+so that it does not jump assembly mode on a continuous trajectory.  The
+population stages share the time budget (``STAGE_SHARE``): the deadline is hard.
+
+**Convergence** (with the refinement) is judged on the leg residuals of the
+pose, relative to the geometry: ``max |r_i| <= leg_rtol * max(scale, max leg)``
+(``leg_rtol`` default :data:`~glpma_ros.solvers.lm.LEG_RTOL`, near round-off),
+so the same digits are reached whether the configuration is in mm, cm or m, and
+the hexapod needs no search on the floating-point grid to meet an absolute
+threshold.  ``tolerance`` (default 1e-20, the papers' threshold, in config
+unit squared) stays the fitness at which the evolutionary search stops and
+hands over to the refinement; the papers' fitness of the estimate is still
+reported (``Estimate.fitness``).  Without the refinement (``polish=False``, the
+papers' setting) convergence is the papers' ``fitness < tolerance``.
+
+**Statuses come from work done, not from the clock.**  Every point a search
+ends on is polished by the compiled Levenberg-Marquardt without a deadline
+(microseconds, bounded by its iteration cap): a polish that meets the leg
+criterion is ``converged`` however little of the search fitted in the budget;
+otherwise the best polished point decides: ``near_singular`` (leg Jacobian
+nearly singular, small residual), ``no_solution`` (a residual that the polish
+cannot lower: a stationary point of the fitness, or a polish that stalled; no
+real assembly there); only when neither holds is
+the status ``budget_exhausted`` (the time ran out) or ``max_evals`` (the
+evaluation caps did).
 """
 from __future__ import annotations
 
@@ -25,12 +49,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import solvers
+from .config import UNIT_TO_METRES
 from .errors import InputError
 from .models.base import Pose
+from .solvers import lm
+from .solvers.driver import POLISH_MAX_ITER
 
 #: spread of the widened stage relative to the warm one
 WIDEN_FACTOR = 10.0
-#: share of the remaining budget each stage may use (warm, widened, cold)
+#: share of the remaining budget each population stage may use (warm, widened, cold)
 STAGE_SHARE = (0.4, 0.5, 1.0)
 #: a converged solution farther than this many leg displacements from the previous
 #: pose (in platform-joint distance) triggers the search for a nearer branch
@@ -39,22 +66,41 @@ CONTINUITY_FACTOR = 20.0
 MIN_SPREAD = 1e-6
 #: largest warm-start spread, relative to the scale (beyond it the cold stage's range is the better start)
 MAX_SPREAD = 10.0
+#: iteration cap of the warm stage's Levenberg-Marquardt (as the driver's refinement)
+WARM_MAX_ITER = POLISH_MAX_ITER
+#: iteration cap of the polish that settles a search's end point (no deadline: microseconds)
+SETTLE_MAX_ITER = lm.MAX_ITER
 #: an unconverged fitness whose RMS leg residual exceeds this share of the scale
 #: means the legs have no real assembly (rather than too little time)
 NO_SOLUTION_RMS = 1e-6
 #: |J^T r| / (|J| |r|) below which the best point is a stationary point of the fitness
 STATIONARY = 1e-2
+#: a polish that lowered the fitness by less than this fraction over its last 10-20 iterations has
+#: stalled: Levenberg-Marquardt approaching a real assembly lowers it by more than 75 % per iteration
+#: even at a double root, while one creeping toward a singular least-squares point (where unreachable
+#: legs usually end) crawls
+STALLED = 0.1
 #: reciprocal condition number of the leg Jacobian below which a pose is near a
 #: singularity (assembly modes meet; the seed examples are at 0.02-0.13)
 NEAR_SINGULAR = 1e-3
 #: an unconverged best point near a singularity counts as "near singular" rather
 #: than "no solution" while its RMS residual is below this share of the scale
 NEAR_SINGULAR_RMS = 1e-2
+#: starts of the probe that decides a failed search: Levenberg-Marquardt from fixed starts drawn in the
+#: papers' initial range (on the seed examples one start in five or more converges on any feasible legs)
+PROBE_STARTS = 32
+#: seed of the probe's starts (fixed: the probe is the same work on every machine)
+PROBE_SEED = 0
+#: the unit of the papers' initial ranges (``solvers.PAPER_SETTINGS``; their manipulators are in mm)
+PAPER_UNIT = "mm"
+#: solver variables that are angles (radians: the same in every unit of length)
+ANGLE_VARIABLES = frozenset({"theta"})
 
 STATUS_CONVERGED = "converged"
 STATUS_NO_SOLUTION = "no_solution"
 STATUS_BUDGET = "budget_exhausted"
 STATUS_NEAR_SINGULAR = "near_singular"
+STATUS_MAX_EVALS = "max_evals"
 
 
 @dataclass
@@ -63,12 +109,13 @@ class Estimate:
     start: str                 # warm | widened | cold
     x: np.ndarray | None       # solver variables (config unit)
     pose: Pose | None
-    fitness: float
+    fitness: float             # the papers' fitness of x (config unit squared)
     evaluations: int
     elapsed_s: float
     conditioning: float        # reciprocal condition number of the leg Jacobian, 0 = singular
     solver: str
     message: str = ""
+    max_residual: float = math.nan   # max |IK(x) - legs| over the legs (config unit)
 
     @property
     def converged(self) -> bool:
@@ -79,18 +126,41 @@ class Estimate:
         return self.conditioning < NEAR_SINGULAR
 
 
+def cold_range(model):
+    """The papers' initial range for ``model`` as per-variable ``(low, high)`` in its config unit:
+    the same physical range whatever the unit (lengths converted from :data:`PAPER_UNIT`, angles
+    kept)."""
+    low, high = solvers.PAPER_SETTINGS[model.kind]["init_range"]
+    factor = UNIT_TO_METRES[PAPER_UNIT] / UNIT_TO_METRES.get(model.unit, UNIT_TO_METRES[PAPER_UNIT])
+    f = np.array([1.0 if name in ANGLE_VARIABLES else factor for name in model.variable_names])
+    return low * f, high * f
+
+
 class Estimator:
-    """Keeps the last solution and solves each new set of leg lengths from it."""
+    """Keeps the last solution and solves each new set of leg lengths from it.
+
+    ``tolerance``: fitness (config unit squared) at which the evolutionary search stops (the papers'
+    1e-20 by default) and, with ``polish=False``, the convergence criterion; ``leg_rtol``: with the
+    refinement, a pose has converged when its largest leg residual is at most ``leg_rtol`` times
+    ``max(scale, max leg)`` (see the module docstring)."""
 
     def __init__(self, model, solver="glpma", time_budget_s=0.002, tolerance=solvers.common.DEFAULT_TOLERANCE,
                  seed=0, polish=True, initial_pose=None, population=None, local_population=None,
-                 ls_interval=None, ls_intensity=None, max_evals=None):
+                 ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL):
         self.model = model
         self.time_budget_s = float(time_budget_s)
         self.tolerance = float(tolerance)
+        self.leg_rtol = float(leg_rtol)
         self.polish = bool(polish)
         self.max_evals = max_evals
         self.rng = np.random.default_rng(seed)
+        self._lm = lm.LocalSolver(model)
+        self._n = model.n_vars
+        self._warm_settings = None          # the warm stage's kernel settings, built on first use
+        self._near_floor = MIN_SPREAD * model.scale
+        self._cold_range = cold_range(model)
+        self._probe_starts = np.ascontiguousarray(
+            np.random.default_rng(PROBE_SEED).uniform(*self._cold_range, size=(PROBE_STARTS, model.n_vars)))
         self.set_solver(solver, population=population, local_population=local_population,
                         ls_interval=ls_interval, ls_intensity=ls_intensity)
         self.reset(initial_pose)
@@ -109,90 +179,152 @@ class Estimator:
         if initial_pose is None or len(initial_pose) == 0:
             self.last_x = self.last_legs = None
         else:
-            self.last_x = self.model.check_variables(initial_pose)
-            self.last_legs = self.model.inverse_kinematics(self.last_x)
+            self.last_x = np.array(self.model.check_variables(initial_pose), dtype=float)
+            self.last_legs = np.ascontiguousarray(self.model.inverse_kinematics(self.last_x), dtype=float)
 
     @property
     def has_warm_state(self) -> bool:
         return self.last_x is not None
 
-    def _stationary(self, x, legs) -> bool:
-        """The residual is orthogonal to the Jacobian's range at ``x``: a local
-        minimum with a nonzero residual (no real assembly there), not a search
-        that merely ran out of time."""
-        if not np.all(np.isfinite(x)):
-            return False
-        with np.errstate(over="ignore", invalid="ignore"):   # huge legs: not decidable, not stationary
-            r, J = self.model.pose_residuals_jacobian(self.model.pose_state(x), legs)
-            J = J * self.model.pose_column_scale
-            denominator = float(np.linalg.norm(J) * np.linalg.norm(r))
-            gradient = float(np.linalg.norm(J.T @ r))
-        return math.isfinite(denominator) and denominator > 0 and gradient <= STATIONARY * denominator
-
     # -- solving ------------------------------------------------------------------
+    def estimate(self, legs) -> Estimate:
+        """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
+        t0 = time.perf_counter()
+        model = self.model
+        if self.last_x is None or not self.polish:
+            return self._search(np.array(model.check_legs(legs), dtype=float), t0, None)
+        try:
+            arr = np.array(legs, dtype=float)           # a copy: kept as the next warm start's legs
+        except (TypeError, ValueError, OverflowError):
+            model.check_legs(legs)                      # raises with the reason
+            raise
+        if arr.shape != self.last_legs.shape:
+            arr = np.array(model.check_legs(arr), dtype=float)
+        # the warm stage: one compiled call (checks the legs, solves, measures)
+        settings = self._warm_settings
+        if settings is None or self._warm_key != (model.leg_limits, self.leg_rtol):
+            settings = self._warm_settings = lm.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol)
+            self._warm_key = (model.leg_limits, self.leg_rtol)
+        solver = self._lm
+        out = np.empty(solver.n_out)
+        lm.lm_kernel(solver.kind, solver.data, solver.platform, arr, self.last_x, self.last_x, self.last_legs,
+                     settings, out, solver.work)
+        n = self._n
+        info = out[n + 7:].tolist()
+        if info[lm.I_INPUT_OK] == 0.0:
+            model.check_legs(arr)                       # raises with the reason
+        if info[lm.I_CONVERGED] == 1.0 and \
+                info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
+            x = out[:n]
+            self.last_x, self.last_legs = x, arr
+            cond = info[lm.I_CONDITIONING]
+            note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
+            return Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]),
+                            info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
+                            self.solver, "warm start, leg residuals at round-off" + note, info[lm.I_MAX_RESIDUAL])
+        return self._search(arr, t0, solver.result(out))
+
     def _run(self, legs, deadline, **init):
         budget = max(deadline - time.perf_counter(), 0.0)
         return solvers.solve(self.solver, self.model, legs, rng=self.rng, tolerance=self.tolerance,
                              budget_s=budget, polish=self.polish, max_evals=self.max_evals,
                              **init, **self.params)
 
-    def estimate(self, legs) -> Estimate:
-        """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
-        legs = self.model.check_legs(legs)
-        t0 = time.perf_counter()
-        deadline = t0 + self.time_budget_s
+    def _polish(self, x, legs) -> lm.LocalResult:
+        """The compiled Levenberg-Marquardt from ``x``, without a deadline; distance from the previous pose."""
+        return self._lm.solve(np.ascontiguousarray(x, dtype=float), legs, max_iter=SETTLE_MAX_ITER,
+                              rtol=self.leg_rtol, x_ref=self.last_x, stall=STALLED)
+
+    def _settle(self, result, legs):
+        """``(point, status_point, evaluations)`` for a search's result: ``point`` is what the estimate
+        reports (with the refinement: the polished end point or refinement point, whichever is better;
+        without it: the search's own point, converged by the papers' criterion); ``status_point`` the
+        polished point the status is decided on."""
+        starts = [result.x]
+        if result.refined_x is not None and not np.array_equal(result.refined_x, result.x):
+            starts.append(result.refined_x)
+        polished = [self._polish(x, legs) for x in starts]
+        nfev = sum(p.nfev for p in polished)
+        best = min(polished, key=lambda p: (not p.converged, p.leg_fitness))
+        if self.polish:
+            return best, best, nfev
+        # the search's own point; the polish above only informs the status
+        x = np.asarray(result.x, dtype=float)
+        at = self._lm.solve(np.ascontiguousarray(x), legs, max_iter=0, rtol=self.leg_rtol, x_ref=self.last_x)
+        own = at._replace(x=x, converged=result.success, fitness=float(result.fun),
+                          distance=0.0 if self.last_x is None else self.model.distance(x, self.last_x))
+        return own, best, nfev + at.nfev
+
+    def _search(self, legs, t0, warm) -> Estimate:
+        """The population stages, then the decision (``warm``: the warm stage's LocalResult, or None)."""
         model = self.model
-        candidates = []           # (distance to previous, result, stage)
+        deadline = t0 + self.time_budget_s
+        candidates = []           # (distance to previous, point, stage)
+        tried = []                # (status point, stage)
         evaluations = 0
-        best = None
-        stages = []
+        out_of_time = False
         movement = 0.0
+        near = self._near_floor
+        stages = []
+        if warm is not None:
+            evaluations += warm.nfev
+            tried.append((warm, "warm"))
+            if warm.converged:    # but far from the previous pose: look for a nearer branch
+                candidates.append((warm.distance, warm, "warm"))
         if self.last_x is not None:
             movement = float(np.max(np.abs(legs - self.last_legs)))
+            near = max(CONTINUITY_FACTOR * movement, near)
             spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
         # a cold-only estimate gets the cold stage's share, i.e. the whole budget
         for (stage, spread), share in zip(stages, STAGE_SHARE[-len(stages):]):
             now = time.perf_counter()
-            if now >= deadline:
+            if now >= deadline and tried:   # the first search runs even when the budget is gone
+                out_of_time = True
                 break
-            stage_deadline = now + share * (deadline - now)
+            stage_deadline = now + share * max(deadline - now, 0.0)
             if spread is None:
-                result = self._run(legs, stage_deadline)
+                result = self._run(legs, stage_deadline, init_range=self._cold_range)
             else:
                 result = self._run(legs, stage_deadline, center=self.last_x, spread=model.spread_vector(spread))
-            evaluations += result.nfev
-            if best is None or result.fun < best[0].fun:
-                best = (result, stage)
-            if result.success:
-                if self.last_x is None:
-                    candidates.append((0.0, result, stage))
+            point, status_point, nfev = self._settle(result, legs)
+            evaluations += result.nfev + nfev
+            out_of_time = out_of_time or result.status == solvers.BUDGET_EXHAUSTED
+            tried.append((status_point, stage))
+            if point.converged:
+                candidates.append((point.distance, point, stage))
+                if self.last_x is None or point.distance <= near:
                     break
-                dist = model.distance(result.x, self.last_x)
-                candidates.append((dist, result, stage))
-                if dist <= max(CONTINUITY_FACTOR * movement, MIN_SPREAD * model.scale):
-                    break
+        probe = None
+        if not candidates:
+            # the probe: the same fixed work on every machine, whatever fitted in the budget
+            probe = self._lm.multistart(self._probe_starts, legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol,
+                                        x_ref=self.last_x, stall=STALLED)
+            evaluations += probe.nfev
+            tried.append((probe, "cold"))
+            if probe.converged and self.polish:
+                candidates.append((probe.distance, probe, "cold"))
         elapsed = time.perf_counter() - t0
         if candidates:
-            _, result, stage = min(candidates, key=lambda c: c[0])
-            self.last_x, self.last_legs = result.x, legs
-            cond = model.conditioning(result.x, legs)
-            note = f", near a singularity (conditioning {cond:.2g})" if cond < NEAR_SINGULAR else ""
-            return Estimate(STATUS_CONVERGED, stage, result.x, model.pose(result.x), result.fun, evaluations,
-                            elapsed, cond, self.solver, f"{stage} start, {result.message}{note}")
-        result, stage = best if best is not None else (None, stages[0][0])
-        if result is None:
-            return Estimate(STATUS_BUDGET, stage, None, None, math.inf, evaluations, elapsed, 0.0, self.solver,
-                            "time budget exhausted before a search could start")
-        rms = math.sqrt(result.fun / model.n_res) if math.isfinite(result.fun) else math.inf
-        cond = model.conditioning(result.x, legs) if np.all(np.isfinite(result.x)) else 0.0
+            _, p, stage = min(candidates, key=lambda c: c[0])
+            self.last_x, self.last_legs = p.x, legs
+            note = f", near a singularity (conditioning {p.conditioning:.2g})" if p.conditioning < NEAR_SINGULAR else ""
+            how = "leg residuals at round-off" if self.polish else "fitness below tolerance"
+            return Estimate(STATUS_CONVERGED, stage, p.x, Pose(p.position, p.orientation), p.fitness, evaluations,
+                            elapsed, p.conditioning, self.solver, f"{stage} start, {how}{note}", p.max_residual)
+        p, stage = min(tried, key=lambda t: t[0].leg_fitness)
+        rms = math.sqrt(p.leg_fitness / model.n_legs)
+        cond = p.conditioning
         if cond < NEAR_SINGULAR and rms < NEAR_SINGULAR_RMS * model.scale:
             status, why = STATUS_NEAR_SINGULAR, (f"near a singularity: not converged (conditioning {cond:.2g}, "
                                                  f"RMS residual {rms:.3g} {model.unit})")
-        elif rms > NO_SOLUTION_RMS * model.scale and any(
-                self._stationary(x, legs) for x in (result.x, result.refined_x) if x is not None):
+        elif rms > NO_SOLUTION_RMS * model.scale and not probe.converged and \
+                (p.stationarity <= STATIONARY or p.progress < STALLED):
             status, why = STATUS_NO_SOLUTION, f"no real assembly found (RMS residual {rms:.3g} {model.unit})"
+        elif out_of_time:
+            status, why = STATUS_BUDGET, f"not converged within the budget (RMS residual {rms:.3g} {model.unit})"
         else:
-            status, why = STATUS_BUDGET, f"not converged within the budget (fitness {result.fun:.3g})"
-        return Estimate(status, stage, result.x, None, result.fun, evaluations, elapsed, cond, self.solver, why)
+            status, why = STATUS_MAX_EVALS, f"not converged within the evaluation cap (RMS residual {rms:.3g} {model.unit})"
+        return Estimate(status, stage, p.x, None, p.fitness, evaluations, elapsed, cond, self.solver, why,
+                        p.max_residual)

@@ -38,7 +38,8 @@ def test_markdown_has_every_table(report):
     for peer in ("pypop7 G3PCX", "pymoo G3PCX"):
         assert any(ln.startswith(f"| {peer} |") for ln in text.splitlines()), peer
     assert "| 3-RPR | 30 | 20 |" in text                      # tracking row
-    assert "| ours: Estimator (warm, GLPMA + LM) |" in text and "| scipy `lm`, analytic |" in text
+    assert "| ours: Estimator (warm: compiled LM) |" in text and "| scipy `lm`, analytic |" in text
+    assert "| plain NumPy Newton |" in text and "ours/row (p99)" in text
     assert "| 3-RPR | 20 | U[" in text                          # solve_all row: 20 runs
     assert "| 3-RPR, infeasible legs, default (polish) | glpma | 1 | 2 |" in text
 

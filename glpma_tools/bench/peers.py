@@ -213,3 +213,37 @@ class ScipyWarm:
 
 
 SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]
+
+
+class NumpyNewton:
+    """A plain NumPy Gauss-Newton iteration from the warm start: what a user writes in a few lines
+    with the model's pose parameterisation and analytic Jacobian (``pose_residuals_jacobian``,
+    ``pose_retract``), undamped, stopped by the same leg criterion as ours
+    (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after ``max_iter`` steps."""
+
+    method, jac = "newton", "numpy"
+
+    def __init__(self, model, max_iter=20):
+        from glpma_ros.solvers.lm import LEG_RTOL
+        self.model, self.max_iter, self.rtol = model, max_iter, LEG_RTOL
+
+    def solve(self, x_start, legs):
+        """Returns (variables, evaluations)."""
+        model = self.model
+        tol = self.rtol * max(model.scale, float(np.max(legs)))
+        state = model.pose_state(x_start)
+        r, J = model.pose_residuals_jacobian(state, legs)
+        nfev, extra = 1, 1
+        for _ in range(self.max_iter):
+            if np.max(np.abs(r)) <= tol:
+                if extra == 0:
+                    break
+                extra -= 1
+            try:
+                step = np.linalg.solve(J, -r)
+            except np.linalg.LinAlgError:       # singular Jacobian: a plain Newton stops here
+                break
+            state = model.pose_retract(state, step)
+            r, J = model.pose_residuals_jacobian(state, legs)
+            nfev += 1
+        return model.pose_variables(state), nfev

@@ -10,7 +10,7 @@ import numpy as np
 from glpma_ros.estimator import Estimator
 from glpma_tools.sim.trajectories import variables_along
 from glpma_tools.stats import distribution
-from .peers import SCIPY_VARIANTS, ScipyWarm, available
+from .peers import SCIPY_VARIANTS, NumpyNewton, ScipyWarm, available
 from .timing import timed_calls, warm_up
 
 #: steps of the loop the warm-up solves (on an Estimator of its own)
@@ -81,19 +81,24 @@ class ScipyRow:
 
 
 def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
-    why = available("scipy")
-    if why is not None:
-        print(f"bench: scipy {why}; its rows are marked 'not installed'")
-        return [ScipyRow(m, j, status="not installed", note=why) for m, j in SCIPY_VARIANTS]
-    out = []
+    """scipy's variants and a plain NumPy Newton iteration, each from the Estimator's warm starts."""
     model = sc.model
+    solvers_ = [NumpyNewton(model)]
+    why = available("scipy")
+    if why is None:
+        solvers_ += [ScipyWarm(model, method, jac) for method, jac in SCIPY_VARIANTS]
+    else:
+        print(f"bench: scipy {why}; its rows are marked 'not installed'")
+    out = []
     m = min(WARM_UP_STEPS, len(trk.legs))
-    for method, jac in SCIPY_VARIANTS:
-        solver = ScipyWarm(model, method, jac)
+    for solver in solvers_:
+        method, jac = solver.method, solver.jac
         warm_up(lambda i: solver.solve(trk.starts[i % m], trk.legs[i % m]), trk.budget_ms)
         calls = timed_calls(lambda k: solver.solve(trk.starts[k], trk.legs[k]), len(trk.legs), trk.budget_ms,
-                            f"{sc.label} scipy {method}/{jac}", progress, stop_early=False)
+                            f"{sc.label} {method}/{jac}", progress, stop_early=False)
         res = [max_leg_residual(model, x, trk.legs[k]) for k, (x, _) in enumerate(calls.results)]
         out.append(ScipyRow(method, jac, calls.elapsed_s, np.array(res), np.array([n for _, n in calls.results]),
                             calls.preempted))
+    if why is not None:
+        out += [ScipyRow(m_, j, status="not installed", note=why) for m_, j in SCIPY_VARIANTS]
     return out

@@ -1,0 +1,165 @@
+"""The compiled warm path (glpma_ros/solvers/lm.py): the same poses as a plain NumPy Newton iteration
+on the models' own pose parameterisation, to round-off, on the tracking trajectories of both
+manipulators; its figures (conditioning, stationarity, distance, pose, fitness) equal the models'
+NumPy ones; the small linear algebra it carries (Jacobi SVD, Kabsch fit, quaternions) equals NumPy's."""
+import math
+
+import numpy as np
+import pytest
+
+from glpma_ros.estimator import Estimator
+from glpma_ros.models.hexapod_66 import kabsch, quaternion_from_matrix, rotation_from_vector
+from glpma_ros.solvers import lm, refine
+from trajectories import hexapod_helix, rpr_loop
+
+#: leg residuals and pose differences "at round-off": this share of the geometry's scale
+ROUND_OFF = 1e-12
+
+
+def numpy_newton(model, x0, legs, iterations=8):
+    """Reference: undamped Gauss-Newton in the model's pose parameterisation, NumPy only (the
+    method the compiled path replaces), run to round-off."""
+    state = model.pose_state(x0)
+    for _ in range(iterations):
+        r, J = model.pose_residuals_jacobian(state, legs)
+        state = model.pose_retract(state, np.linalg.lstsq(J, -r, rcond=None)[0])
+    return model.canonical(model.pose_variables(state))
+
+
+def _steps(model, truth):
+    return [(truth[k - 1], model.inverse_kinematics(truth[k]), truth[k]) for k in range(1, len(truth))]
+
+
+@pytest.fixture(scope="module")
+def hex_start(hexapod, hex_published):
+    x, f, _ = refine.polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
+    return x
+
+
+@pytest.mark.parametrize("kind", ["rpr", "hexapod"])
+def test_warm_tracking_equals_numpy_newton_to_round_off(kind, rpr, rpr_solutions, hexapod, hex_start):
+    """Each step from the previous estimate: converged in the warm stage, the pose of the NumPy Newton
+    iteration from the same start to round-off, on the same assembly mode as the trajectory."""
+    if kind == "rpr":
+        model, truth = rpr, rpr_loop(rpr_solutions[0], steps=300)
+    else:
+        model, truth = hexapod, hexapod_helix(hexapod, hex_start, steps=300)
+    est = Estimator(model, initial_pose=truth[0], time_budget_s=1.0)
+    evaluations = []
+    for k in range(1, len(truth)):
+        start = est.last_x.copy()
+        legs = model.inverse_kinematics(truth[k])
+        e = est.estimate(legs)
+        assert e.converged and e.start == "warm", (k, e.message)
+        reference = numpy_newton(model, start, legs)
+        assert model.distance(e.x, reference) <= ROUND_OFF * model.scale, (k, model.distance(e.x, reference))
+        assert model.distance(e.x, truth[k]) <= ROUND_OFF * model.scale      # no assembly-mode change
+        assert e.max_residual <= ROUND_OFF * model.scale
+        assert np.max(np.abs(model.inverse_kinematics(e.x) - legs)) <= ROUND_OFF * model.scale
+        evaluations.append(e.evaluations)
+    # steady tracking: a few Levenberg-Marquardt steps plus the final evaluation, no search
+    assert max(evaluations) <= 10, max(evaluations)
+
+
+@pytest.mark.parametrize("kind", ["rpr", "hexapod"])
+def test_kernel_figures_equal_the_models_numpy_ones(kind, rpr, rpr_solutions, hexapod, hex_start):
+    model, x_true = (rpr, rpr_solutions[1]) if kind == "rpr" else (hexapod, hex_start)
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        legs = model.inverse_kinematics(x_true) * (1.0 + 1e-3 * rng.standard_normal(model.n_legs))
+        x0 = x_true + model.spread_vector(1e-2 * model.scale) * rng.standard_normal(model.n_vars)
+        r = lm.local_solve(model, x0, legs)
+        assert r.converged and r.max_residual <= lm.LEG_RTOL * max(model.scale, legs.max())
+        assert model.distance(r.x, numpy_newton(model, x0, legs)) <= ROUND_OFF * model.scale
+        assert r.conditioning == pytest.approx(model.conditioning(r.x, legs), rel=1e-9)
+        assert r.distance == pytest.approx(model.distance(r.x, x0), rel=1e-12, abs=1e-12 * model.scale)
+        assert r.fitness == pytest.approx(float(model.fitness(r.x, legs)[0]), rel=1e-9, abs=1e-30)
+        pose = model.pose(r.x)
+        np.testing.assert_allclose(r.position, pose.position, atol=ROUND_OFF * model.scale)
+        np.testing.assert_allclose(r.orientation, pose.orientation, atol=1e-12)
+        # stationarity |J^T r| / (|J| |r|) with the column-scaled Jacobian, at a point off the solution
+        a = lm.local_solve(model, x0, legs, max_iter=0)
+        res, J = model.pose_residuals_jacobian(model.pose_state(a.x), legs)
+        J = J * model.pose_column_scale
+        expected = np.linalg.norm(J.T @ res) / (np.linalg.norm(J) * np.linalg.norm(res))
+        assert a.stationarity == pytest.approx(expected, rel=1e-9)
+        assert a.nit == 0 and a.nfev == 1
+
+
+def test_jacobi_svd_equals_numpy():
+    rng = np.random.default_rng(0)
+    for n in (3, 6):
+        for cond in (1.0, 1e-4, 1e-12, 0.0):
+            A = rng.standard_normal((n, n)) @ np.diag(np.r_[np.ones(n - 1), cond])
+            A = A @ np.linalg.qr(rng.standard_normal((n, n)))[0]
+            work, V, s = A.copy(), np.empty((n, n)), np.empty(n)
+            lm.jacobi_svd(work, V, s)
+            expected = np.linalg.svd(A, compute_uv=False)
+            np.testing.assert_allclose(np.sort(s)[::-1], expected, rtol=0, atol=1e-14 * expected[0])
+            np.testing.assert_allclose(V.T @ V, np.eye(n), atol=1e-14)
+            np.testing.assert_allclose(A @ V, work, atol=1e-13 * expected[0])
+
+
+def test_quaternions_and_rodrigues_equal_the_models(hexapod):
+    rng = np.random.default_rng(1)
+    M = np.empty((3, 3))
+    q = np.empty(4)
+    back = np.empty(9)
+    for w in [rng.normal(0, 2.0, 3) for _ in range(50)] + [np.array([math.pi, 0, 0]), np.array([0, 1e-10, 0])]:
+        R = rotation_from_vector(w)
+        lm.rotation_from_vector_into(w[0], w[1], w[2], M)
+        np.testing.assert_allclose(M, R, atol=1e-15)
+        lm.quaternion_from_rows(R.reshape(-1), q)
+        np.testing.assert_allclose(q, quaternion_from_matrix(R), atol=1e-15)
+        lm.rows_from_quaternion(q, back)
+        np.testing.assert_allclose(back.reshape(3, 3), R, atol=1e-15)
+
+
+def test_kabsch_start_equals_the_models_rigid_fit(hexapod, hex_start):
+    """A non-rigid nine-variable start is read in as the model's least-squares rigid fit."""
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        x = hex_start + rng.normal(0, 5.0, 9)
+        a = lm.local_solve(hexapod, x, hexapod.example_leg_lengths, max_iter=0)
+        R, p = kabsch(hexapod.platform[:3], x.reshape(3, 3))
+        np.testing.assert_allclose(a.x, (p + hexapod.platform[:3] @ R.T).reshape(-1), atol=1e-11)
+        np.testing.assert_allclose(a.position, p, atol=1e-11)
+
+
+def test_refine_uses_the_compiled_lm(rpr, rpr_solutions, hexapod, hex_published):
+    """One implementation: refine.levenberg_marquardt returns the kernel's solve; refine.polish also
+    meets the papers' absolute threshold on the hexapod (round-off search on its nine variables)."""
+    x0 = rpr_solutions[0] + [1.0, -1.0, 0.02]
+    x, f, nfev, nit = refine.levenberg_marquardt(rpr, x0, rpr.example_leg_lengths)
+    r = lm.local_solve(rpr, x0, rpr.example_leg_lengths, max_iter=50, ftol=1e-20)
+    np.testing.assert_array_equal(x, r.x)
+    assert (f, nfev, nit) == (r.leg_fitness, r.nfev, r.nit) and f < 1e-20
+    for k in (0, 7, 10):
+        x, f, _ = refine.polish(hexapod, hex_published[k], hexapod.example_leg_lengths, np.random.default_rng(0))
+        assert f < 1e-20
+        assert np.max(np.abs(hexapod.inverse_kinematics(x) - 1250.0)) <= 1e-12 * hexapod.scale
+
+
+def test_multistart_reports_the_first_converged_start_and_counts_all(rpr):
+    legs = rpr.example_leg_lengths
+    solver = lm.LocalSolver(rpr)
+    starts = np.ascontiguousarray(np.random.default_rng(3).uniform(-50.0, 50.0, (40, 3)))
+    singles = [solver.solve(np.ascontiguousarray(s), legs, max_iter=6) for s in starts]
+    first = next(k for k, s in enumerate(singles) if s.converged)
+    assert first > 0                    # with 6 iterations some starts fail: the order matters here
+    r = solver.multistart(starts, legs, max_iter=6)
+    assert r.converged
+    np.testing.assert_array_equal(r.x, singles[first].x)
+    assert r.nfev == sum(s.nfev for s in singles[:first + 1]) and r.nit == sum(s.nit for s in singles[:first + 1])
+    # none converges: the least leg fitness is reported
+    r = solver.multistart(starts, np.array([60.0, 60.0, 60.0]), max_iter=6)
+    singles = [solver.solve(np.ascontiguousarray(s), np.array([60.0, 60.0, 60.0]), max_iter=6) for s in starts]
+    assert not r.converged and r.leg_fitness == min(s.leg_fitness for s in singles)
+
+
+def test_bad_legs_are_refused_by_the_kernel(rpr, rpr_solutions):
+    solver = lm.LocalSolver(rpr)
+    for legs in ([np.nan, 1.0, 1.0], [1.0, -1.0, 1.0], [0.0, 1.0, 1.0], [np.inf, 1.0, 1.0]):
+        assert solver.solve(rpr_solutions[0], np.array(legs)) is None
+    with pytest.raises(ValueError):
+        lm.local_solve(rpr, rpr_solutions[0], [1.0, 1.0])
