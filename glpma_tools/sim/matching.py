@@ -11,6 +11,8 @@ The node stamps a pose with the arrival time of its ``leg_lengths`` message, or 
   latest input, sent before its stamp, whose legs it reproduces to :data:`LEGS_MATCH_REL` of the
   scale; an input with the same legs from the loop before would have had to spend a whole period
   in transit, which a DDS keep-last history of a few samples cannot hold while inputs keep coming.
+  (When the node runs on another machine whose clock disagrees, so that no such input was sent
+  before the stamp, the one sent nearest the stamp.)
 
 A pose that reproduces no input's legs, or a second pose for the same input, pairs with nothing:
 it is wrong.  Poses are the tuples of :class:`.controller.PoseListener`: (receive time ns, stamp
@@ -68,7 +70,8 @@ class Comparison:
 
 def _pose_legs(model, pose) -> np.ndarray | None:
     try:
-        legs = legs_for(model, np.asarray(pose[3]) / model.metres_per_unit, pose[4])
+        with np.errstate(all="ignore"):
+            legs = legs_for(model, np.asarray(pose[3]) / model.metres_per_unit, pose[4])
     except Exception:  # noqa: BLE001 - a garbage pose (NaN, zero quaternion) pairs with nothing
         return None
     return legs if np.all(np.isfinite(legs)) else None
@@ -104,15 +107,18 @@ def pair(model, sent: list, poses: list, by_stamp: bool = False) -> tuple[list, 
             continue
         near = order[np.searchsorted(first, legs[0] - tol, "left"):np.searchsorted(first, legs[0] + tol, "right")]
         near = near[np.max(np.abs(legs_all[near] - legs), axis=1) <= tol] if near.size else near
-        before = near[send_ns[near] <= pose[1]]
-        # on one machine the input was sent before the node stamped its arrival; the clocks of two
-        # machines may disagree, and then the latest input with those legs is the one
-        near = before if before.size else near
-        if near.size == 0 or taken[near.max()]:
+        if near.size == 0:
             unpaired.append(pose)
             continue
-        taken[near.max()] = True
-        pairs.append((int(near.max()), pose, legs))
+        before = near[send_ns[near] <= pose[1]]
+        # on one machine the input was sent before the node stamped its arrival: the latest such;
+        # the clocks of two machines may disagree, and then the one sent nearest the stamp
+        i = int(before.max()) if before.size else int(near[np.argmin(np.abs(send_ns[near] - pose[1]))])
+        if taken[i]:
+            unpaired.append(pose)
+            continue
+        taken[i] = True
+        pairs.append((i, pose, legs))
     return sorted(pairs, key=lambda p: p[0]), unpaired
 
 

@@ -25,6 +25,12 @@ RELIABILITY_JSON = REPO_ROOT / "doc" / "bench" / "reliability.json"
 MAX_DOMAIN = 232
 
 
+def _shown(arg: str) -> str:
+    """A path inside the repository as relative to it (the report names no local directories)."""
+    path = Path(arg)
+    return str(path.relative_to(REPO_ROOT)) if path.is_absolute() and path.is_relative_to(REPO_ROOT) else arg
+
+
 def run(sections=SECTIONS, quick: bool = False, duration_s: float | None = None, rate_hz: float = RATE_HZ,
         burst_n: int | None = None, deadline_solves: int | None = None, phase_s: float | None = None,
         params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None, log_dir=None,
@@ -43,7 +49,7 @@ def run(sections=SECTIONS, quick: bool = False, duration_s: float | None = None,
     res["log_dir"] = str(session.log_dir)
     if any(s != "deadline" for s in sections):
         res["node"] = {"command": shlex.join(["python", "-m", "glpma_ros.node.dds.node", "--ros-args",
-                                              *session.ros_args]),
+                                              *map(_shown, session.ros_args)]),
                        "domain": session.domain_id, "manipulator": session.model.kind,
                        "time_budget_ms": session.params["time_budget_ms"], "qos_depth": session.params["qos_depth"]}
         try:
