@@ -192,6 +192,7 @@ class Summary:
     budget_ms: float = 0.0             # time budget per input
     warm_up_s: float = 0.0
     elapsed_s: float = 0.0             # reading, solving and writing (after the warm-up)
+    cpu_s: float = 0.0                 # this process' CPU time meanwhile (a shared machine's wall clock runs ahead)
     solve_s: float = 0.0               # in the service alone
 
     @property
@@ -204,13 +205,15 @@ class Summary:
                 "converged": self.converged, "rejected": sum(self.rejected.values()),
                 "rejected_by_reason": dict(self.rejected.most_common()), "assembly_mode_changes": self.mode_changes,
                 "skipped_topics": self.skipped_topics, "budget_ms": self.budget_ms, "warm_up_s": self.warm_up_s,
-                "elapsed_s": self.elapsed_s, "solve_s": self.solve_s, "poses_per_s": self.poses_per_s}
+                "elapsed_s": self.elapsed_s, "cpu_s": self.cpu_s, "solve_s": self.solve_s,
+                "poses_per_s": self.poses_per_s}
 
     def text(self) -> str:
         lines = [f"{self.output} ({self.storage}): {self.messages} messages copied, {self.inputs} inputs on "
                  f"{self.input_topic}: {self.converged} converged, {sum(self.rejected.values())} rejected, "
                  f"{self.mode_changes} assembly-mode changes",
-                 f"  {self.elapsed_s:.2f} s ({self.poses_per_s:,.0f} poses/s; solving {self.solve_s:.2f} s, "
+                 f"  {self.elapsed_s:.2f} s, CPU {self.cpu_s:.2f} s ({self.poses_per_s:,.0f} poses/s; solving "
+                 f"{self.solve_s:.2f} s, "
                  f"warm-up {self.warm_up_s:.1f} s before; budget {self.budget_ms:g} ms per input)"]
         lines += [f"  rejected {n}: {reason}" for reason, n in self.rejected.most_common()]
         lines += [f"  not copied: {topic}: {why}" for topic, why in self.skipped_topics.items()]
@@ -300,6 +303,9 @@ class BagRun:
         self._status_cache: dict = {}
 
     def _check_topics(self) -> None:
+        outputs = [t for t in (self.topics["pose"], self.topics["tf"], self.topics["status"]) if t is not None]
+        if len(set(outputs)) < len(outputs):
+            raise InputError(f"the output topics must differ, got {', '.join(outputs)}")
         conns = self.reader.connections
         by_topic: dict = {}
         for c in conns:
@@ -399,12 +405,13 @@ class BagRun:
             copied = self._copy_connections(writer)
             outputs = self._output_connections(writer, copied)
             self.summary.warm_up_s = self.service.warm_up(solvers=(self.service.params["solver"],))
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.process_time()
             with tqdm(total=self.reader.message_count, unit="msg", disable=None if self.progress else True,
                       file=sys.stderr, dynamic_ncols=True, desc="bag") as bar:
                 self._loop(writer, copied, outputs, bar)
             writer.close()
             self.summary.elapsed_s = time.perf_counter() - t1
+            self.summary.cpu_s = time.process_time() - c1
             if self.output_path.exists() or self.output_path.is_symlink():
                 if self.output_path.is_dir() and not self.output_path.is_symlink():
                     shutil.rmtree(self.output_path)
