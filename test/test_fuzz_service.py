@@ -19,7 +19,7 @@ from hypothesis.extra import numpy as hnp
 from glpma_ros.estimator import STATUS_BUDGET, STATUS_NEAR_SINGULAR, STATUS_NO_SOLUTION
 from glpma_ros.node.service import FkService
 
-from conftest import RPR_YAML
+from conftest import GENEROUS_BUDGET_MS, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = np.array([0.100, 0.120, 0.150])
@@ -46,8 +46,9 @@ legs_inputs = st.one_of(float_lists, near_valid, near_valid, numpy_arrays,
 
 @pytest.fixture(scope="module")
 def service():
-    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X})
-    svc.warm_up(solvers=("glpma",))          # compiled before the time budgets count
+    # a generous budget: each input's outcome is decided by the work done, the same on a busy machine
+    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X, "time_budget_ms": GENEROUS_BUDGET_MS})
+    svc.warm_up(solvers=("glpma",))          # compiled before the first input
     return svc
 
 
@@ -128,8 +129,6 @@ def test_after_the_fuzzing_the_service_reports_and_tracks(service):
     # track on from wherever the fuzzing left the warm state
     x = service._warm_x
     legs = service.model.inverse_kinematics(x) * service.metres_per_unit * (1.0 + 1e-5)
-    ok, _ = service.set_parameters({"time_budget_ms": 20.0})              # robustness, not timing
-    assert ok
     out = service.handle(legs, 1)
     assert out.pose is not None, out.reason
     assert out.estimate.start == "warm"
