@@ -17,9 +17,11 @@ from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem
 from glpma_tools.bench.protocols import TABLE2, published_row, table2_protocol
 
-from conftest import RPR_YAML
+from conftest import RPR_YAML, overrun_bound_ms
 
 BASELINES = ["sa", "gasa", "de"]
+#: budget of the deadline test (ms)
+DEADLINE_BUDGET_MS = 5.0
 
 @pytest.mark.parametrize("name", BASELINES)
 def test_baselines_solve_rpr_cold_with_refinement(rpr, name):
@@ -221,22 +223,24 @@ def test_hexapod_de_with_refinement(hexapod):
     assert math.isfinite(r.elapsed_s)
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("name", BASELINES)
 def test_baselines_honour_the_deadline(hexapod, name):
     """Cold pure runs on the hexapod cannot converge in 5 ms; they stop at the
     deadline (GA-SA checks the clock between children: one generation is ~0.4 M
-    evaluations, and run whole it overran a 5 ms budget by ~140 ms).  Stated
-    margin, loose for a loaded 2-core machine where G3-PCX itself overruns by
-    up to ~10 ms: median overrun 20 ms, every run 50 ms."""
+    evaluations, and run whole it overran a 5 ms budget by ~140 ms).  What holds
+    on any machine, however busy: every run returns ``budget_exhausted`` within
+    the stated bound; the overrun distribution is the benchmark's."""
     legs = hexapod.example_leg_lengths
     solvers.solve(name, hexapod, legs, rng=0, polish=False, max_evals=25_000)  # compile
+    solvers.solve(name, hexapod, legs, rng=0, polish=False, budget_s=DEADLINE_BUDGET_MS / 1e3)
     over = []
     for seed in range(5):
         t0 = time.perf_counter()
-        r = solvers.solve(name, hexapod, legs, rng=seed, polish=False, budget_s=0.005)
-        over.append((time.perf_counter() - t0) * 1e3 - 5.0)
+        r = solvers.solve(name, hexapod, legs, rng=seed, polish=False, budget_s=DEADLINE_BUDGET_MS / 1e3)
+        over.append((time.perf_counter() - t0) * 1e3 - DEADLINE_BUDGET_MS)
         assert r.status == "budget_exhausted"
-    assert np.median(over) <= 20.0 and max(over) <= 50.0, over
+    assert max(over) <= overrun_bound_ms(DEADLINE_BUDGET_MS), over
 
 
 def test_gasa_resumes_a_generation_across_deadline_chunks(rpr):

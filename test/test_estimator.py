@@ -12,8 +12,10 @@ from glpma_ros.models.rotations import rotation_from_vector
 from glpma_ros.solvers.refine import polish
 from glpma_tools.sim.trajectories import variables_along
 
-# generous: tracking accuracy, not speed, is under test here
-BUDGET_S = 0.05
+from conftest import GENEROUS_BUDGET_S
+
+# generous: what is computed, not speed, is under test here (the same result on a busy machine)
+BUDGET_S = GENEROUS_BUDGET_S
 
 
 def _track(model, est, truth):
@@ -70,7 +72,7 @@ def test_round_trip_random_geometry_and_pose(seed, kind):
     legs = model.inverse_kinematics(x)
     assume(model.conditioning(x, legs) > 1e-3)  # away from singularities
     near = x + model.spread_vector(1e-3 * model.scale) * rng.standard_normal(model.n_vars)
-    est = Estimator(model, initial_pose=near, time_budget_s=0.5)
+    est = Estimator(model, initial_pose=near, time_budget_s=BUDGET_S)
     e = est.estimate(legs)
     assert e.converged, e.message
     assert model.distance(e.x, x) < 1e-6 * model.scale
@@ -85,7 +87,7 @@ def test_cold_estimate_without_initial_pose(rpr):
 
 def test_infeasible_legs_no_solution_and_state_kept(rpr, rpr_solutions):
     x0 = rpr_solutions[0]
-    est = Estimator(rpr, initial_pose=x0, time_budget_s=0.01)
+    est = Estimator(rpr, initial_pose=x0, time_budget_s=BUDGET_S)
     e = est.estimate([1.0, 1.0, 1.0])  # legs far too short to reach the platform
     assert e.status == "no_solution" and e.pose is None
     assert np.all(np.isfinite([e.fitness]))
@@ -104,7 +106,7 @@ def test_bad_input_raises_and_keeps_state(rpr, rpr_solutions):
 
 def test_large_jump_recovers_with_escalation(rpr, rpr_solutions):
     """Legs that jump far from the previous ones: warm fails, the estimator escalates."""
-    est = Estimator(rpr, initial_pose=rpr_solutions[0], time_budget_s=0.2)
+    est = Estimator(rpr, initial_pose=rpr_solutions[0], time_budget_s=BUDGET_S)
     target = np.array([150.0, 30.0, 2.5])
     e = est.estimate(rpr.inverse_kinematics(target))
     assert e.converged

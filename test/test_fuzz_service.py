@@ -20,13 +20,15 @@ from glpma_ros.estimator import STATUS_BUDGET, STATUS_MAX_EVALS, STATUS_NEAR_SIN
 from glpma_ros.node.service import FkService
 from glpma_ros.solvers.lm import LEG_RTOL
 
-from conftest import RPR_YAML
+from conftest import GENEROUS_BUDGET_MS, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = np.array([0.100, 0.120, 0.150])
 STATUSES = (STATUS_NO_SOLUTION, STATUS_BUDGET, STATUS_NEAR_SINGULAR, STATUS_MAX_EVALS)
 
 CASES: Counter = Counter()
+#: each input's outcome is decided by the work done, the same on a busy machine
+GENEROUS = {"time_budget_ms": GENEROUS_BUDGET_MS}
 
 special = st.sampled_from([0.0, -0.0, 5e-324, 1e-320, 2.2250738585072014e-308, 1e-300, 1e-12, 1e-9,
                            1e300, 1.7976931348623157e308, 1e306, -1.0, -1e-300, -math.inf, math.inf, math.nan,
@@ -47,7 +49,7 @@ legs_inputs = st.one_of(float_lists, near_valid, near_valid, numpy_arrays,
 
 @pytest.fixture(scope="module")
 def service():
-    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X})
+    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X, **GENEROUS})
     svc.warm_up(solvers=("glpma",))          # compiled before the time budgets count
     service_limits[0] = svc.model.leg_limits
     return svc
@@ -140,8 +142,6 @@ def test_after_the_fuzzing_the_service_reports_and_tracks(service):
     # track on from wherever the fuzzing left the warm state
     x = service._warm_x
     legs = service.model.inverse_kinematics(x) * service.metres_per_unit * (1.0 + 1e-5)
-    ok, _ = service.set_parameters({"time_budget_ms": 20.0})              # robustness, not timing
-    assert ok
     out = service.handle(legs, 1)
     assert out.pose is not None, out.reason
     assert out.estimate.start == "warm"

@@ -17,10 +17,14 @@ from glpma_ros.node.loops import LatestInput, SolveLoop
 from glpma_ros.node.service import WARN, FkService
 from glpma_ros.node.stats import LogThrottle
 
-from conftest import CONFIG, HEX_YAML, RPR_YAML
+from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = [0.100, 0.120, 0.150]
+#: what the service computes is under test, not how fast: the same answers on a busy machine
+BUDGET = {"time_budget_ms": GENEROUS_BUDGET_MS}
+#: seconds a test waits for the worker thread (a bound for a hang, not a timing figure)
+WAIT_S = 60.0
 
 
 def pose_of(model, x):
@@ -38,7 +42,7 @@ def compiled():
 
 @pytest.fixture
 def service():
-    return FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X})
+    return FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X, **BUDGET})
 
 
 # -- parameters and --ros-args ----------------------------------------------------------------
@@ -160,7 +164,7 @@ def test_config_in_metres_gives_the_same_pose(tmp_path):
     path = tmp_path / "rpr_m.yaml"
     path.write_text(yaml.safe_dump(doc))
     x_m = [SEED_X[0] / 1000, SEED_X[1] / 1000, SEED_X[2]]
-    svc = FkService({"manipulator_config": str(path), "initial_pose": x_m, "tolerance": 1e-26})
+    svc = FkService({"manipulator_config": str(path), "initial_pose": x_m, "tolerance": 1e-26, **BUDGET})
     out = svc.handle(SEED_LEGS_M, 0)
     assert out.pose is not None, out.reason
     np.testing.assert_allclose(out.pose.position, [x_m[0], x_m[1], 0.0], atol=1e-9)
@@ -169,7 +173,7 @@ def test_config_in_metres_gives_the_same_pose(tmp_path):
 def test_hexapod_tracks_a_published_solution():
     doc = yaml.safe_load(HEX_YAML.read_text())
     svc = FkService({"manipulator_config": str(HEX_YAML), "initial_pose": doc["published_solutions"][10],
-                     "time_budget_ms": 20.0})
+                     **BUDGET})
     x = svc.model.pose_variables(svc.model.pose_state(np.array(doc["published_solutions"][10])))
     legs_m = svc.model.inverse_kinematics(x) * svc.model.metres_per_unit
     out = svc.handle(legs_m, 0)
@@ -203,7 +207,7 @@ BAD_INPUTS = [
 
 
 def test_every_bad_input_is_rejected_with_a_reason_and_the_state_is_kept(limited_config):
-    svc = FkService({"manipulator_config": str(limited_config), "initial_pose": SEED_X})
+    svc = FkService({"manipulator_config": str(limited_config), "initial_pose": SEED_X, **BUDGET})
     assert svc.handle(SEED_LEGS_M, 0).pose is not None
     for legs, reason in BAD_INPUTS:
         out = svc.handle(legs, 1)
@@ -242,9 +246,14 @@ def test_rejections_are_logged_once_per_second_per_reason(service):
         info = error = debug = warning
 
     service.log = Log()
+    now = [0.0]                     # the throttle's clock: the result does not depend on the machine's
+    service._throttle = LogThrottle(clock=lambda: now[0])
     for _ in range(50):
         service.handle([1.0], 0)
     assert len(lines) == 1 and "expected 3 leg lengths" in lines[0]
+    now[0] = 1.5
+    service.handle([1.0], 0)
+    assert len(lines) == 2 and "(+49 similar suppressed)" in lines[1]
 
 
 def test_log_throttle_counts_suppressed_lines():
@@ -285,10 +294,10 @@ def test_invalid_runtime_values_are_rejected_and_the_old_values_kept(service):
 
 
 def test_runtime_changes_apply(service):
-    assert service.set_parameters({"frame_id": "world", "time_budget_ms": 5.0, "tolerance": 1e-22}) == (True, "")
+    assert service.set_parameters({"frame_id": "world", "time_budget_ms": 4000.0, "tolerance": 1e-22}) == (True, "")
     out = service.handle(SEED_LEGS_M, 0)
     assert out.pose.frame_id == "world"
-    assert service.estimator.time_budget_s == pytest.approx(0.005)
+    assert service.estimator.time_budget_s == pytest.approx(4.0)
     assert out.estimate.fitness < 1e-22
 
 
@@ -321,12 +330,12 @@ def test_solve_loop_solves_the_newest_input_and_counts_dropped(service):
 
     def publish(pose):
         published.append(pose)
-        release.wait(5)                 # hold the worker while more inputs arrive
+        release.wait(WAIT_S)            # hold the worker while more inputs arrive
 
     loop = SolveLoop(service, publish).start()
     try:
         loop.submit(SEED_LEGS_M, 1)
-        deadline = time.monotonic() + 5
+        deadline = time.monotonic() + WAIT_S
         while not published and time.monotonic() < deadline:
             time.sleep(0.001)
         for k in range(2, 6):           # the worker is busy: each replaces the previous

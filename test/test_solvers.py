@@ -1,8 +1,6 @@
 """Solvers: cold-start success with the default configuration, properties of the
 pure algorithms (PCX distribution, elitism, monotone best, exact evaluation
 counts, reproducibility) and the deadline."""
-import gc
-import resource
 import time
 
 import numpy as np
@@ -13,7 +11,11 @@ from glpma_ros.solvers import g3pcx, glpma, rcga
 from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem
 
+from conftest import overrun_bound_ms
+
 SOLVER_NAMES = ["g3pcx", "rcga", "glpma"]
+#: solves per budget in the deadline test (the distribution is the benchmark's)
+DEADLINE_RUNS = 10
 
 
 @pytest.mark.parametrize("name", SOLVER_NAMES)
@@ -128,37 +130,23 @@ def test_glpma_local_population_persists_between_local_searches(rpr):
     assert meme_best <= local.best()[1] or np.isclose(meme_best, local.best()[1])
 
 
-def _involuntary_switches() -> int:
-    return resource.getrusage(resource.RUSAGE_THREAD).ru_nivcsw
-
-
+@pytest.mark.timing
 @pytest.mark.parametrize("budget_ms", [1.0, 2.0, 5.0])
 def test_deadline_is_honoured(hexapod, budget_ms):
     """Pure cold G3-PCX on the hexapod cannot converge in a few ms; it must stop
-    at the deadline.  Stated margin: every run that the OS did not preempt
-    (no involuntary context switch during the solve: a preempted process cannot
-    see any clock) returns within the budget plus 0.5 ms; the garbage collector is off
-    during each solve (its pauses are the process's; the node freezes its heap after
-    warm-up).  Preempted runs are
-    counted, not judged; the benchmark reports the full distribution."""
-    solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=0, polish=False, max_evals=1000)  # compile
+    at the deadline.  What holds on any machine, however busy: every solve
+    returns ``budget_exhausted`` and stops within the stated bound (a preempted
+    process cannot see the clock, so the bound is loose); how close to the
+    budget it stops is measured by ``glpma-fk bench`` (Deadline honouring)."""
+    # compiled (or loaded from the cache) outside the timed solves: the deadline path too
+    solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=0, polish=False, max_evals=1000)
+    solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=0, polish=False, budget_s=budget_ms / 1e3)
     over = []
-    preempted = 0
-    for seed in range(400):                 # until 30 runs were not preempted
-        if len(over) >= 30:
-            break
-        switches = _involuntary_switches()
-        gc.disable()        # the collector's pauses belong to this test process, not to the solver
+    for seed in range(DEADLINE_RUNS):
         t0 = time.perf_counter()
         r = solvers.solve("g3pcx", hexapod, hexapod.example_leg_lengths, rng=seed, polish=False,
                           budget_s=budget_ms / 1e3)
-        wall = time.perf_counter() - t0
-        gc.enable()
-        assert r.status == "budget_exhausted"
-        if _involuntary_switches() != switches:
-            preempted += 1
-        else:
-            over.append(wall * 1e3 - budget_ms)
-    if len(over) < 10:
-        pytest.skip(f"machine too loaded to judge: {preempted} of {preempted + len(over)} solves preempted")
-    assert max(over) <= 0.5, (over, preempted)
+        wall_ms = (time.perf_counter() - t0) * 1e3
+        assert r.status == "budget_exhausted", (seed, r.status)
+        over.append(wall_ms - budget_ms)
+    assert max(over) <= overrun_bound_ms(budget_ms), over
