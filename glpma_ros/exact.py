@@ -6,8 +6,9 @@ Formulations
 * **Planar 3-RPR** -- unknowns ``x, y, c, s``: the platform frame origin and the cosine and
   sine of the platform angle.  Leg ``i`` gives ``|(x, y) + R(c, s) b_i - a_i|^2 = L_i^2`` and
   the circle ``c^2 + s^2 = 1`` closes the system; it has at most 6 complex solutions
-  (Gosselin, Sefrioui & Richard 1994, "Solutions polynomiales au probleme de la cinematique
-  directe des manipulateurs paralleles plans a trois degres de liberte").
+  (Gosselin, Sefrioui & Richard 1992, "Solutions polynomiales au probleme de la cinematique
+  directe des manipulateurs paralleles plans a trois degres de liberte", Mech. Mach. Theory
+  27(2)).
 * **General 6-6 hexapod** -- Study parameters (Husty 1996, "An algorithm for solving the
   direct kinematics of general Stewart-Gough platforms", Mech. Mach. Theory 31(4)): the
   rotation quaternion ``e = (e0, e1, e2, e3)`` and the dual part ``f = (f0, f1, f2, f3)``
@@ -41,9 +42,10 @@ What is certified and what is not
 * Certified (by msolve's exact computation over the rationals, a Groebner basis and real root
   isolation): the number of complex solutions and the list of real solutions *of the rational
   system written here*, each in a box of width about 2^-128 relative to its size
-  (``ISOLATION_BITS``).  msolve's modular computation is Las Vegas: a wrong answer would
-  require an unlucky choice of primes, which its consistency checks make unlikely, but it is
-  not a formal proof.
+  (``ISOLATION_BITS`` bits).  msolve reconstructs the rational parametrisation from
+  computations modulo many primes and stops once further primes confirm it: correct with
+  overwhelming probability rather than by a formal proof; the isolation of the real roots of
+  that parametrisation is exact.
 * Not certified: the input.  Every geometry coordinate and leg length (a binary float) is
   replaced by the shortest decimal that reads back as the same float (Python's ``repr``), so
   the system solved exactly is that of a geometry within half a unit in the last place of the
@@ -53,8 +55,9 @@ What is certified and what is not
   within ``POLISH_SHIFT_RELATIVE`` of the box centre), and solutions on the chart's hyperplane
   ``CHART . e = 0`` (a measure-zero set of rotations) are not seen.
 
-Degenerate geometry (e.g. a 3-RPR whose base and platform triangles are similar, architecture
-singular hexapods) makes the system positive-dimensional: refused with
+Degenerate geometry (e.g. a 3-RPR with congruent base and platform and equal legs, which
+translates on a circle; architecture-singular hexapods) makes the system positive-dimensional:
+refused with
 :class:`DegenerateSystemError`.  No ROS import: this is the core.
 """
 from __future__ import annotations
@@ -200,7 +203,7 @@ def _qconj(p):
 
 
 def _qdot(p, q):
-    return sum((a * b for a, b in zip(p, q)), Poly.const(p[0].n, 0) if isinstance(p[0], Poly) else 0)
+    return sum(a * b for a, b in zip(p, q))
 
 
 # -- formulations ---------------------------------------------------------------------------------
@@ -357,7 +360,7 @@ def run_msolve(names, polys, *, threads: int = 1) -> tuple:
         return [], 0, 0
     if dim != 0:
         raise DegenerateSystemError("the assembly-mode equations have infinitely many solutions "
-                                    "(degenerate geometry, e.g. similar base and platform); "
+                                    "(degenerate geometry, e.g. congruent base and platform); "
                                     "the exact mode needs isolated solutions")
     order = [out_names.index(nm) for nm in names]
     roots = [tuple(float((box[k][0] + box[k][1]) / 2) for k in order) for box in boxes]

@@ -52,7 +52,7 @@ import numpy as np
 from . import solvers
 from .errors import GlpmaError
 from .solvers import refine
-from .solvers.common import CONVERGED, DEFAULT_TOLERANCE, SolveResult
+from .solvers.common import CONVERGED, SolveResult
 
 METHODS = ("multistart", "g3pcx", "exact")
 
