@@ -15,7 +15,8 @@ Formulations
   of the pose, rotation ``v -> e v e~ / D`` and translation ``t = 2 f e~ / D`` with
   ``D = e.e``.  The translation is a pure quaternion exactly when ``(e, f)`` lies on the Study
   quadric ``e.f = 0``.  Multiplied by ``D``, the sphere condition of leg ``i`` (base joint
-  ``a_i``, platform joint ``b_i``) is a quadric in ``(e, f)``:
+  ``a_i``, platform joint ``b_i``, both frames moved so that ``a_1 = b_1 = 0``) is a quadric
+  in ``(e, f)``:
 
       (|a_i|^2 + |b_i|^2 - L_i^2) D + 4 f.f + 4 (e b_i).f - 2 a_i.(e b_i e~) - 4 a_i.(f e~) = 0.
 
@@ -78,6 +79,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import GlpmaError
+from .models.hexapod_66 import matrix_from_quaternion
 
 #: bits of precision of msolve's isolating boxes (its ``-p``; its default)
 ISOLATION_BITS = 128
@@ -226,17 +228,22 @@ def planar_system(model, legs) -> list:
 
 
 def hexapod_system(model, legs) -> list:
-    """The hexapod's eight polynomials in the Study parameters ``e0..e3, f0..f3``."""
+    """The hexapod's eight polynomials in the Study parameters ``e0..e3, f0..f3`` of the pose
+    between the frames moved to ``A_1`` (base) and ``B_1`` (platform): ``a_1 = b_1 = 0`` drops
+    terms and shortens the coefficients (msolve runs about twice as fast); :func:`hexapod_pose`
+    moves the solution back."""
     n = len(HEXAPOD_NAMES)
     v = [Poly.var(n, i) for i in range(n)]
     e, f = tuple(v[0:4]), tuple(v[4:8])
     ec = _qconj(e)
     D = _qdot(e, e)
     f_ec = _qmul(f, ec)
+    a1 = [rational(t) for t in model.base[0]]
+    b1 = [rational(t) for t in model.platform[0]]
     polys = []
     for a_row, b_row, L in zip(model.base, model.platform, legs):
-        a = (0,) + tuple(rational(t) for t in a_row)
-        b = (0,) + tuple(rational(t) for t in b_row)
+        a = (0,) + tuple(rational(t) - o for t, o in zip(a_row, a1))
+        b = (0,) + tuple(rational(t) - o for t, o in zip(b_row, b1))
         L = rational(L)
         eb = _qmul(e, b)
         ebe = _qmul(eb, ec)
@@ -244,7 +251,7 @@ def hexapod_system(model, legs) -> list:
         polys.append(const * D + 4 * _qdot(f, f) + 4 * _qdot(eb, f)
                      - 2 * _qdot(a, ebe) - 4 * _qdot(a, f_ec))
     polys.append(_qdot(e, f))                                     # Study's quadric
-    polys.append(sum((k * t for k, t in zip(CHART, e)), Poly.const(n, 0)) - 1)   # affine chart
+    polys.append(sum(k * t for k, t in zip(CHART, e)) - 1)        # affine chart
     return polys
 
 
@@ -253,14 +260,17 @@ def planar_variables(root) -> np.ndarray:
     return np.array([x, y, math.atan2(s, c)])
 
 
-def hexapod_pose(root):
-    """(unit quaternion [qx, qy, qz, qw], position) of a Study-parameter solution."""
+def hexapod_pose(model, root):
+    """(unit quaternion [qx, qy, qz, qw], position of the platform frame) of a solution of
+    :func:`hexapod_system`: rotation ``R`` of ``e``, translation ``t = 2 f e~ / D`` between the
+    moved frames, so the platform origin is at ``A_1 + t - R B_1``."""
     e = np.asarray(root[0:4], dtype=float)
     f = np.asarray(root[4:8], dtype=float)
     D = float(e @ e)
-    t = _qmul(tuple(2.0 * f), _qconj(tuple(e)))
-    q = e / math.sqrt(D)
-    return np.array([q[1], q[2], q[3], q[0]]), np.array(t[1:]) / D
+    t = np.array(_qmul(tuple(2.0 * f), _qconj(tuple(e)))[1:]) / D
+    q = np.array([e[1], e[2], e[3], e[0]]) / math.sqrt(D)
+    R = matrix_from_quaternion(q)
+    return q, model.base[0] + t - R @ model.platform[0]
 
 
 # -- msolve ---------------------------------------------------------------------------------------
@@ -378,7 +388,7 @@ def solve_exact(model, legs) -> ExactSolutions:
         roots, degree, distinct = run_msolve(HEXAPOD_NAMES, hexapod_system(model, legs))
         xs = []
         for r in roots:
-            q, p = hexapod_pose(r)
+            q, p = hexapod_pose(model, r)
             xs.append(model.variables_from_pose(p, q))
     else:
         raise GlpmaError(f"no exact formulation for manipulator {model.kind!r}")

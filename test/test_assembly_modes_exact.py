@@ -125,16 +125,19 @@ def test_the_polynomial_systems_vanish_at_a_known_mode(rpr, rpr_solutions, hexap
     x, y, theta = rpr_solutions[0]
     for p in exact.planar_system(rpr, rpr.example_leg_lengths):
         assert abs(_evaluate(p, (x, y, math.cos(theta), math.sin(theta)))) < 1e-6 * rpr.scale ** 2
-    # Study parameters of a pose: e = its quaternion scaled into the chart, f = t e / 2
+    # Study parameters of a pose between the frames moved to A_1 and B_1: e = its quaternion scaled
+    # into the chart, translation t' = (p + R B_1) - A_1, f = t' e / 2
     model, legs, pose = GENERATORS["hexapod_66"](np.random.default_rng(1))
     P = model.pose(pose)
     qx, qy, qz, qw = P.orientation
+    R = model.pose_state(pose)[0]
     e = np.array([qw, qx, qy, qz])
     e = e / float(sum(float(k) * v for k, v in zip(exact.CHART, e)))
-    f = 0.5 * np.array(exact._qmul((0.0, *P.position), tuple(e)))
+    t = P.position + R @ model.platform[0] - model.base[0]
+    f = 0.5 * np.array(exact._qmul((0.0, *t), tuple(e)))
     for p in exact.hexapod_system(model, legs):
         assert abs(_evaluate(p, (*e, *f))) < 1e-6 * max(1.0, max(abs(float(c)) for c in p.terms.values()))
-    q, pos = exact.hexapod_pose((*e, *f))
+    q, pos = exact.hexapod_pose(model, (*e, *f))
     np.testing.assert_allclose(model.variables_from_pose(pos, q), pose, atol=1e-6)
 
 
