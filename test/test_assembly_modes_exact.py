@@ -276,3 +276,22 @@ def test_node_reply_says_how_many_starts():
     values = svc.diagnostics().as_dict()
     assert values["assembly modes last starts"] == str(result.starts)
     assert values["assembly modes last"].startswith("16 modes in ")
+
+
+def test_worker_process_reports_its_starts():
+    from glpma_ros.modes_worker import ModesWorker
+    worker = ModesWorker(RPR_YAML).start()
+    try:
+        modes = worker([100.0, 120.0, 150.0], SA.MAX_STARTS, 0)
+    finally:
+        worker.close()
+    assert len(modes) == 2 and modes.starts >= SA.STALL_MIN and modes.stop_reason == SA.STALLED
+    here = solve_all(Planar3RPR(*(np.array(v) for v in _rpr_geometry())), [100.0, 120.0, 150.0], seed=0)
+    assert modes.starts == here.starts
+    np.testing.assert_array_equal(np.array(modes), np.array([s.x for s in here.solutions]))
+
+
+def _rpr_geometry():
+    import yaml
+    doc = yaml.safe_load(RPR_YAML.read_text())
+    return doc["base"], doc["platform"]
