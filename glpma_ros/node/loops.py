@@ -212,7 +212,8 @@ class AssemblyModesLoop:
                 log.error(f"assembly modes failed: {exc!r}")
                 continue
             self.service.note_assembly_modes(result)
-            log.info(f"assembly modes: {len(result.poses)} real assembly modes in {result.elapsed_s:.3f} s")
+            log.info(f"assembly modes: {len(result.poses)} real assembly modes in {result.elapsed_s:.3f} s "
+                     f"from {result.starts} starts")
             try:
                 self.publish(result)
             except Exception as exc:  # noqa: BLE001

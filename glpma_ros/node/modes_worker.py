@@ -1,10 +1,11 @@
 """Every real assembly mode, computed in a child process.
 
-:func:`~glpma_ros.solve_all.solve_all` runs hundreds of compiled searches (0.1-1 s).  The
-compiled kernels hold the GIL for a whole chunk of generations, so in a thread of the node
-they would hold up the real-time solve loop for milliseconds at a time (measured: pose
-latency p99 from 4 to 8 ms, max 12 ms, inputs dropped, for a hexapod solve_all next to a
-3-RPR stream at 200 Hz).  :class:`ModesWorker` runs them in a child process instead
+:func:`~glpma_ros.solve_all.solve_all` (its multistart: hundreds of local solves, until many
+starts in a row find nothing new; ``runs`` = parameter ``assembly_modes_runs`` caps the starts)
+takes 0.05-1 s.  Compiled code holds the GIL while it runs, so in a thread of the node it would
+hold up the real-time solve loop (measured with the former G3-PCX solve_all: pose latency p99
+from 4 to 8 ms, max 12 ms, inputs dropped, for a hexapod solve_all next to a 3-RPR stream at
+200 Hz).  :class:`ModesWorker` runs them in a child process instead
 (a fresh interpreter, ``python -m glpma_ros.node.modes_worker``: nothing of the node is forked
 or re-imported), at a lower scheduling priority (``nice`` +5), so that on a multi-core
 machine the solve loop does not notice.
@@ -30,8 +31,31 @@ from ..errors import InputError
 
 #: scheduling priority of the child relative to the node (higher = yields more)
 NICE = 5
-#: runs of the warm-up solve_all in the child
-WARM_UP_RUNS = 2
+#: starts of the warm-up solve_all in the child
+WARM_UP_STARTS = 2
+
+
+class Modes(list):
+    """The solver variables of every mode found (a list), with the multistart's account of the
+    work: ``starts`` used, ``stop_reason``, ``miss_probability`` (``None`` when unknown)."""
+
+    def __init__(self, xs=(), starts: int = 0, stop_reason: str = "", miss_probability=None):
+        super().__init__(xs)
+        self.starts = int(starts)
+        self.stop_reason = stop_reason
+        self.miss_probability = miss_probability
+
+
+def modes_of(result) -> Modes:
+    """:class:`Modes` of a :class:`~glpma_ros.solve_all.AllSolutions`."""
+    return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], result.starts, result.stop_reason,
+                 result.miss_probability)
+
+
+def find_modes(model, legs, runs: int, seed: int) -> Modes:
+    """What a request computes: the multistart, at most ``runs`` starts."""
+    from .solve_all import solve_all
+    return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed)))
 
 
 def _reply(out, kind: str, payload) -> None:
@@ -42,7 +66,8 @@ def _reply(out, kind: str, payload) -> None:
 def child_main(argv=None) -> int:
     """The child: ``python -m glpma_ros.node.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
     per line on stdin (``[legs, runs, seed]``), one JSON reply per line on stdout
-    (``["ok", [x, ...]]``, ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
+    (``["ok", {"modes": [x, ...], "starts": n, "stop_reason": r, "miss_probability": p}]``,
+    ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
     argv = sys.argv[1:] if argv is None else argv
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
@@ -52,19 +77,19 @@ def child_main(argv=None) -> int:
     out = sys.stdout
     sys.stdout = sys.stderr          # nothing but replies on the pipe
     from ..config import load_manipulator
-    from ..solve_all import solve_all
     model = load_manipulator(argv[0])
     if len(argv) > 2:
         try:
-            solve_all(model, np.asarray(json.loads(argv[2]), dtype=float), runs=WARM_UP_RUNS, seed=0)
+            find_modes(model, np.asarray(json.loads(argv[2]), dtype=float), WARM_UP_STARTS, 0)
         except Exception:  # noqa: BLE001 - a failed warm-up only costs time later
             pass
     _reply(out, "ready", None)
     for line in sys.stdin:
         try:
             legs, runs, seed = json.loads(line)
-            result = solve_all(model, np.asarray(legs, dtype=float), runs=int(runs), seed=int(seed))
-            _reply(out, "ok", [np.asarray(s.x, dtype=float).tolist() for s in result.solutions])
+            m = find_modes(model, np.asarray(legs, dtype=float), runs, seed)
+            _reply(out, "ok", {"modes": [x.tolist() for x in m], "starts": m.starts, "stop_reason": m.stop_reason,
+                               "miss_probability": m.miss_probability})
         except InputError as exc:
             _reply(out, "input_error", str(exc))
         except Exception as exc:  # noqa: BLE001 - reported to the node, the child lives on
@@ -74,7 +99,7 @@ def child_main(argv=None) -> int:
 
 class ModesWorker:
     """``worker(legs, runs, seed)`` -> the solver variables of every real assembly mode of
-    ``legs`` (config unit), computed by ``solve_all`` in a child process
+    ``legs`` (config unit) as :class:`Modes`, computed by :func:`find_modes` in a child process
     (``python -m glpma_ros.node.modes_worker``).  The child is (re)started on demand;
     :meth:`close` stops it."""
 
@@ -130,7 +155,8 @@ class ModesWorker:
                 raise RuntimeError("the assembly-modes worker process died (restarted on the next request)") \
                     from None
         if kind == "ok":
-            return [np.asarray(x, dtype=float) for x in payload]
+            return Modes([np.asarray(x, dtype=float) for x in payload["modes"]], payload["starts"],
+                         payload["stop_reason"], payload["miss_probability"])
         if kind == "input_error":
             raise InputError(payload)
         raise RuntimeError(payload)

@@ -66,8 +66,9 @@ PARAMETERS = (
     ParamSpec("joint_names", STRING_ARRAY, [],
               "input_type joint_state: names of the legs' prismatic joints in the config's leg order "
               "(empty = leg_1 .. leg_n); other joints in the message are ignored"),
-    ParamSpec("assembly_modes_runs", INTEGER, 200,
-              "Independent searches of one ~/request_assembly_modes (solve_all runs; more finds rare modes)",
+    ParamSpec("assembly_modes_runs", INTEGER, 20000,
+              "Cap on the local solves (starts) of one ~/request_assembly_modes (solve_all's multistart stops "
+              "earlier, once many starts in a row found nothing new)",
               range=(1, 100000)),
     ParamSpec("time_budget_ms", DOUBLE, 2.0, "Hard time budget of one solve (ms)", range=(0.0, 60000.0),
               min_exclusive=True),

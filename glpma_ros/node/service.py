@@ -81,6 +81,7 @@ class PoseArrayOutput:
     poses: tuple
     input_stamp_ns: int = 0
     elapsed_s: float = 0.0
+    starts: int = 0          # local solves the search used (0: not reported by ``solve``)
 
 
 @dataclass
@@ -418,7 +419,9 @@ class FkService:
     def assembly_modes(self, stamp_ns: int, last_input=CURRENT, solve=None) -> PoseArrayOutput:
         """Every real assembly mode of the last input received (or ``last_input``), stamped
         ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed)`` returns the solver
-        variables of each mode (default: :func:`~glpma_ros.solve_all.solve_all` in this thread;
+        variables of each mode, as a list or a :class:`~glpma_ros.node.modes_worker.Modes` that also
+        says how many starts it used (default: the multistart of
+        :func:`~glpma_ros.node.modes_worker.find_modes` in this thread;
         the node passes a :class:`~glpma_ros.node.modes_worker.ModesWorker`).  Does not hold the
         service lock while solving.  :class:`InputError` with the reason on failure."""
         t0 = time.perf_counter()
@@ -434,7 +437,7 @@ class FkService:
         with self._lock:
             frame_id = self.frame_id
         return PoseArrayOutput(int(stamp_ns), frame_id, tuple(poses), int(input_stamp_ns),
-                               time.perf_counter() - t0)
+                               time.perf_counter() - t0, int(getattr(xs, "starts", 0)))
 
     def modes_worker(self):
         """A :class:`~glpma_ros.node.modes_worker.ModesWorker` (not started) for this manipulator."""
@@ -442,8 +445,8 @@ class FkService:
         return ModesWorker(self.config_path, warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
 
     def _solve_all_here(self, legs, runs, seed) -> list:
-        from ..solve_all import solve_all
-        return [s.x for s in solve_all(self.model, legs, runs=runs, seed=seed).solutions]
+        from .modes_worker import find_modes
+        return find_modes(self.model, legs, runs, seed)
 
     def note_assembly_modes(self, result: PoseArrayOutput | None = None, failure: str | None = None,
                             coalesced: int = 0) -> None:
@@ -456,6 +459,7 @@ class FkService:
                 st.modes_requests += 1
                 st.modes_published += 1
                 st.modes_last = f"{len(result.poses)} modes in {result.elapsed_s:.3g} s"
+                st.modes_last_starts = result.starts
             elif failure is not None:
                 st.modes_requests += 1
                 st.modes_failed += 1
@@ -517,7 +521,8 @@ class FkService:
                          ("assembly modes published", st.modes_published),
                          ("assembly modes failed", st.modes_failed),
                          ("assembly modes coalesced", st.modes_coalesced),
-                         ("assembly modes last", st.modes_last or "none")]
+                         ("assembly modes last", st.modes_last or "none"),
+                         ("assembly modes last starts", st.modes_last_starts)]
                 if st.modes_last_failure:
                     modes.append(("assembly modes last failure", st.modes_last_failure))
             values = [

@@ -56,6 +56,7 @@ class Statistics:
         # ~/request_assembly_modes: requests taken, answered, failed, merged into a later one
         self.modes_requests = self.modes_published = self.modes_failed = self.modes_coalesced = 0
         self.modes_last = ""
+        self.modes_last_starts = 0
         self.modes_last_failure = ""
         self.starts: Counter = Counter()
         self.solve_s: deque = deque(maxlen=WINDOW)

@@ -100,6 +100,7 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
     from . import sections as s
+    from .modes import section as modes_section
     from .reliability import reliability_section
     parts = header(res) + summary_section(res)
     if res["tables"]:
@@ -113,6 +114,7 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
         parts += s.gap_section(res)
     if res["all_solutions"]:
         parts += s.all_solutions_section(res)
+    parts += modes_section(res)
     if res["tracking"]:
         parts += s.tracking_section(res, md_path)
     if res["scipy"]:

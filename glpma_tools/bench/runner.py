@@ -24,6 +24,8 @@ DEFAULTS = {
     "gap_runs": (100, 10),
     "dds_steps": (1000, 200),
     "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
+    "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
+    "modes_g3pcx_hexapods": (3, 0),   # of which hexapods also solved by 200 G3-PCX runs (up to ~2 min each)
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
@@ -62,6 +64,10 @@ def build_parser() -> OneLineParser:
                    help="solvers of the deadline section (default: every registered solver)")
     p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     p.add_argument("--solve-all-repeats", type=int, help="solve_all repetitions with seeds 0.. (default 5)")
+    p.add_argument("--modes-cases", type=int, help="random cases per manipulator of the multistart/msolve/G3-PCX "
+                   "comparison (default all stored; --quick 2)")
+    p.add_argument("--modes-g3pcx-hexapods", type=int,
+                   help="hexapod cases of that comparison also solved by 200 G3-PCX runs (default 3; --quick 0)")
     p.add_argument("--dds-steps", type=int, help="messages of the DDS end-to-end run (default 1000)")
     p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
     p.add_argument("--out", type=Path, default=None,
@@ -170,6 +176,10 @@ def main(argv=None) -> int:
             say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
             res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
                                                        progress)
+        from . import modes
+        say("all real assembly modes: multistart, msolve, G3-PCX", "solve-all modes")
+        res["modes_comparison"] = modes.compare(scenarios, counts["modes_cases"], counts["modes_g3pcx_hexapods"],
+                                                progress)
     if "tracking" in sections:
         for k, sc in scenarios.items():
             say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
