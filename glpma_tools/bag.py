@@ -50,11 +50,12 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros import params as P
+from glpma_ros.node import params as P
+from glpma_ros.node.ros_args import parse_ros_args
 from glpma_ros.cli import OneLineParser
 from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
-from glpma_ros.service import ERROR, OK, WARN
+from glpma_ros.node.service import ERROR, OK, WARN
 
 from .extras import require
 
@@ -554,7 +555,7 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         require("bag", PROG)
-        ros = P.parse_ros_args(argv)
+        ros = parse_ros_args(argv)
         args = build_parser().parse_args(ros.other)
         return run(args, ros)
     except GlpmaError as exc:
@@ -596,7 +597,7 @@ def run(args, ros) -> int:
     if replaced is not None and replaced != budget:
         log.info(f"time_budget_ms:={replaced} of the parameters replaced by {budget:g} (--budget-ms)")
 
-    from glpma_ros.service import FkService
+    from glpma_ros.node.service import FkService
     try:
         service = FkService(values, logger=log, node_name=ros.node_name)
     except (GlpmaError, ValueError) as exc:
