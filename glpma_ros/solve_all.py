@@ -53,6 +53,7 @@ from . import solvers
 from .errors import GlpmaError
 from .solvers import refine
 from .solvers.common import CONVERGED, SolveResult
+from .solvers.lm import LocalSolver
 
 METHODS = ("multistart", "g3pcx", "exact")
 
@@ -165,12 +166,12 @@ def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None) -> 
 
 
 # -- multistart -------------------------------------------------------------------------------------
-def _local_solve(model, x0, legs, tolerance):
-    """THE local solve of the multistart (one start; swap this body for a compiled one):
-    Levenberg-Marquardt in pose space from solver variables ``x0``, at most ``LOCAL_MAX_ITER``
-    iterations.  Returns ``(x, leg_fitness, nfev)``; converged when ``leg_fitness < tolerance``."""
-    x, f, nfev, _ = refine.levenberg_marquardt(model, x0, legs, tolerance=tolerance, max_iter=LOCAL_MAX_ITER)
-    return x, f, nfev
+def _local_solve(local: LocalSolver, x0, legs, tolerance):
+    """The local solve of the multistart (one start): the compiled Levenberg-Marquardt in pose
+    space from solver variables ``x0``, at most ``LOCAL_MAX_ITER`` iterations.  Returns
+    ``(x, leg_fitness, nfev)``; converged when ``leg_fitness < tolerance``."""
+    r = local.solve(x0, legs, max_iter=LOCAL_MAX_ITER)
+    return r.x, r.leg_fitness, r.nfev
 
 
 class StartSampler:
@@ -240,12 +241,13 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> 
     tolerance = (LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2
     dedup = DEDUP_RELATIVE * model.scale
     sampler = StartSampler(model, legs)
+    local = LocalSolver(model)
     modes, signatures, hits = [], np.empty((0, 3, model.base.shape[1])), []
     starts = evaluations = last_new = 0
     reason = UNREACHABLE if sampler.empty else ""
     while not reason:
         for x0 in sampler.draw(rng, min(BATCH, max_starts - starts)):
-            x, f, nfev = _local_solve(model, x0, legs, tolerance)
+            x, f, nfev = _local_solve(local, np.ascontiguousarray(x0), legs, tolerance)
             starts += 1
             evaluations += nfev
             if f < tolerance:
