@@ -5,8 +5,8 @@ library, opened read-only) is read in its order (log time, i.e. the order in whi
 the recorder received the messages); every message of the input topic --
 ``leg_lengths`` (std_msgs/msg/Float64MultiArray) or ``joint_states``
 (sensor_msgs/msg/JointState) -- goes through the node's own
-:class:`~glpma_ros.service.FkService`: the same parameters (``--ros-args -p
-NAME:=VALUE --params-file FILE``, parsed by :mod:`glpma_ros.params`), the same unit
+:class:`~glpma_ros.node.service.FkService`: the same parameters (``--ros-args -p
+NAME:=VALUE --params-file FILE``, parsed by :mod:`glpma_ros.node.params`), the same unit
 conversion, validation, joint picking, estimator and warm start, carried from one
 input to the next through the whole bag.  The output bag holds every input message
 byte for byte (all topics, same types, definitions and QoS metadata) and, for each

@@ -16,7 +16,7 @@ from glpma_ros import solve_all as SA
 from glpma_ros.errors import GlpmaError
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS
-from glpma_ros.service import FkService
+from glpma_ros.node.service import FkService
 from glpma_ros.solve_all import solve_all
 
 from conftest import HEX_YAML, ROOT, RPR_YAML
@@ -241,7 +241,7 @@ def test_cli_exact_json_and_no_mode():
     (["--exact", "--method", "g3pcx"], "exclude each other"),
     (["--runs", 5, "--method", "multistart"], "--runs counts G3-PCX"),
     (["--max-starts", 5, "--method", "g3pcx"], "--max-starts and --budget-s"),
-    (["--max-starts", 0], "--max-starts must be at least 1"),
+    (["--max-starts", 0], "--max-starts: '0' must be at least 1"),
     (["--budget-s", 0], "--budget-s must be positive"),
 ])
 def test_cli_bad_combinations_exit_2_one_line(args, words):
@@ -279,7 +279,7 @@ def test_node_reply_says_how_many_starts():
 
 
 def test_worker_process_reports_its_starts():
-    from glpma_ros.modes_worker import ModesWorker
+    from glpma_ros.node.modes_worker import ModesWorker
     worker = ModesWorker(RPR_YAML).start()
     try:
         modes = worker([100.0, 120.0, 150.0], SA.MAX_STARTS, 0)
