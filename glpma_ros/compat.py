@@ -1,12 +1,12 @@
 """What the installed libraries must be for the compiled kernels to work, checked before use.
 
 The solvers draw from a ``numpy.random.Generator`` inside Numba-compiled code
-(``rng.integers``, ``rng.standard_normal``, ...); Numba supports those from 0.58 on
-(older releases, e.g. Debian 12's 0.56.4, fail to compile with ``Unknown attribute
-'integers' of type NumPyRandomGeneratorType``).  Ubuntu 24.04, the platform of ROS 2
-Jazzy, ships NumPy 1.26, which no Numba before 0.58.1 supports, so the distribution's
-``python3-numba`` passes.  The node and ``glpma-fk`` refuse an older Numba with one line
-saying how to get a newer one, rather than failing later on every solve.
+(``rng.integers``, ``rng.standard_normal``, ...).  Numba 0.58.1 with NumPy 1.26 (Ubuntu
+24.04's pairing: no Numba before 0.58.1 supports NumPy 1.26, so the distribution's
+``python3-numba`` passes) compiles every solver and gives the same results as current
+releases; Debian 12's 0.56.4 fails to compile with ``Unknown attribute 'integers' of type
+NumPyRandomGeneratorType``.  The node and ``glpma-fk`` refuse a Numba older than the floor
+with one line saying how to get a newer one, rather than failing later on every solve.
 """
 from __future__ import annotations
 

@@ -149,20 +149,21 @@ def unit_mistake(model, legs, given_unit: str | None = None) -> str | None:
     solver, which reports ``no_solution`` when the legs have no real assembly."""
     given_unit = given_unit or model.unit
     arr = np.asarray(legs, dtype=float).reshape(-1)
-    if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+    if arr.size == 0:
+        return None
+    shortest, longest = float(arr.min()), float(arr.max())      # NaN in, NaN out: no hint
+    if not (math.isfinite(shortest) and math.isfinite(longest)) or shortest <= 0.0:
         return None
     lo, hi = _plausible_band(model)
-    if np.all((arr >= lo) & (arr <= hi)):
+    if lo <= shortest and longest <= hi:
         return None
     best, best_distance = None, math.inf
     for unit, metres in UNIT_TO_METRES.items():
         if unit == given_unit:
             continue
-        # the numbers as written were in `unit`: in the config's unit they would be
-        with np.errstate(over="ignore"):
-            candidate = arr * (metres / UNIT_TO_METRES[given_unit])
-        if np.all((candidate >= lo) & (candidate <= hi)):
-            distance = abs(math.log(float(np.median(candidate)) / model.scale))
+        factor = metres / UNIT_TO_METRES[given_unit]   # the numbers were written in `unit`
+        if lo <= shortest * factor and longest * factor <= hi:
+            distance = abs(math.log(float(np.median(arr)) * factor / model.scale))
             if distance < best_distance:
                 best, best_distance = unit, distance
     return best
