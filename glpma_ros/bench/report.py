@@ -239,8 +239,8 @@ def all_solutions_section(res) -> list[str]:
 
 def tracking_section(res, md_path) -> list[str]:
     out = ["## Warm tracking latency (solve only)", "",
-           "The `Estimator` (GLPMA, warm start around the previous estimate, refinement, widening and cold "
-           "fallback) along a smooth trajectory on one assembly mode; each step's leg lengths from exact inverse "
+           "The `Estimator` (one compiled Levenberg-Marquardt call from the previous estimate; GLPMA around it, "
+           "widened and cold only when that fails) along a smooth trajectory on one assembly mode; each step's leg lengths from exact inverse "
            "kinematics. 3-RPR: closed loop (circle of 10 mm radius, angle ± 5°); hexapod: helix (30 mm radius, "
            "two turns, 100 mm rise) with rotation (yaw ± 10°, roll/pitch ± 3°). Time = `estimate()` alone "
            "(no transport). Error = largest platform-joint distance to the true pose.", ""]
