@@ -32,8 +32,11 @@ papers' setting) convergence is the papers' ``fitness < tolerance``.
 **Statuses come from work done, not from the clock.**  Every point a search
 ends on is polished by the compiled Levenberg-Marquardt without a deadline
 (microseconds, bounded by its iteration cap): a polish that meets the leg
-criterion is ``converged`` however little of the search fitted in the budget;
-otherwise the best polished point decides: ``near_singular`` (leg Jacobian
+criterion is ``converged`` however little of the search fitted in the budget.
+When none does, a *probe* runs: the same Levenberg-Marquardt from
+``PROBE_STARTS`` fixed starts in the papers' initial range (a fixed seed, so the
+same work on every machine), stopping at the first that converges (reported as
+a ``cold`` start).  If the probe fails too, the best polished point decides: ``near_singular`` (leg Jacobian
 nearly singular, small residual), ``no_solution`` (a residual that the polish
 cannot lower: a stationary point of the fitness, or a polish that stalled; no
 real assembly there); only when neither holds is
@@ -161,6 +164,7 @@ class Estimator:
         self._cold_range = cold_range(model)
         self._probe_starts = np.ascontiguousarray(
             np.random.default_rng(PROBE_SEED).uniform(*self._cold_range, size=(PROBE_STARTS, model.n_vars)))
+        self._lm.prepare()        # compiled code loaded now, not on the first input that needs it
         self.set_solver(solver, population=population, local_population=local_population,
                         ls_interval=ls_interval, ls_intensity=ls_intensity)
         self.reset(initial_pose)
@@ -325,6 +329,7 @@ class Estimator:
         elif out_of_time:
             status, why = STATUS_BUDGET, f"not converged within the budget (RMS residual {rms:.3g} {model.unit})"
         else:
-            status, why = STATUS_MAX_EVALS, f"not converged within the evaluation cap (RMS residual {rms:.3g} {model.unit})"
+            status, why = STATUS_MAX_EVALS, (f"not converged within the evaluation cap "
+                                             f"(RMS residual {rms:.3g} {model.unit})")
         return Estimate(status, stage, p.x, None, p.fitness, evaluations, elapsed, cond, self.solver, why,
                         p.max_residual)

@@ -13,8 +13,8 @@ Madsen, Nielsen & Tingleff 2004, section 3.2).  The damping is scaled by
 unit of length nor on the units of the pose parameters.  The step lives in each model's pose
 parameterisation, where the platform is rigid by construction and the Jacobian is analytic:
 
-* 3-RPR: ``(x, y, theta)``, the solver variables themselves; ``J_i = (u_i, u_i x (R CB_i))`` with the
-  unit leg vector ``u_i`` (Chandra & Rolland 2014, Eq. 6-7);
+* 3-RPR: ``(x, y, theta)``, the solver variables themselves; ``J_i = (u_i, (R CB_i) x u_i)`` (planar
+  cross product) with the unit leg vector ``u_i`` (Chandra & Rolland 2014, Eq. 6-7);
 * hexapod: position ``p`` of the platform origin and rotation ``R``, updated multiplicatively,
   ``R <- exp([w]x) R`` (Rodrigues' formula), ``p <- p + dp``; ``J_i = (u_i, (R CB_i) x u_i)``.  The
   nine solver variables of the papers' model (Rolland & Chandra 2016, section 2) are read in by the
@@ -36,9 +36,10 @@ and a relative threshold gives the same digits whether the configuration is writ
 fitness of the returned variables is still computed and reported.
 
 Without convergence the iteration stops after ``MAX_REJECTIONS`` consecutive steps that do not lower the
-sum of squares (a stationary point, with a residual when the legs have no real assembly there) or after
-``max_iter`` iterations; no clock is read inside: an iteration costs a few hundred nanoseconds
-(3-RPR) to a microsecond (hexapod).
+sum of squares (a stationary point, with a residual when the legs have no real assembly there), when
+asked to (``S_STALL``) once the sum fell by less than a given fraction over ``PROGRESS_WINDOW``
+iterations, or after ``max_iter`` iterations; no clock is read inside, the iteration cap bounds the
+call.  :func:`multistart_kernel` runs the same iteration from several starts until one converges.
 
 One call (:func:`lm_kernel`, ``nogil``) also returns the figures the estimator decides with: the
 reciprocal condition number of the column-scaled leg Jacobian (one-sided Jacobi SVD, Hestenes 1958),
@@ -747,6 +748,16 @@ class LocalSolver:
         self.work = np.zeros(workspace_size(model.n_legs, model.n_pose, model.n_res) + self.n_out)
         self.settings = make_settings(model)
         self._limits = model.leg_limits
+
+    def prepare(self):
+        """Load (or compile) both kernels for this model's types, with a call that does no iteration."""
+        x0 = np.zeros((1, self.n_vars))
+        legs = np.ones(self.model.n_legs)
+        settings = make_settings(self.model, max_iter=0)
+        settings[S_LO], settings[S_HI] = 0.0, math.inf
+        out = np.empty(self.n_out)
+        lm_kernel(self.kind, self.data, self.platform, legs, x0[0], x0[0], _NO_LEGS, settings, out, self.work)
+        multistart_kernel(self.kind, self.data, self.platform, legs, x0, x0[0], settings, out, self.work)
 
     def _settings(self, max_iter, rtol, ftol, stall):
         settings = self.settings

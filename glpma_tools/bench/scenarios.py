@@ -15,7 +15,7 @@ from glpma_tools.sim.trajectories import start_pose
 CONFIGS = {"3rpr": "planar_3rpr_seed.yaml", "hexapod": "hexapod_66_rolland.yaml"}
 LABEL = {"3rpr": "3-RPR", "hexapod": "6-6 hexapod"}
 #: solve-only tracking latency targets (p99, ms)
-LATENCY_TARGET_MS = {"3rpr": 1.0, "hexapod": 2.0}
+LATENCY_TARGET_MS = {"3rpr": 0.06, "hexapod": 0.12}
 
 
 @dataclass
