@@ -34,10 +34,10 @@ def rotation_vector_between(q0, q1) -> tuple[float, float, float]:
     return x * factor, y * factor, z * factor
 
 
-def finite_difference_twist(p0, q0, t0_s: float, p1, q1, t1_s: float):
-    """``(linear, angular)`` mean twist between two poses (position, unit quaternion, time in
-    seconds; ``t1_s > t0_s``), base frame."""
-    dt = t1_s - t0_s
+def finite_difference_twist(p0, q0, p1, q1, dt: float):
+    """``(linear, angular)`` mean twist between two poses (position, unit quaternion) ``dt > 0``
+    seconds apart, base frame.  (Take ``dt`` from integer nanosecond stamps: a difference of two
+    epoch times in float seconds keeps only about 0.2 us.)"""
     linear = tuple((b - a) / dt for a, b in zip(p0, p1))
     angular = tuple(v / dt for v in rotation_vector_between(q0, q1))
     return linear, angular

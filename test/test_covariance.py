@@ -246,6 +246,8 @@ def test_at_a_singularity_the_covariance_is_capped_finite_and_reported(rpr, hexa
 # -- velocity -----------------------------------------------------------------------------------------------
 
 OMEGA = 2 * math.pi / 4.0      # the trajectories' angular frequency (one loop in 4 s)
+#: stamps are wall-clock times (ns since 1970): differences must not go through float seconds
+EPOCH_NS = 1_795_000_000 * 10**9
 
 
 def rpr_trajectory(x0, scale):
@@ -321,7 +323,7 @@ def test_twist_from_joint_state_velocities_is_the_true_twist(rpr, hexapod, rpr_m
             h = 1e-5
             numeric = (leg_state(model, *at(t + h)[:2], v, omega)[0] - leg_state(model, *at(t - h)[:2], v, omega)[0])
             np.testing.assert_allclose(numeric / (2 * h), rates, rtol=1e-6, atol=1e-9 * model.scale)
-        stamp = int(round(t * 1e9)) + 1
+        stamp = EPOCH_NS + int(round(t * 1e9))
         out = service.handle(JointStateInput(names, tuple(lengths * mpu), tuple(rates * mpu)), stamp)
         assert out.pose is not None, out.reason
         extras = service.extras(out)
@@ -355,7 +357,7 @@ def test_finite_difference_twist_without_velocities(rpr, hexapod, rpr_modes, hex
         for t in (t0, t1):
             p, R, v, omega, _ = at(t)
             out = service.handle(JointStateInput(names, tuple(leg_state(model, p, R, v, omega)[0] * mpu)),
-                                 int(round(t * 1e9)) + 1)
+                                 EPOCH_NS + int(round(t * 1e9)))
             assert out.pose is not None, out.reason
             published.append(service.extras(out))
         extras = published[1]
@@ -377,8 +379,8 @@ def test_finite_difference_of_poses_is_exact_for_constant_twist():
     R0 = rotation_from_vector(np.array([0.3, -1.0, 2.0]))
     R1 = rotation_from_vector(w * dt) @ R0                 # fixed-axis rotation by w dt
     q0, q1 = quaternion_from_matrix(R0), quaternion_from_matrix(R1)
-    linear, angular = finite_difference_twist((1.0, 2.0, 3.0), q0, 5.0, tuple(np.array([1.0, 2.0, 3.0]) + v * dt),
-                                              -q1, 5.0 + dt)   # the sign of a quaternion does not matter
+    linear, angular = finite_difference_twist((1.0, 2.0, 3.0), q0, tuple(np.array([1.0, 2.0, 3.0]) + v * dt),
+                                              -q1, dt)   # the sign of a quaternion does not matter
     np.testing.assert_allclose(linear, v, atol=1e-12)
     np.testing.assert_allclose(angular, w, atol=1e-12)
     assert rotation_vector_between(q0, q0) == (0.0, 0.0, 0.0)

@@ -146,7 +146,7 @@ class OutputBuilder:
         elif params["publish_twist"] and self._previous is not None:
             t0, p0, q0 = self._previous
             if 0 < stamp_ns - t0 <= TWIST_MAX_GAP_S * 1e9:
-                twist = finite_difference_twist(p0, q0, t0 * 1e-9, pose.position, pose.orientation, stamp_ns * 1e-9)
+                twist = finite_difference_twist(p0, q0, pose.position, pose.orientation, (stamp_ns - t0) * 1e-9)
                 source = TWIST_FROM_POSES
         if source is not None:
             self.twist_source = source

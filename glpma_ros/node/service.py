@@ -362,6 +362,8 @@ class FkService:
         """TF, covariance, twist and markers (:class:`~glpma_ros.node.outputs.ExtraOutputs`) of a
         published pose, as the ``publish_*`` parameters ask; None when every one is off.  Called
         by the thread that solved ``outcome``, after the pose went out."""
+        if outcome.pose is None:
+            return None
         extras = self.outputs.build(outcome, self.params)
         return extras if extras.any else None
 
