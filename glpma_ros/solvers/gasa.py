@@ -55,7 +55,7 @@ from ..models.kernels import fitness_one
 
 from . import sa
 from .driver import EvolutionaryState, solve_population
-from .rcga import CROSSOVER_RATE, _roulette, mutation_width, roulette_cumulative, wright_crossover
+from .rcga import CROSSOVER_RATE, _roulette, mutation_width, start_generation, wright_crossover
 
 #: 004 section IV.A item 4: "initial temperature of 10"
 T0 = 10.0
@@ -118,12 +118,8 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, child, child_best, chi
     while gens < n_generations and evals < max_evals and chains < max_chains:
         if progress[1] == 0:                       # start a child
             if progress[0] == 0:                   # start a generation
-                best = np.argmin(fit)
-                if fit[best] < tolerance:
+                if not start_generation(pop, fit, cum, new, new_f, tolerance):
                     break
-                roulette_cumulative(fit, cum)
-                new[0] = pop[best]
-                new_f[0] = fit[best]
                 progress[0] = 1
             a = _roulette(cum, rng)
             b = _roulette(cum, rng)

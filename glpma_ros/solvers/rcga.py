@@ -62,6 +62,20 @@ def roulette_cumulative(fit, cum):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def start_generation(pop, fit, cum, new, new_f, tolerance):
+    """Elitism and roulette wheel of a new generation: the best individual into slot 0 of
+    ``new`` and the cumulative weights into ``cum``.  False when the best is below ``tolerance``
+    (converged: no new generation)."""
+    best = np.argmin(fit)
+    if fit[best] < tolerance:
+        return False
+    roulette_cumulative(fit, cum)
+    new[0] = pop[best]
+    new_f[0] = fit[best]
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def wright_crossover(pop, fit, a, b, rng, out):
     """Wright's heuristic crossover of ``pop[a]`` and ``pop[b]`` into ``out``:
     ``better + u (better - worse)``, ``u ~ U(0, 1)`` (one draw)."""
@@ -82,12 +96,8 @@ def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generat
     gens = 0
     evals = 0
     while gens < n_generations and evals + N - 1 <= max_evals:
-        best = np.argmin(fit)
-        if fit[best] < tolerance:
+        if not start_generation(pop, fit, cum, new, new_f, tolerance):
             break
-        roulette_cumulative(fit, cum)
-        new[0] = pop[best]
-        new_f[0] = fit[best]
         changed[0] = False
         t = min((generation + gens) / max(last_generation, 1.0), 1.0)
         for i in range(1, N):
