@@ -17,7 +17,7 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from conftest import CONFIG, ROOT  # noqa: E402
 from glpma_tools import bag as B  # noqa: E402
-from trajectories import rpr_loop  # noqa: E402
+from glpma_tools.sim.trajectories import variables_along  # noqa: E402
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 PARAMS = CONFIG / "params_3rpr.yaml"     # initial_pose = the published real_solutions[0]
@@ -54,7 +54,7 @@ def _joint_state(stamp_ns, names, positions) -> bytes:
 @pytest.fixture(scope="module")
 def truth(rpr, rpr_solutions):
     """Solver variables along a loop from the published solution, and its legs in metres."""
-    xs = rpr_loop(rpr_solutions[0], STEPS)
+    xs = variables_along(rpr, rpr_solutions[0], STEPS)
     legs_m = np.array([rpr.inverse_kinematics(x) for x in xs]) * rpr.metres_per_unit
     return xs, legs_m
 

@@ -7,7 +7,7 @@ import yaml
 from glpma_ros.config import model_from_dict
 from glpma_ros.estimator import Estimator
 from glpma_ros.solvers import lm
-from trajectories import hexapod_helix, rpr_loop
+from glpma_tools.sim.trajectories import variables_along
 
 from conftest import HEX_YAML, RPR_YAML
 
@@ -22,7 +22,8 @@ def scaled(path, unit):
     f = PER_MM[unit]
     doc = dict(doc, unit=unit, base=(np.array(doc["base"]) * f).tolist(),
                platform=(np.array(doc["platform"]) * f).tolist(),
-               example_leg_lengths=[v * f for v in doc["example_leg_lengths"]])
+               example_leg_lengths=[v * f for v in doc["example_leg_lengths"]],
+               leg_limits=[v * f for v in doc["leg_limits"]])
     return model_from_dict(doc, f"{path.name} in {unit}")
 
 
@@ -52,13 +53,13 @@ def test_rpr_cold_estimate_is_the_same_in_mm_cm_and_m(seed):
 
 
 @pytest.mark.parametrize("kind", ["rpr", "hexapod"])
-def test_warm_tracking_is_the_same_in_mm_cm_and_m(kind, rpr_solutions, hexapod, hex_published):
+def test_warm_tracking_is_the_same_in_mm_cm_and_m(kind, rpr, rpr_solutions, hexapod, hex_published):
     from glpma_ros.solvers.refine import polish
     if kind == "rpr":
-        truth_mm = rpr_loop(rpr_solutions[0], steps=100)
+        truth_mm = variables_along(rpr, rpr_solutions[0], 100)
     else:
         x0, _, _ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
-        truth_mm = hexapod_helix(hexapod, x0, steps=100)
+        truth_mm = variables_along(hexapod, x0, 100)
     runs = {}
     for unit, f in PER_MM.items():
         model = scaled(RPR_YAML if kind == "rpr" else HEX_YAML, unit)
@@ -77,7 +78,8 @@ def test_warm_tracking_is_the_same_in_mm_cm_and_m(kind, rpr_solutions, hexapod, 
     scale_mm = scaled(RPR_YAML if kind == "rpr" else HEX_YAML, "mm").scale
     for unit, (xs, evals) in runs.items():
         np.testing.assert_allclose(xs, runs["mm"][0], atol=ROUND_OFF * scale_mm)
-        assert np.sum(np.abs(evals - runs["mm"][1])) <= 0.05 * np.sum(runs["mm"][1]), unit
+        # the same work: a step may take one evaluation more or less where round-off decides the last test
+        assert np.max(np.abs(evals - runs["mm"][1])) <= 1, unit
 
 
 def test_local_solve_converges_to_the_same_relative_residual_in_every_unit():

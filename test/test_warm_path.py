@@ -10,7 +10,7 @@ import pytest
 from glpma_ros.estimator import Estimator
 from glpma_ros.models.hexapod_66 import kabsch, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solvers import lm, refine
-from trajectories import hexapod_helix, rpr_loop
+from glpma_tools.sim.trajectories import variables_along
 
 #: leg residuals and pose differences "at round-off": this share of the geometry's scale
 ROUND_OFF = 1e-12
@@ -41,9 +41,9 @@ def test_warm_tracking_equals_numpy_newton_to_round_off(kind, rpr, rpr_solutions
     """Each step from the previous estimate: converged in the warm stage, the pose of the NumPy Newton
     iteration from the same start to round-off, on the same assembly mode as the trajectory."""
     if kind == "rpr":
-        model, truth = rpr, rpr_loop(rpr_solutions[0], steps=300)
+        model, truth = rpr, variables_along(rpr, rpr_solutions[0], 300)
     else:
-        model, truth = hexapod, hexapod_helix(hexapod, hex_start, steps=300)
+        model, truth = hexapod, variables_along(hexapod, hex_start, 300)
     est = Estimator(model, initial_pose=truth[0], time_budget_s=1.0)
     evaluations = []
     for k in range(1, len(truth)):
