@@ -157,8 +157,10 @@ def main(argv=None) -> int:
         print(f"error: glpma-fk stress: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
     res["command"] = shlex.join(["glpma-fk", "stress", *argv])
+    log_dir = Path(res.pop("log_dir"))                  # a local directory: not part of the figures
+    say(f"the node's output is in {log_dir}")
     full = not args.quick and set(args.sections) == set(SECTIONS)
-    path = args.json_out or (RELIABILITY_JSON if full else Path(res["log_dir"]) / "reliability.json")
+    path = args.json_out or (RELIABILITY_JSON if full else log_dir / "reliability.json")
     say(f"wrote the figures to {write_json(path, res)}")
     print(to_json(res) if args.json else format_table(res))
     return 0 if res["passed"] else 1
