@@ -353,6 +353,7 @@ def test_solve_loop_solves_the_newest_input_and_counts_dropped(service):
 # -- transport choice ---------------------------------------------------------------------------------------
 
 def test_node_entry_chooses_the_transport(monkeypatch, capsys):
+    pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
     from glpma_ros.node import entry as node_entry
     from glpma_ros.node.dds import node as dds_node
     calls = []

@@ -9,7 +9,8 @@ from __future__ import annotations
 import importlib
 import sys
 
-from .ros_args import TRANSPORTS, split_transport
+from ..errors import GlpmaError
+from .ros_args import TRANSPORTS, check_params_files, split_transport
 
 
 def rclpy_available() -> bool:
@@ -49,6 +50,11 @@ def main(argv=None) -> int:
     if "-h" in head or "--help" in head:
         print(usage())
         return 0
+    try:   # a params-file mistake (e.g. a manipulator YAML) in one line, whatever the transport
+        check_params_files(argv)
+    except GlpmaError as exc:
+        print(f"glpma-fk node: error: {exc}", file=sys.stderr)
+        return 2
     transport, rest = split_transport(argv)
     if transport not in TRANSPORTS:
         print(f"glpma-fk node: error: --transport must be one of {', '.join(TRANSPORTS)}, got {transport!r}",
@@ -63,7 +69,12 @@ def main(argv=None) -> int:
             return 2
         from .ros_node import main as ros_main
         return ros_main(rest)
-    from .dds.node import main as dds_main
+    try:
+        from .dds.node import main as dds_main
+    except ImportError as exc:
+        print(f"glpma-fk node: error: the DDS transport needs the cyclonedds Python package ({exc}); "
+              f"pip install cyclonedds, or source ROS 2 and use --transport rclpy", file=sys.stderr)
+        return 2
     return dds_main(rest)
 
 

@@ -122,7 +122,13 @@ def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) ->
 
 
 def deadline_plot(path: Path, rows, margin_ms) -> Path:
+    import matplotlib
+
+    from glpma_ros.compat import version_tuple
     plt = _plt()
+    # horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
+    horizontal = ({"orientation": "horizontal"} if version_tuple(matplotlib.__version__) >= (3, 10)
+                  else {"vert": False})
     budgets = sorted({r.budget_ms for r in rows})
     labels = list(dict.fromkeys(r.label for r in rows))
     fig, axes = plt.subplots(1, len(budgets), figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6),
@@ -130,7 +136,7 @@ def deadline_plot(path: Path, rows, margin_ms) -> Path:
     for ax, b in zip(axes[0], budgets):
         by_label = {r.label: r.overrun_ms for r in rows if r.budget_ms == b}
         data = [by_label.get(label, np.array([np.nan])) for label in labels]
-        ax.boxplot(data, orientation="horizontal", whis=(0, 100), showfliers=False)
+        ax.boxplot(data, whis=(0, 100), showfliers=False, **horizontal)
         ax.axvline(0.0, color="k", lw=0.8)
         ax.axvline(margin_ms, color="tab:red", ls=":", label=f"budget + {margin_ms:g} ms")
         ax.set_xlabel("elapsed − budget (ms)")
