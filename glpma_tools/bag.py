@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.node import params as P
-from glpma_ros.node.ros_args import parse_ros_args
+from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 from glpma_ros.cli import OneLineParser
 from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
@@ -490,7 +490,8 @@ class BagRun:
 # -- command line -----------------------------------------------------------------------------------
 
 def _parameter_help() -> str:
-    lines = ["node parameters (after --ros-args: -p NAME:=VALUE, --params-file FILE; as for glpma-fk node):"]
+    lines = ["ROS arguments:", *ROS_ARGS_HELP, "",
+             "node parameters (after --ros-args: -p NAME:=VALUE, --params-file FILE; as for glpma-fk node):"]
     for spec in P.PARAMETERS:
         lines.append(f"  {spec.name} (default {spec.default if spec.default != [] else '[]'})")
     lines.append(textwrap.fill("time_budget_ms is replaced by --budget-ms; qos_depth sets the depth offered by the "

@@ -10,7 +10,7 @@ import importlib
 import sys
 
 from ..errors import GlpmaError
-from .ros_args import TRANSPORTS, check_params_files, split_transport
+from .ros_args import ROS_ARGS_HELP, TRANSPORTS, check_params_files, split_transport
 
 
 def rclpy_available() -> bool:
@@ -32,11 +32,7 @@ def usage() -> str:
              "  -h, --help            print this help and exit",
              "  --transport auto|rclpy|dds",
              "                        rclpy (ROS 2 sourced) or plain Cyclone DDS; auto: rclpy when importable",
-             "  --ros-args            the rest is ROS 2 arguments, as for ros2 run glpma_ros fk_node:",
-             "  -p NAME:=VALUE        set a parameter (VALUE read as YAML)",
-             "  --params-file FILE    a ROS 2 params file (glpma_fk: ros__parameters: ...), not a manipulator YAML",
-             "  -r FROM:=TO           remap a topic (-r __node:=NAME renames the node)",
-             "  --log-level LEVEL     debug, info, warn, error", "", "parameters:"]
+             *ROS_ARGS_HELP, "", "parameters:"]
     for spec in PARAMETERS:
         default = spec.default if spec.default != [] else "[]"
         extra = f" ({spec.constraints})" if spec.constraints else ""

@@ -205,6 +205,16 @@ def node_values(argv) -> tuple[dict, list[str], RosArgs]:
     return values, args.warnings + warnings, args
 
 
+#: the ``--ros-args`` lines of a ``--help`` (``glpma-fk node``, ``glpma-fk bag``)
+ROS_ARGS_HELP = (
+    "  --ros-args            the rest is ROS 2 arguments, as for ros2 run glpma_ros fk_node:",
+    "  -p NAME:=VALUE        set a parameter (VALUE read as YAML)",
+    "  --params-file FILE    a ROS 2 params file (glpma_fk: ros__parameters: ...), not a manipulator YAML",
+    "  -r FROM:=TO           remap a topic (-r __node:=NAME renames the node)",
+    "  --log-level LEVEL     debug, info, warn, error",
+)
+
+
 TRANSPORTS = ("auto", "rclpy", "dds")
 
 
