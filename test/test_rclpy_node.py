@@ -78,3 +78,96 @@ def test_leg_lengths_in_pose_out(fk_node):
     finally:
         executor.shutdown()
         client.destroy_node()
+
+
+# -- the further outputs (issue 12) ------------------------------------------------------------------------
+
+def _spin_until(executor, done, timeout_s=20.0, publish=None):
+    deadline = time.monotonic() + timeout_s
+    while not done() and time.monotonic() < deadline:
+        if publish is not None:
+            publish()
+        executor.spin_once(timeout_sec=0.05)
+    return done()
+
+
+def test_tf_covariance_twist_and_markers(ros):
+    from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+    from tf2_msgs.msg import TFMessage
+    from visualization_msgs.msg import MarkerArray
+
+    from glpma_ros.node.ros_node import FkNode
+    node = FkNode(parameter_overrides=[Parameter("manipulator_config", value=str(RPR_YAML)),
+                                       Parameter("initial_pose", value=SEED_X),
+                                       Parameter("time_budget_ms", value=50.0),
+                                       Parameter("publish_markers", value=True),
+                                       Parameter("markers_period_s", value=0.0)])
+    client = rclpy.create_node("glpma_fk_outputs_client")
+    got = {"pose": [], "tf": [], "cov": [], "twist": [], "markers": []}
+    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
+    for key, msg_type, topic in (("pose", PoseStamped, "pose_estimate"), ("tf", TFMessage, "/tf"),
+                                 ("cov", PoseWithCovarianceStamped, "pose_estimate_cov"),
+                                 ("twist", TwistStamped, "twist_estimate"),
+                                 ("markers", MarkerArray, "/glpma_fk/markers")):
+        client.create_subscription(msg_type, topic, got[key].append, 100)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    executor.add_node(client)
+    try:
+        third = iter(0.150 + 1e-5 * k for k in range(10**6))
+        assert _spin_until(executor, lambda: len(got["twist"]) >= 2 and len(got["markers"]) >= 2,
+                           publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, next(third)])))
+        executor.spin_once(timeout_sec=0.2)
+        tf_by_stamp = {(t.header.stamp.sec, t.header.stamp.nanosec): t for m in got["tf"] for t in m.transforms}
+        cov_by_stamp = {(c.header.stamp.sec, c.header.stamp.nanosec): c for c in got["cov"]}
+        for pose in got["pose"][:5]:
+            key = (pose.header.stamp.sec, pose.header.stamp.nanosec)
+            t = tf_by_stamp[key]
+            assert (t.header.frame_id, t.child_frame_id) == ("base", "platform")
+            p, q = pose.pose.position, pose.pose.orientation
+            tr, rot = t.transform.translation, t.transform.rotation
+            assert max(abs(a - b) for a, b in zip((tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w),
+                                                  (p.x, p.y, p.z, q.x, q.y, q.z, q.w))) <= 1e-12
+            cov = cov_by_stamp[key]
+            assert cov.pose.pose == pose.pose
+            c = list(cov.pose.covariance)
+            assert c[14] == c[21] == c[28] == 1e6 and all(math.isfinite(v) for v in c)
+            assert all(c[6 * i + j] == c[6 * j + i] for i in range(6) for j in range(6))
+        assert got["twist"][0].header.frame_id == "base"
+        legs = next(m for m in got["markers"][0].markers if m.ns == "legs")
+        assert len(legs.points) == 6
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+        node.destroy_node()
+
+
+def test_ctrl_c_stops_cleanly(tmp_path):
+    """SIGINT: the summary is logged (also to /rosout, while the context is valid), exit 0, and no
+    'publisher's context is invalid' or abort."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from conftest import CONFIG, ROOT
+    out = tmp_path / "node.log"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    with open(out, "w") as f:
+        proc = subprocess.Popen([sys.executable, "-c", "import sys; from glpma_ros.node.ros_node import main; "
+                                 "sys.exit(main(sys.argv[1:]))", "--ros-args", "--params-file",
+                                 str(CONFIG / "params_3rpr.yaml")], stdout=f, stderr=subprocess.STDOUT, env=env,
+                                cwd=ROOT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while "ready" not in out.read_text() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.1)
+        assert "ready" in out.read_text(), out.read_text()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(30) == 0, out.read_text()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    log = out.read_text()
+    assert "stopped: received" in log
+    for bad in ("context is invalid", "Failed to publish", "terminate called", "Traceback"):
+        assert bad not in log, log

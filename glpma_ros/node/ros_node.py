@@ -240,7 +240,7 @@ def main(args=None) -> int:
                signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
-    node = executor = None
+    node = executor = spinner = None
     try:
         node = FkNode()
         executor = SingleThreadedExecutor()
@@ -255,6 +255,10 @@ def main(args=None) -> int:
     finally:
         if executor is not None:
             executor.shutdown()
+        if spinner is not None:
+            # joined, not left to die at exit: a thread still inside rclpy's C++ code when the
+            # interpreter finalizes aborts the process ("terminate called without an active exception")
+            spinner.join()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
