@@ -49,6 +49,9 @@ from .service import FkService
 
 #: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
 TF_DEPTH = 100
+#: seconds main() waits at exit for the executor's thread to leave rclpy (it wakes at once on
+#: executor.shutdown(); the cap only guards against a wedged middleware)
+SPINNER_JOIN_TIMEOUT_S = 10.0
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
              P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
@@ -240,7 +243,7 @@ def main(args=None) -> int:
                signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
-    node = executor = None
+    node = executor = spinner = None
     try:
         node = FkNode()
         executor = SingleThreadedExecutor()
@@ -255,6 +258,8 @@ def main(args=None) -> int:
     finally:
         if executor is not None:
             executor.shutdown()
+        if spinner is not None:     # rclpy's Executor.shutdown() does not wait for spin() to return; a
+            spinner.join(SPINNER_JOIN_TIMEOUT_S)  # daemon thread still in rclpy at exit aborts the process
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
