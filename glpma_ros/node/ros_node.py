@@ -49,6 +49,9 @@ from .service import FkService
 
 #: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
 TF_DEPTH = 100
+#: seconds main() waits at exit for the executor's thread to leave rclpy (it wakes at once on
+#: executor.shutdown(); the cap only guards against a wedged middleware)
+SPINNER_JOIN_TIMEOUT_S = 10.0
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
              P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
@@ -258,7 +261,7 @@ def main(args=None) -> int:
         if spinner is not None:
             # joined, not left to die at exit: a thread still inside rclpy's C++ code when the
             # interpreter finalizes aborts the process ("terminate called without an active exception")
-            spinner.join()
+            spinner.join(SPINNER_JOIN_TIMEOUT_S)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
