@@ -125,5 +125,7 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
         parts += s.baselines_section(res)
     if res.get("dds") is not None:
         parts += s.dds_section(res)
+    if res.get("offline") is not None:
+        parts += s.offline_section(res)
     parts += reliability_section(reliability, reliability_source)
     return "\n".join(parts).rstrip() + "\n"

@@ -10,7 +10,7 @@ from pathlib import Path
 from glpma_ros.cli import OneLineParser
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
-SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds")
+SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "offline")
 
 #: default run counts: (full, --quick)
 DEFAULTS = {
@@ -22,10 +22,12 @@ DEFAULTS = {
     "deadline_solves": (100, 20),
     "solve_all_repeats": (5, 1),
     "gap_runs": (100, 10),
-    "dds_steps": (1000, 200),
+    "dds_steps": (60_000, 2000),     # inputs per DDS end-to-end run at 1 kHz (60 s)
     "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
     "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
-    "modes_g3pcx_hexapods": (3, 0),   # of which hexapods also solved by 200 G3-PCX runs (up to ~2 min each)
+    "modes_g3pcx_hexapods": (3, 0),
+    "bag_messages": (10_000, 1000),   # messages of the recorded run glpma-fk bag processes
+    "map_resolution": (24, 8),        # points per axis of the glpma-fk map grid   # of which hexapods also solved by 200 G3-PCX runs (up to ~2 min each)
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
@@ -68,7 +70,12 @@ def build_parser() -> OneLineParser:
                    "comparison (default all stored; --quick 2)")
     p.add_argument("--modes-g3pcx-hexapods", type=int,
                    help="hexapod cases of that comparison also solved by 200 G3-PCX runs (default 3; --quick 0)")
-    p.add_argument("--dds-steps", type=int, help="messages of the DDS end-to-end run (default 1000)")
+    p.add_argument("--dds-steps", type=int,
+                   help="inputs of each DDS end-to-end run at 1 kHz (default 60000, i.e. 60 s; --quick 2000)")
+    p.add_argument("--bag-messages", type=int, help="inputs of the recorded run glpma-fk bag processes "
+                   "(default 10000; --quick 1000)")
+    p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grid (default 24; "
+                   "--quick 8)")
     p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
     p.add_argument("--out", type=Path, default=None,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
@@ -146,7 +153,7 @@ def main(argv=None) -> int:
     res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
            "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
            "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
-           "baselines": None,
+           "baselines": None, "offline": None,
            "figures": {}, "load": []}
     if "tables" in sections:
         for k, sc in scenarios.items():
@@ -197,6 +204,12 @@ def main(argv=None) -> int:
         res["dds"] = dds.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
         if res["dds"].get("status") != "run":
             print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
+
+    if "offline" in sections:
+        from . import offline
+        say("offline: glpma-fk bag throughput, glpma-fk map speed-up", "offline")
+        res["offline"] = {"bag": offline.bag_throughput(counts["bag_messages"]),
+                          "map": offline.map_scaling(counts["map_resolution"])}
 
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:

@@ -337,3 +337,15 @@ def dds_section(res) -> list[str]:
                                           [[k, fmt(v) if isinstance(v, (int, float)) and not isinstance(v, bool)
                                             else str(v)] for k, v in _flatten(r["stats"])]), ""]
     return out + [""]
+
+
+def offline_section(res) -> list[str]:
+    """``glpma-fk bag`` throughput and ``glpma-fk map`` speed-up (:mod:`.offline`)."""
+    o = res["offline"]
+    bag, mp = o["bag"], o["map"]
+    return ["## Offline: bag processing and workspace maps", "", prose("offline"), "",
+            table(["glpma-fk bag (3-RPR, MCAP)", "value"],
+                  [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag.items()]), "",
+            table([f"glpma-fk map ({mp['grid']}, seed 3-RPR)", "wall s", "speed-up"],
+                  [[f"{r['processes']} process(es)", fmt(r["wall s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
+            "", f"Mode counts identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.", ""]

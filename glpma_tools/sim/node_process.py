@@ -63,6 +63,11 @@ class NodeProcess:
                 return int(line.split()[1])
         raise RuntimeError("no VmRSS in /proc/<pid>/status")
 
+    def cpu_s(self) -> float:
+        """CPU time (user + system) the process has used so far, in seconds."""
+        fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")   # utime, stime
+
     def stop(self, timeout: float = 15.0) -> int | None:
         """SIGINT, as Ctrl-C; the exit status (None if it had to be killed)."""
         if not self.alive():
