@@ -54,7 +54,7 @@ def modes_of(result) -> Modes:
 
 def find_modes(model, legs, runs: int, seed: int) -> Modes:
     """What a request computes: the multistart, at most ``runs`` starts."""
-    from .solve_all import solve_all
+    from ..solve_all import solve_all
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed)))
 
 
