@@ -55,7 +55,7 @@ from . import solvers
 from .config import UNIT_TO_METRES
 from .errors import InputError
 from .models.base import Pose
-from .solvers import lm
+from .solvers import lm, local
 from .solvers.driver import POLISH_MAX_ITER
 
 #: spread of the widened stage relative to the warm one
@@ -157,7 +157,7 @@ class Estimator:
         self.polish = bool(polish)
         self.max_evals = max_evals
         self.rng = np.random.default_rng(seed)
-        self._lm = lm.LocalSolver(model)
+        self._lm = local.LocalSolver(model)
         self._n = model.n_vars
         self._warm_settings = None          # the warm stage's kernel settings, built on first use
         self._near_floor = MIN_SPREAD * model.scale
@@ -207,7 +207,7 @@ class Estimator:
         # the warm stage: one compiled call (checks the legs, solves, measures)
         settings = self._warm_settings
         if settings is None or self._warm_key != (model.leg_limits, self.leg_rtol):
-            settings = self._warm_settings = lm.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol)
+            settings = self._warm_settings = local.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol)
             self._warm_key = (model.leg_limits, self.leg_rtol)
         solver = self._lm
         out = np.empty(solver.n_out)
@@ -234,7 +234,7 @@ class Estimator:
                              budget_s=budget, polish=self.polish, max_evals=self.max_evals,
                              **init, **self.params)
 
-    def _polish(self, x, legs) -> lm.LocalResult:
+    def _polish(self, x, legs) -> local.LocalResult:
         """The compiled Levenberg-Marquardt from ``x``, without a deadline; distance from the previous pose."""
         return self._lm.solve(np.ascontiguousarray(x, dtype=float), legs, max_iter=SETTLE_MAX_ITER,
                               rtol=self.leg_rtol, x_ref=self.last_x, stall=STALLED)

@@ -53,7 +53,7 @@ from . import solvers
 from .errors import GlpmaError
 from .solvers import refine
 from .solvers.common import CONVERGED, SolveResult
-from .solvers.lm import LocalSolver
+from .solvers.local import LocalSolver
 
 METHODS = ("multistart", "g3pcx", "exact")
 

@@ -55,7 +55,7 @@ from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 from glpma_ros.cli import OneLineParser
 from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
-from glpma_ros.node.service import ERROR, OK, WARN
+from glpma_ros.node.diagnostics import ERROR, OK, WARN
 
 from .extras import require
 

@@ -14,7 +14,8 @@ from glpma_ros.node import params as P
 from glpma_ros.node import ros_args
 from glpma_ros.errors import ConfigError, InputError
 from glpma_ros.node.loops import LatestInput, SolveLoop
-from glpma_ros.node.service import WARN, FkService
+from glpma_ros.node.diagnostics import WARN
+from glpma_ros.node.service import FkService
 from glpma_ros.node.stats import LogThrottle
 
 from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML

@@ -6,7 +6,7 @@ import yaml
 
 from glpma_ros.config import model_from_dict
 from glpma_ros.estimator import Estimator
-from glpma_ros.solvers import lm
+from glpma_ros.solvers import local
 from glpma_tools.sim.trajectories import variables_along
 
 from conftest import HEX_YAML, RPR_YAML
@@ -86,6 +86,6 @@ def test_local_solve_converges_to_the_same_relative_residual_in_every_unit():
     for unit, f in PER_MM.items():
         model = scaled(RPR_YAML, unit)
         x0 = np.array([50.0 * f, 80.0 * f, -0.5])
-        r = lm.local_solve(model, x0, np.array([100.0, 120.0, 150.0]) * f)
+        r = local.local_solve(model, x0, np.array([100.0, 120.0, 150.0]) * f)
         assert r.converged and r.max_residual <= ROUND_OFF * model.scale
         assert r.nit <= 8

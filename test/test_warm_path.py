@@ -9,7 +9,9 @@ import pytest
 
 from glpma_ros.estimator import Estimator
 from glpma_ros.models.hexapod_66 import kabsch, quaternion_from_matrix, rotation_from_vector
-from glpma_ros.solvers import lm, refine
+from glpma_ros import linalg
+from glpma_ros.models import pose_kernels
+from glpma_ros.solvers import lm, local, refine
 from glpma_tools.sim.trajectories import variables_along
 
 #: leg residuals and pose differences "at round-off": this share of the geometry's scale
@@ -68,7 +70,7 @@ def test_kernel_figures_equal_the_models_numpy_ones(kind, rpr, rpr_solutions, he
     for _ in range(20):
         legs = model.inverse_kinematics(x_true) * (1.0 + 1e-3 * rng.standard_normal(model.n_legs))
         x0 = x_true + model.spread_vector(1e-2 * model.scale) * rng.standard_normal(model.n_vars)
-        r = lm.local_solve(model, x0, legs)
+        r = local.local_solve(model, x0, legs)
         assert r.converged and r.max_residual <= lm.LEG_RTOL * max(model.scale, legs.max())
         assert model.distance(r.x, numpy_newton(model, x0, legs)) <= ROUND_OFF * model.scale
         assert r.conditioning == pytest.approx(model.conditioning(r.x, legs), rel=1e-9)
@@ -78,7 +80,7 @@ def test_kernel_figures_equal_the_models_numpy_ones(kind, rpr, rpr_solutions, he
         np.testing.assert_allclose(r.position, pose.position, atol=ROUND_OFF * model.scale)
         np.testing.assert_allclose(r.orientation, pose.orientation, atol=1e-12)
         # stationarity |J^T r| / (|J| |r|) with the column-scaled Jacobian, at a point off the solution
-        a = lm.local_solve(model, x0, legs, max_iter=0)
+        a = local.local_solve(model, x0, legs, max_iter=0)
         res, J = model.pose_residuals_jacobian(model.pose_state(a.x), legs)
         J = J * model.pose_column_scale
         expected = np.linalg.norm(J.T @ res) / (np.linalg.norm(J) * np.linalg.norm(res))
@@ -93,7 +95,7 @@ def test_jacobi_svd_equals_numpy():
             A = rng.standard_normal((n, n)) @ np.diag(np.r_[np.ones(n - 1), cond])
             A = A @ np.linalg.qr(rng.standard_normal((n, n)))[0]
             work, V, s = A.copy(), np.empty((n, n)), np.empty(n)
-            lm.jacobi_svd(work, V, s)
+            linalg.jacobi_svd(work, V, s)
             expected = np.linalg.svd(A, compute_uv=False)
             np.testing.assert_allclose(np.sort(s)[::-1], expected, rtol=0, atol=1e-14 * expected[0])
             np.testing.assert_allclose(V.T @ V, np.eye(n), atol=1e-14)
@@ -107,11 +109,11 @@ def test_quaternions_and_rodrigues_equal_the_models(hexapod):
     back = np.empty(9)
     for w in [rng.normal(0, 2.0, 3) for _ in range(50)] + [np.array([math.pi, 0, 0]), np.array([0, 1e-10, 0])]:
         R = rotation_from_vector(w)
-        lm.rotation_from_vector_into(w[0], w[1], w[2], M)
+        pose_kernels.rotation_from_vector_into(w[0], w[1], w[2], M)
         np.testing.assert_allclose(M, R, atol=1e-15)
-        lm.quaternion_from_rows(R.reshape(-1), q)
+        pose_kernels.quaternion_from_rows(R.reshape(-1), q)
         np.testing.assert_allclose(q, quaternion_from_matrix(R), atol=1e-15)
-        lm.rows_from_quaternion(q, back)
+        pose_kernels.rows_from_quaternion(q, back)
         np.testing.assert_allclose(back.reshape(3, 3), R, atol=1e-15)
 
 
@@ -120,7 +122,7 @@ def test_kabsch_start_equals_the_models_rigid_fit(hexapod, hex_start):
     rng = np.random.default_rng(2)
     for _ in range(20):
         x = hex_start + rng.normal(0, 5.0, 9)
-        a = lm.local_solve(hexapod, x, hexapod.example_leg_lengths, max_iter=0)
+        a = local.local_solve(hexapod, x, hexapod.example_leg_lengths, max_iter=0)
         R, p = kabsch(hexapod.platform[:3], x.reshape(3, 3))
         np.testing.assert_allclose(a.x, (p + hexapod.platform[:3] @ R.T).reshape(-1), atol=1e-11)
         np.testing.assert_allclose(a.position, p, atol=1e-11)
@@ -131,7 +133,7 @@ def test_refine_uses_the_compiled_lm(rpr, rpr_solutions, hexapod, hex_published)
     meets the papers' absolute threshold on the hexapod (round-off search on its nine variables)."""
     x0 = rpr_solutions[0] + [1.0, -1.0, 0.02]
     x, f, nfev, nit = refine.levenberg_marquardt(rpr, x0, rpr.example_leg_lengths)
-    r = lm.local_solve(rpr, x0, rpr.example_leg_lengths, max_iter=50, ftol=1e-20)
+    r = local.local_solve(rpr, x0, rpr.example_leg_lengths, max_iter=50, ftol=1e-20)
     np.testing.assert_array_equal(x, r.x)
     assert (f, nfev, nit) == (r.leg_fitness, r.nfev, r.nit) and f < 1e-20
     for k in (0, 7, 10):
@@ -142,7 +144,7 @@ def test_refine_uses_the_compiled_lm(rpr, rpr_solutions, hexapod, hex_published)
 
 def test_multistart_reports_the_first_converged_start_and_counts_all(rpr):
     legs = rpr.example_leg_lengths
-    solver = lm.LocalSolver(rpr)
+    solver = local.LocalSolver(rpr)
     starts = np.ascontiguousarray(np.random.default_rng(3).uniform(-50.0, 50.0, (40, 3)))
     singles = [solver.solve(np.ascontiguousarray(s), legs, max_iter=6) for s in starts]
     first = next(k for k, s in enumerate(singles) if s.converged)
@@ -158,8 +160,8 @@ def test_multistart_reports_the_first_converged_start_and_counts_all(rpr):
 
 
 def test_bad_legs_are_refused_by_the_kernel(rpr, rpr_solutions):
-    solver = lm.LocalSolver(rpr)
+    solver = local.LocalSolver(rpr)
     for legs in ([np.nan, 1.0, 1.0], [1.0, -1.0, 1.0], [0.0, 1.0, 1.0], [np.inf, 1.0, 1.0]):
         assert solver.solve(rpr_solutions[0], np.array(legs)) is None
     with pytest.raises(ValueError):
-        lm.local_solve(rpr, rpr_solutions[0], [1.0, 1.0])
+        local.local_solve(rpr, rpr_solutions[0], [1.0, 1.0])

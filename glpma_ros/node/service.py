@@ -4,7 +4,8 @@
 everything a transport should not have to know about: parameters and their
 runtime changes, unit conversion (metres on topics, the config's unit inside),
 input validation with a one-line reason, the publish decision (converged
-only), statistics (:mod:`.stats`) and the diagnostics report.  The threads both
+only), statistics (:mod:`.stats`), the diagnostics report (:mod:`.diagnostics`) and
+the assembly modes on request (:mod:`.assembly_modes`).  The threads both
 transports share are in :mod:`.loops`.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
@@ -24,8 +25,7 @@ import logging
 import math
 import threading
 import time
-from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -36,12 +36,11 @@ from ..config import check_units, load_manipulator, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
 from ..precompile import COMPILED_S
+from .assembly_modes import AssemblyModesMixin
+from .diagnostics import DiagnosticsMixin
 from .outputs import OutputBuilder
-from .stats import LogThrottle, Statistics, percentiles_ms
+from .stats import LogThrottle, Statistics
 
-OK, WARN, ERROR, STALE = 0, 1, 2, 3   # diagnostic_msgs/DiagnosticStatus levels
-#: ``last_input`` argument: the last input received so far
-CURRENT = object()
 #: solvers warmed up at start (with the configured one): the papers' real-time solvers
 WARM_UP_SOLVERS = ("glpma", "g3pcx", "rcga")
 
@@ -70,20 +69,6 @@ class JointStateInput:
     positions: tuple
     velocities: tuple = ()
 
-
-@dataclass(frozen=True)
-class PoseArrayOutput:
-    """Every real assembly mode of one input: ``poses`` = ((x, y, z) metres, (qx, qy, qz, qw)) each,
-    ``stamp_ns`` = time of the request, ``input_stamp_ns`` = stamp of the input they solve."""
-
-    stamp_ns: int
-    frame_id: str
-    poses: tuple
-    input_stamp_ns: int = 0
-    elapsed_s: float = 0.0
-    starts: int = 0          # local solves the search used (0: not reported by ``solve``)
-
-
 @dataclass
 class Outcome:
     """What became of one input: a pose to publish, or the reason there is none."""
@@ -96,21 +81,7 @@ class Outcome:
     leg_rates_m: np.ndarray | None = None  # their rates (m/s) from a JointState's velocities, if any
 
 
-@dataclass
-class DiagnosticReport:
-    """A transport-free ``diagnostic_msgs/DiagnosticStatus``."""
-
-    level: int
-    name: str
-    message: str
-    hardware_id: str
-    values: list = field(default_factory=list)   # [(key, value)] strings
-
-    def as_dict(self) -> dict:
-        return dict(self.values)
-
-
-class FkService:
+class FkService(AssemblyModesMixin, DiagnosticsMixin):
     """Leg lengths (metres) in, poses (metres) out, with the estimator's warm state in between."""
 
     def __init__(self, parameters: dict | None = None, *, logger=None, node_name: str = P.NODE_NAME):
@@ -398,76 +369,6 @@ class FkService:
         with self._drop_lock:
             self.stats.dropped += count
 
-    # -- every assembly mode -------------------------------------------------------------------
-    def assembly_modes_input(self, last_input=CURRENT) -> tuple:
-        """``(legs in the config's unit, input stamp_ns, runs, seed)`` of the last input received
-        (or of ``last_input`` = (input, stamp_ns), None = nothing received); :class:`InputError`
-        when there is none or it is not a valid set of leg lengths."""
-        last_input = self._last_input if last_input is CURRENT else last_input
-        if last_input is None:
-            source = "joint_states" if self.input_type == P.INPUT_JOINT_STATE else "leg_lengths"
-            raise InputError(f"no input received yet on {source}")
-        raw, stamp_ns = last_input
-        try:
-            legs = self.model.check_legs(self._config_unit(raw))
-        except InputError as exc:
-            raise InputError(f"the last input is invalid: {exc}") from None
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"the last input is invalid: {exc}") from None
-        with self._lock:
-            runs, seed = self.params["assembly_modes_runs"], self.params["seed"]
-        return legs, stamp_ns, runs, seed
-
-    def assembly_modes(self, stamp_ns: int, last_input=CURRENT, solve=None) -> PoseArrayOutput:
-        """Every real assembly mode of the last input received (or ``last_input``), stamped
-        ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed)`` returns the solver
-        variables of each mode, as a list or a :class:`~glpma_ros.node.modes_worker.Modes` that also
-        says how many starts it used (default: the multistart of
-        :func:`~glpma_ros.node.modes_worker.find_modes` in this thread;
-        the node passes a :class:`~glpma_ros.node.modes_worker.ModesWorker`).  Does not hold the
-        service lock while solving.  :class:`InputError` with the reason on failure."""
-        t0 = time.perf_counter()
-        legs, input_stamp_ns, runs, seed = self.assembly_modes_input(last_input)
-        if solve is None:
-            solve = self._solve_all_here
-        xs = solve(legs, runs, seed)
-        poses = []
-        for x in xs:
-            pose = self.model.pose(np.asarray(x, dtype=float))
-            poses.append((tuple(float(v) * self.metres_per_unit for v in pose.position),
-                          tuple(float(v) for v in pose.orientation)))
-        with self._lock:
-            frame_id = self.frame_id
-        return PoseArrayOutput(int(stamp_ns), frame_id, tuple(poses), int(input_stamp_ns),
-                               time.perf_counter() - t0, int(getattr(xs, "starts", 0)))
-
-    def modes_worker(self):
-        """A :class:`~glpma_ros.node.modes_worker.ModesWorker` (not started) for this manipulator."""
-        from .modes_worker import ModesWorker
-        return ModesWorker(self.config_path, warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
-
-    def _solve_all_here(self, legs, runs, seed) -> list:
-        from .modes_worker import find_modes
-        return find_modes(self.model, legs, runs, seed)
-
-    def note_assembly_modes(self, result: PoseArrayOutput | None = None, failure: str | None = None,
-                            coalesced: int = 0) -> None:
-        """Count a request: answered with ``result``, failed with ``failure``, or ``coalesced``
-        requests merged into the next computation."""
-        with self._modes_lock:
-            st = self.stats
-            st.modes_coalesced += coalesced
-            if result is not None:
-                st.modes_requests += 1
-                st.modes_published += 1
-                st.modes_last = f"{len(result.poses)} modes in {result.elapsed_s:.3g} s"
-                st.modes_last_starts = result.starts
-            elif failure is not None:
-                st.modes_requests += 1
-                st.modes_failed += 1
-                st.modes_last_failure = failure
-                st.period["modes_failed"] += 1
-
     # -- parameters -----------------------------------------------------------------------------
     def set_parameters(self, changes: dict) -> tuple[bool, str]:
         """Apply ``changes`` (name -> value) atomically.  Returns ``(True, "")`` or
@@ -505,107 +406,3 @@ class FkService:
             if changed:
                 self.log.info("parameters set: " + ", ".join(f"{k}={v!r}" for k, v in changed.items()))
             return True, ""
-
-    # -- diagnostics ------------------------------------------------------------------------------
-    def diagnostics(self) -> DiagnosticReport:
-        """The current statistics as a DiagnosticStatus; starts a new reporting period."""
-        with self._lock, self._drop_lock:
-            st = self.stats
-            period, st.period = st.period, Counter()
-            period["dropped"], st.dropped_reported = st.dropped - st.dropped_reported, st.dropped
-            solve = percentiles_ms(st.solve_s)
-            latency = percentiles_ms(st.latency_s)
-            extras = percentiles_ms(st.extras_s)
-            last = st.last_estimate
-            cond_last = last.conditioning if last is not None else math.nan
-            with self._modes_lock:
-                modes = [("assembly modes requests", st.modes_requests),
-                         ("assembly modes published", st.modes_published),
-                         ("assembly modes failed", st.modes_failed),
-                         ("assembly modes coalesced", st.modes_coalesced),
-                         ("assembly modes last", st.modes_last or "none"),
-                         ("assembly modes last starts", st.modes_last_starts)]
-                if st.modes_last_failure:
-                    modes.append(("assembly modes last failure", st.modes_last_failure))
-            values = [
-                ("input", "joint_states (" + ", ".join(self.joint_names) + ")"
-                 if self.input_type == P.INPUT_JOINT_STATE else "leg_lengths"),
-                ("inputs received", st.handled + st.dropped),
-                ("inputs solved", st.published),
-                ("inputs rejected", st.rejected),
-                ("inputs dropped", st.dropped),
-                ("deadline misses", st.deadline_misses),
-                ("solver", self.params["solver"]),
-                ("last start", last.start if last is not None else "none"),
-                ("warm state", "yes" if self._warm_x is not None else "no (cold start next)"),
-                ("starts warm/widened/cold",
-                 f"{st.starts['warm']}/{st.starts['widened']}/{st.starts['cold']}"),
-                ("solve time p50 (ms)", f"{solve[0]:.4g}"),
-                ("solve time p99 (ms)", f"{solve[1]:.4g}"),
-                ("solve time max (ms)", f"{solve[2]:.4g}"),
-                ("latency p50 (ms)", f"{latency[0]:.4g}"),
-                ("latency p99 (ms)", f"{latency[1]:.4g}"),
-                ("latency max (ms)", f"{latency[2]:.4g}"),
-                ("residual RMS last (m)", f"{st.residual_m[-1]:.3g}" if st.residual_m else "nan"),
-                ("residual RMS max (m)", f"{max(st.residual_m):.3g}" if st.residual_m else "nan"),
-                ("fitness last", f"{last.fitness:.3g}" if last is not None else "nan"),
-                ("evaluations last", last.evaluations if last is not None else 0),
-                ("evaluations mean", f"{np.mean(st.evaluations):.1f}" if st.evaluations else "nan"),
-                ("conditioning last", f"{cond_last:.3g}"),
-                ("conditioning min", f"{min(st.conditioning):.3g}" if st.conditioning else "nan"),
-                ("time budget (ms)", f"{self.params['time_budget_ms']:g}"),
-                ("tolerance", f"{self.params['tolerance']:g}"),
-                ("manipulator", f"{self.model.kind} ({self.model.unit})"),
-                ("frame_id", self.frame_id),
-                ("outputs", ", ".join(name for name, on in (
-                    ("pose_estimate", True), ("/tf", self.params["publish_tf"]),
-                    ("pose_estimate_cov", self.params["publish_covariance"]),
-                    ("twist_estimate", self.params["publish_twist"]),
-                    ("~/markers", self.params["publish_markers"])) if on)),
-                ("child_frame_id", self.params["child_frame_id"]),
-                ("leg noise std (m)", f"{self.params['leg_noise_std']:g}"),
-                ("covariance capped (singular pose)", self.outputs.capped),
-                ("twist source", self.outputs.twist_source or "none yet"),
-                ("extra outputs time p50 (ms)", f"{extras[0]:.4g}"),
-                ("extra outputs time p99 (ms)", f"{extras[1]:.4g}"),
-            ]
-            values += modes
-            values += [(f"rejected: {reason}", n) for reason, n in st.reasons.most_common()]
-            if st.last_reason:
-                values.append(("last rejection", st.last_reason))
-            problems = []
-            if period["rejected"]:
-                problems.append(f"{period['rejected']} inputs rejected")
-            if period["deadline_misses"]:
-                problems.append(f"{period['deadline_misses']} deadline misses")
-            if period["dropped"]:
-                problems.append(f"{period['dropped']} inputs dropped")
-            if period["modes_failed"]:
-                problems.append(f"{period['modes_failed']} assembly-modes requests failed")
-            if last is not None and last.converged and last.near_singular:
-                problems.append(f"near a singularity (conditioning {cond_last:.2g})")
-            if self.outputs.capped > st.capped_reported:
-                problems.append(f"pose at a singularity: covariance capped "
-                                f"({self.outputs.capped - st.capped_reported} times)")
-            st.capped_reported = self.outputs.capped
-            if problems:
-                level, message = WARN, "; ".join(problems)
-            elif st.handled + st.dropped == 0:
-                level, message = OK, ("waiting for joint_states" if self.input_type == P.INPUT_JOINT_STATE
-                                      else "waiting for leg_lengths")
-            else:
-                level, message = OK, "tracking"
-            return DiagnosticReport(level, f"{self.node_name}: forward kinematics", message,
-                                    f"{self.model.kind}:{Path(str(getattr(self.model, 'source', ''))).name}",
-                                    [(k, str(v)) for k, v in values])
-
-    def summary(self) -> str:
-        """One line of totals, for the log at shutdown."""
-        st = self.stats
-        solve = percentiles_ms(st.solve_s)
-        times = (f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms" if st.solve_s
-                 else "no solve yet")
-        return (f"received {st.handled + st.dropped}, solved {st.published}, rejected {st.rejected}, "
-                f"dropped {st.dropped}, deadline misses {st.deadline_misses}, {times}")
-
-

@@ -47,16 +47,24 @@ the stationarity ``|J^T r| / (|J| |r|)``, the distance to a reference pose in pl
 how far the legs moved from reference legs.  Evaluation counting: each residual-and-Jacobian
 evaluation counts one, including the final one at the returned variables (which also gives the papers'
 fitness).
+
+Layout: the pose-space pieces of the two models (residuals and Jacobians, retraction, rotations, Kabsch
+fit, joint distance) are in :mod:`glpma_ros.models.pose_kernels`, the small dense linear algebra in
+:mod:`glpma_ros.linalg`, the Python side (:class:`~glpma_ros.solvers.local.LocalSolver`,
+:func:`~glpma_ros.solvers.local.local_solve`) in :mod:`glpma_ros.solvers.local`; this module is the
+iteration itself.
 """
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from ..linalg import damped_solve, jacobi_svd, normal_equations
 from ..models.kernels import KIND_PLANAR_3RPR, residuals_into
+from ..models.pose_kernels import (STATE_SIZE, joint_distance, kabsch_state, quaternion_from_rows,
+                                   residuals_jacobian, retract, rows_from_quaternion)
 
 #: convergence: largest leg residual relative to the reference length L (about 450 units in the last
 #: place of L; a converged pose is then polished to round-off by the next step)
@@ -74,12 +82,6 @@ MAX_REJECTIONS = 10
 PROGRESS_WINDOW = 10
 #: default iteration cap of one local solve
 MAX_ITER = 100
-#: rotation angle below which Rodrigues' formula uses its second-order Taylor expansion
-SMALL_ANGLE = 1e-8
-#: sweeps of the one-sided Jacobi SVD (it converges quadratically: 6x6 needs 5-7)
-JACOBI_SWEEPS = 30
-#: two columns count as orthogonal when |a.b| <= JACOBI_TOL |a| |b| (a few units in the last place)
-JACOBI_TOL = 4e-16
 
 # layout of the ``info`` vector filled by ``lm_kernel``
 I_LEG_FITNESS = 0     # sum of squared leg residuals at the returned variables
@@ -110,320 +112,11 @@ S_STALL = 6           # stop when the leg fitness fell by less than this fractio
 S_N_RES = 7           # length of the model's residual vector
 S_COL_SCALE = 8       # then the model's pose_column_scale (n_pose values)
 
-#: length of a state vector: hexapod p (3) + R (9, row-major); 3-RPR uses its first 3 entries
-STATE_SIZE = 12
-
 
 def workspace_size(n_legs: int, n_pose: int, n_res: int) -> int:
     """Length of the float64 work buffer :func:`lm_kernel` needs."""
     return 2 * (n_legs + n_legs * n_pose) + 3 * n_pose * n_pose + 2 * n_pose + 2 * STATE_SIZE \
         + n_legs * n_pose + n_pose + n_res
-
-
-# -- the two models' residuals, Jacobians and retractions -------------------------------------------
-@njit(cache=True, error_model="numpy")
-def _rpr_residuals_jacobian(state, base, platform, legs, r, J):
-    c = math.cos(state[2])
-    s = math.sin(state[2])
-    for i in range(3):
-        rx = c * platform[i, 0] - s * platform[i, 1]        # R(theta) CB_i
-        ry = s * platform[i, 0] + c * platform[i, 1]
-        ex = state[0] + rx - base[i, 0]
-        ey = state[1] + ry - base[i, 1]
-        n = math.sqrt(ex * ex + ey * ey)
-        ux = ex / n
-        uy = ey / n
-        J[i, 0] = ux
-        J[i, 1] = uy
-        J[i, 2] = uy * rx - ux * ry                         # d/dtheta of R CB_i is (-ry, rx)
-        r[i] = n - legs[i]
-
-
-@njit(cache=True, error_model="numpy")
-def _hex_residuals_jacobian(state, base, platform, legs, r, J):
-    for j in range(6):
-        cx, cy, cz = platform[j, 0], platform[j, 1], platform[j, 2]
-        wx = state[3] * cx + state[4] * cy + state[5] * cz   # w = R CB_j
-        wy = state[6] * cx + state[7] * cy + state[8] * cz
-        wz = state[9] * cx + state[10] * cy + state[11] * cz
-        ex = state[0] + wx - base[j, 0]
-        ey = state[1] + wy - base[j, 1]
-        ez = state[2] + wz - base[j, 2]
-        n = math.sqrt(ex * ex + ey * ey + ez * ez)
-        ux = ex / n
-        uy = ey / n
-        uz = ez / n
-        J[j, 0] = ux
-        J[j, 1] = uy
-        J[j, 2] = uz
-        J[j, 3] = wy * uz - wz * uy                          # w x u
-        J[j, 4] = wz * ux - wx * uz
-        J[j, 5] = wx * uy - wy * ux
-        r[j] = n - legs[j]
-
-
-@njit(cache=True, error_model="numpy")
-def _residuals_jacobian(kind, state, base, platform, legs, r, J):
-    """Leg residuals and Jacobian at ``state``; returns the sum of squares (inf when not finite)."""
-    if kind == KIND_PLANAR_3RPR:
-        _rpr_residuals_jacobian(state, base, platform, legs, r, J)
-    else:
-        _hex_residuals_jacobian(state, base, platform, legs, r, J)
-    f = 0.0
-    for i in range(r.shape[0]):
-        f += r[i] * r[i]
-    return f if math.isfinite(f) else math.inf
-
-
-@njit(cache=True, error_model="numpy")
-def rotation_from_vector_into(wx, wy, wz, M):
-    """Rodrigues' formula: ``M`` (3x3) = exp([w]x) = I + a K + b K^2, K^2 = w w^T - |w|^2 I."""
-    t2 = wx * wx + wy * wy + wz * wz
-    theta = math.sqrt(t2)
-    if theta < SMALL_ANGLE:
-        a = 1.0
-        b = 0.5
-    else:
-        a = math.sin(theta) / theta
-        b = (1.0 - math.cos(theta)) / t2
-    M[0, 0] = 1.0 + b * (wx * wx - t2)
-    M[1, 1] = 1.0 + b * (wy * wy - t2)
-    M[2, 2] = 1.0 + b * (wz * wz - t2)
-    M[0, 1] = -a * wz + b * wx * wy
-    M[1, 0] = a * wz + b * wx * wy
-    M[0, 2] = a * wy + b * wx * wz
-    M[2, 0] = -a * wy + b * wx * wz
-    M[1, 2] = -a * wx + b * wy * wz
-    M[2, 1] = a * wx + b * wy * wz
-
-
-@njit(cache=True, error_model="numpy")
-def _retract(kind, state, step, trial, M):
-    """``trial`` = the state moved by ``step`` (3-RPR: added; hexapod: p + dp, exp([w]x) R)."""
-    if kind == KIND_PLANAR_3RPR:
-        for k in range(3):
-            trial[k] = state[k] + step[k]
-        return
-    for k in range(3):
-        trial[k] = state[k] + step[k]
-    rotation_from_vector_into(step[3], step[4], step[5], M)
-    for i in range(3):
-        for j in range(3):
-            trial[3 + 3 * i + j] = (M[i, 0] * state[3 + j] + M[i, 1] * state[6 + j]
-                                    + M[i, 2] * state[9 + j])
-
-
-# -- rotations ------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def quaternion_from_rows(R, q):
-    """Unit quaternion ``q = [qx, qy, qz, qw]`` (qw >= 0) of the row-major rotation ``R`` (9 values);
-    the same branches as ``models.hexapod_66.quaternion_from_matrix``."""
-    t = R[0] + R[4] + R[8]
-    if t > 0.0:
-        s = 2.0 * math.sqrt(1.0 + t)
-        q[0] = (R[7] - R[5]) / s
-        q[1] = (R[2] - R[6]) / s
-        q[2] = (R[3] - R[1]) / s
-        q[3] = 0.25 * s
-    else:
-        i = 0
-        if R[4] > R[0]:
-            i = 1
-        if R[8] > R[4 * i]:
-            i = 2
-        j = (i + 1) % 3
-        k = (i + 2) % 3
-        s = 2.0 * math.sqrt(max(1.0 + R[4 * i] - R[4 * j] - R[4 * k], 0.0))
-        q[i] = 0.25 * s
-        q[j] = (R[3 * j + i] + R[3 * i + j]) / s
-        q[k] = (R[3 * k + i] + R[3 * i + k]) / s
-        q[3] = (R[3 * k + j] - R[3 * j + k]) / s
-    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    sign = -1.0 if q[3] < 0.0 else 1.0
-    for m in range(4):
-        q[m] = sign * q[m] / norm
-
-
-@njit(cache=True, error_model="numpy")
-def rows_from_quaternion(q, R):
-    """Row-major rotation matrix (9 values) of the unit quaternion ``q = [qx, qy, qz, qw]``."""
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    R[0] = 1.0 - 2.0 * (y * y + z * z)
-    R[1] = 2.0 * (x * y - z * w)
-    R[2] = 2.0 * (x * z + y * w)
-    R[3] = 2.0 * (x * y + z * w)
-    R[4] = 1.0 - 2.0 * (x * x + z * z)
-    R[5] = 2.0 * (y * z - x * w)
-    R[6] = 2.0 * (x * z - y * w)
-    R[7] = 2.0 * (y * z + x * w)
-    R[8] = 1.0 - 2.0 * (x * x + y * y)
-
-
-# -- small dense linear algebra (no LAPACK: numba's would need SciPy) -------------------------------
-@njit(cache=True, error_model="numpy")
-def _damped_solve(A, lam, g, step, L):
-    """Solve ``(A + lam diag(A)) step = -g`` by Cholesky; False when not positive definite."""
-    n = A.shape[0]
-    for i in range(n):
-        for j in range(i + 1):
-            s = A[i, j]
-            if i == j:
-                s += lam * max(A[i, i], 1e-300)
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not s > 0.0 or not math.isfinite(s):
-                    return False
-                L[i, i] = math.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-    for i in range(n):                       # L y = -g
-        s = -g[i]
-        for k in range(i):
-            s -= L[i, k] * step[k]
-        step[i] = s / L[i, i]
-    for i in range(n - 1, -1, -1):           # L^T step = y
-        s = step[i]
-        for k in range(i + 1, n):
-            s -= L[k, i] * step[k]
-        step[i] = s / L[i, i]
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def jacobi_svd(A, V, s):
-    """One-sided Jacobi SVD (Hestenes 1958) of ``A`` (m x n, m >= n), in place: on return
-    ``A = U diag(s)`` (columns) and ``A_in V = U diag(s)``; singular values unsorted.  The squared
-    column norms are carried through each rotation (``alpha - t gamma``, ``beta + t gamma``) and
-    recomputed at every sweep, so a pair costs one dot product."""
-    m, n = A.shape
-    for i in range(n):
-        for j in range(n):
-            V[i, j] = 1.0 if i == j else 0.0
-    for _ in range(JACOBI_SWEEPS):
-        for j in range(n):
-            acc = 0.0
-            for k in range(m):
-                acc += A[k, j] * A[k, j]
-            s[j] = acc
-        rotated = False
-        for p in range(n - 1):
-            for q in range(p + 1, n):
-                alpha = s[p]
-                beta = s[q]
-                gamma = 0.0
-                for k in range(m):
-                    gamma += A[k, p] * A[k, q]
-                if not abs(gamma) > JACOBI_TOL * math.sqrt(alpha * beta):
-                    continue
-                rotated = True
-                zeta = (beta - alpha) / (2.0 * gamma)
-                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.hypot(1.0, zeta))
-                c = 1.0 / math.sqrt(1.0 + t * t)
-                sn = c * t
-                for k in range(m):
-                    ap = A[k, p]
-                    A[k, p] = c * ap - sn * A[k, q]
-                    A[k, q] = sn * ap + c * A[k, q]
-                for k in range(n):
-                    vp = V[k, p]
-                    V[k, p] = c * vp - sn * V[k, q]
-                    V[k, q] = sn * vp + c * V[k, q]
-                s[p] = max(alpha - t * gamma, 0.0)
-                s[q] = max(beta + t * gamma, 0.0)
-        if not rotated:
-            break
-    for j in range(n):
-        acc = 0.0
-        for k in range(m):
-            acc += A[k, j] * A[k, j]
-        s[j] = math.sqrt(acc)
-
-
-@njit(cache=True, error_model="numpy")
-def _kabsch_state(platform, x, state, H, V, s):
-    """``state`` = (p, R) of the rigid motion that best maps CB_1..CB_3 onto the solver variables
-    B_1..B_3 (Kabsch 1976): H = sum (CB_k - cs)(B_k - cd)^T = U S V^T, R = V diag(1, 1, d) U^T.
-    Three points span a plane, so the third singular pair is replaced by the cross products of the
-    first two (which makes det R = +1, Kabsch's d).  False when B_1..B_3 are collinear."""
-    cs0 = (platform[0, 0] + platform[1, 0] + platform[2, 0]) / 3.0
-    cs1 = (platform[0, 1] + platform[1, 1] + platform[2, 1]) / 3.0
-    cs2 = (platform[0, 2] + platform[1, 2] + platform[2, 2]) / 3.0
-    cd0 = (x[0] + x[3] + x[6]) / 3.0
-    cd1 = (x[1] + x[4] + x[7]) / 3.0
-    cd2 = (x[2] + x[5] + x[8]) / 3.0
-    for a in range(3):
-        for b in range(3):
-            H[a, b] = 0.0
-    for k in range(3):
-        sa = (platform[k, 0] - cs0, platform[k, 1] - cs1, platform[k, 2] - cs2)
-        db = (x[3 * k] - cd0, x[3 * k + 1] - cd1, x[3 * k + 2] - cd2)
-        for a in range(3):
-            for b in range(3):
-                H[a, b] += sa[a] * db[b]
-    jacobi_svd(H, V, s)                      # H_in V = U S
-    i1 = 0
-    for j in range(1, 3):
-        if s[j] > s[i1]:
-            i1 = j
-    i2 = -1
-    for j in range(3):
-        if j != i1 and (i2 < 0 or s[j] > s[i2]):
-            i2 = j
-    if not s[i2] > 0.0 or not math.isfinite(s[i1]):
-        return False
-    u1 = (H[0, i1] / s[i1], H[1, i1] / s[i1], H[2, i1] / s[i1])
-    u2 = (H[0, i2] / s[i2], H[1, i2] / s[i2], H[2, i2] / s[i2])
-    v1 = (V[0, i1], V[1, i1], V[2, i1])
-    v2 = (V[0, i2], V[1, i2], V[2, i2])
-    u3 = (u1[1] * u2[2] - u1[2] * u2[1], u1[2] * u2[0] - u1[0] * u2[2], u1[0] * u2[1] - u1[1] * u2[0])
-    v3 = (v1[1] * v2[2] - v1[2] * v2[1], v1[2] * v2[0] - v1[0] * v2[2], v1[0] * v2[1] - v1[1] * v2[0])
-    for a in range(3):
-        for b in range(3):
-            state[3 + 3 * a + b] = v1[a] * u1[b] + v2[a] * u2[b] + v3[a] * u3[b]
-    cs = (cs0, cs1, cs2)
-    cd = (cd0, cd1, cd2)
-    for a in range(3):
-        state[a] = cd[a] - (state[3 + 3 * a] * cs[0] + state[4 + 3 * a] * cs[1] + state[5 + 3 * a] * cs[2])
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def _joint_distance(kind, platform, x1, x2):
-    """Largest distance between corresponding platform joints (3-RPR: all three; hexapod: B_1..B_3,
-    the variables), like ``Manipulator.distance``."""
-    d = 0.0
-    if kind == KIND_PLANAR_3RPR:
-        c1, s1 = math.cos(x1[2]), math.sin(x1[2])
-        c2, s2 = math.cos(x2[2]), math.sin(x2[2])
-        for i in range(3):
-            px, py = platform[i, 0], platform[i, 1]
-            dx = (x1[0] + c1 * px - s1 * py) - (x2[0] + c2 * px - s2 * py)
-            dy = (x1[1] + s1 * px + c1 * py) - (x2[1] + s2 * px + c2 * py)
-            d = max(d, math.sqrt(dx * dx + dy * dy))
-        return d
-    for k in range(3):
-        dx = x1[3 * k] - x2[3 * k]
-        dy = x1[3 * k + 1] - x2[3 * k + 1]
-        dz = x1[3 * k + 2] - x2[3 * k + 2]
-        d = max(d, math.sqrt(dx * dx + dy * dy + dz * dz))
-    return d
-
-
-@njit(cache=True, error_model="numpy")
-def _normal_equations(J, r, A, g):
-    n_legs, n = J.shape
-    for i in range(n):
-        acc = 0.0
-        for k in range(n_legs):
-            acc += J[k, i] * r[k]
-        g[i] = acc
-        for j in range(i + 1):
-            acc = 0.0
-            for k in range(n_legs):
-                acc += J[k, i] * J[k, j]
-            A[i, j] = acc
-            A[j, i] = acc
 
 
 # -- the kernel -------------------------------------------------------------------------------------
@@ -549,15 +242,15 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
             state[k] = x0[k]
         ok = True
     else:
-        ok = _kabsch_state(platform, x0, state, L[:3, :3], V[:3, :3], sv[:3])
+        ok = kabsch_state(platform, x0, state, L[:3, :3], V[:3, :3], sv[:3])
     nfev = 0
     nit = 0
     progress = 1.0
     if ok and max_iter > 0:
-        f = _residuals_jacobian(kind, state, base, platform, legs, r, J)
+        f = residuals_jacobian(kind, state, base, platform, legs, r, J)
         nfev += 1
         if f < math.inf:
-            _normal_equations(J, r, A, g)
+            normal_equations(J, r, A, g)
             lam = LAMBDA_INIT
             nu = 2.0
             rejections = 0
@@ -575,9 +268,9 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
                     polish_left -= 1
                 nit += 1
                 f2 = math.inf
-                if _damped_solve(A, lam, g, step, L):
-                    _retract(kind, state, step, trial, M)
-                    f2 = _residuals_jacobian(kind, trial, base, platform, legs, r2, J2)
+                if damped_solve(A, lam, g, step, L):
+                    retract(kind, state, step, trial, M)
+                    f2 = residuals_jacobian(kind, trial, base, platform, legs, r2, J2)
                     nfev += 1
                 if f2 < f:
                     # gain ratio against the decrease the linear model predicts (Nielsen 1999)
@@ -595,7 +288,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
                         for k in range(n_pose):
                             J[i, k] = J2[i, k]
                     f = f2
-                    _normal_equations(J, r, A, g)
+                    normal_equations(J, r, A, g)
                     if not done:
                         rmax = 0.0
                         for i in range(n_legs):
@@ -626,7 +319,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
         info[I_FITNESS] = math.inf
         info[I_STATIONARITY] = math.inf
         info[I_PROGRESS] = 1.0
-        info[I_DISTANCE] = _joint_distance(kind, platform, x_out, x_ref)
+        info[I_DISTANCE] = joint_distance(kind, platform, x_out, x_ref)
         return
     if kind == KIND_PLANAR_3RPR:
         t = np.fmod(state[2], 2.0 * math.pi)     # exact; with one exact correction = math.remainder
@@ -658,7 +351,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
             pose_out[a] = state[a]
 
     # the figures at the returned variables
-    f = _residuals_jacobian(kind, state, base, platform, legs, r, J)
+    f = residuals_jacobian(kind, state, base, platform, legs, r, J)
     nfev += 1
     rmax = 0.0
     for i in range(n_legs):
@@ -691,133 +384,8 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
             smax = max(smax, sv[k])
             smin = min(smin, sv[k])
         info[I_CONDITIONING] = smin / smax if smax > 0.0 else 0.0
-    info[I_DISTANCE] = _joint_distance(kind, platform, x_out, x_ref)
+    info[I_DISTANCE] = joint_distance(kind, platform, x_out, x_ref)
     info[I_NFEV] = nfev
     info[I_NIT] = nit
     info[I_PROGRESS] = progress
     info[I_CONVERGED] = 1.0 if (rmax <= rtol * ref and f < ftol) else 0.0
-
-
-# -- Python side ---------------------------------------------------------------------------------------
-def make_settings(model, *, max_iter=None, rtol=None, ftol=math.inf) -> np.ndarray:
-    """The ``settings`` vector of :func:`lm_kernel` for ``model`` (its scale, leg limits and column
-    scale; ``rtol`` default ``LEG_RTOL``, ``max_iter`` default ``MAX_ITER``)."""
-    limits = model.leg_limits
-    lo, hi = (-math.inf, math.inf) if limits is None else (float(limits[0]), float(limits[1]))
-    head = [model.scale, lo, hi, LEG_RTOL if rtol is None else rtol, ftol,
-            MAX_ITER if max_iter is None else max_iter, 0.0, model.n_res]
-    return np.ascontiguousarray(np.concatenate((head, model.pose_column_scale)), dtype=float)
-
-
-class LocalResult(NamedTuple):
-    """Outcome of one local solve (config unit)."""
-
-    x: np.ndarray             # solver variables
-    position: np.ndarray      # platform origin
-    orientation: np.ndarray   # unit quaternion [qx, qy, qz, qw]
-    converged: bool
-    max_residual: float       # max |r_i| over the legs
-    leg_fitness: float        # sum of squared leg residuals
-    fitness: float            # the papers' fitness of x (the model's residual vector)
-    conditioning: float       # reciprocal condition number of the leg Jacobian (0 = singular)
-    stationarity: float       # |J^T r| / (|J| |r|), small at a stationary point
-    progress: float           # relative decrease of the leg fitness over the last 10-20 iterations
-    distance: float           # platform-joint distance from x_ref (default: the start)
-    movement: float           # max |legs - legs_ref| (0 without legs_ref)
-    nfev: int
-    nit: int
-
-
-_NO_LEGS = np.zeros(0)
-
-
-class LocalSolver:
-    """The compiled local solve of one model with its own buffers (one per thread).
-
-    :meth:`run` is the raw call (fills and returns a fresh ``out`` vector, see :func:`lm_kernel`);
-    :meth:`solve` wraps it in a :class:`LocalResult`; :meth:`multistart` tries several starts."""
-
-    def __init__(self, model):
-        self.model = model
-        self.kind = int(model.kind_id)
-        self.data = model.data
-        self.platform = np.ascontiguousarray(model.platform, dtype=float)
-        self.n_vars = int(model.n_vars)
-        self.n_out = self.n_vars + 7 + N_INFO
-        self.info_at = self.n_vars + 7
-        self.work = np.zeros(workspace_size(model.n_legs, model.n_pose, model.n_res) + self.n_out)
-        self.settings = make_settings(model)
-        self._limits = model.leg_limits
-
-    def prepare(self):
-        """Load (or compile) both kernels for this model's types, with a call that does no iteration."""
-        x0 = np.zeros((1, self.n_vars))
-        legs = np.ones(self.model.n_legs)
-        settings = make_settings(self.model, max_iter=0)
-        settings[S_LO], settings[S_HI] = 0.0, math.inf
-        out = np.empty(self.n_out)
-        lm_kernel(self.kind, self.data, self.platform, legs, x0[0], x0[0], _NO_LEGS, settings, out, self.work)
-        multistart_kernel(self.kind, self.data, self.platform, legs, x0, x0[0], settings, out, self.work)
-
-    def _settings(self, max_iter, rtol, ftol, stall):
-        settings = self.settings
-        if self.model.leg_limits is not self._limits:          # the model's limits were changed
-            self.settings = settings = make_settings(self.model)
-            self._limits = self.model.leg_limits
-        settings[S_RTOL] = rtol
-        settings[S_FTOL] = ftol
-        settings[S_MAX_ITER] = max_iter
-        settings[S_STALL] = stall
-        return settings
-
-    def run(self, x0, legs, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None, legs_ref=_NO_LEGS,
-            stall=0.0):
-        """``x0``, ``legs``: contiguous float64 arrays of the model's sizes.  Returns ``out``."""
-        settings = self._settings(max_iter, rtol, ftol, stall)
-        out = np.empty(self.n_out)
-        lm_kernel(self.kind, self.data, self.platform, legs, x0, x0 if x_ref is None else x_ref, legs_ref,
-                  settings, out, self.work)
-        return out
-
-    def solve(self, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None,
-              legs_ref=_NO_LEGS, stall=0.0) -> LocalResult | None:
-        """:class:`LocalResult`, or None when the legs fail the check (not finite, not positive,
-        outside the model's leg limits)."""
-        return self.result(self.run(x0, legs, max_iter, rtol, ftol, x_ref, legs_ref, stall))
-
-    def multistart(self, starts, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None,
-                   stall=0.0) -> LocalResult | None:
-        """The first converged solve from the rows of ``starts`` (contiguous, float64), else the one of
-        least leg fitness; ``nfev`` / ``nit`` count every start tried.  ``x_ref`` default: the first
-        start."""
-        settings = self._settings(max_iter, rtol, ftol, stall)
-        out = np.empty(self.n_out)
-        multistart_kernel(self.kind, self.data, self.platform, legs, starts,
-                          starts[0] if x_ref is None else x_ref, settings, out, self.work)
-        return self.result(out)
-
-    def result(self, out) -> LocalResult | None:
-        n, info = self.n_vars, out[self.info_at:]
-        if info[I_INPUT_OK] == 0.0:
-            return None
-        return LocalResult(out[:n], out[n:n + 3], out[n + 3:n + 7], info[I_CONVERGED] == 1.0,
-                           float(info[I_MAX_RESIDUAL]), float(info[I_LEG_FITNESS]), float(info[I_FITNESS]),
-                           float(info[I_CONDITIONING]), float(info[I_STATIONARITY]), float(info[I_PROGRESS]),
-                           float(info[I_DISTANCE]),
-                           float(info[I_MOVEMENT]), int(info[I_NFEV]), int(info[I_NIT]))
-
-
-def local_solve(model, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf) -> LocalResult:
-    """Levenberg-Marquardt from solver variables ``x0`` to the pose for ``legs`` (config unit).
-
-    ``converged``: ``max |r_i| <= rtol * max(scale, max leg)`` (and leg fitness ``< ftol``).  Raises
-    ``ValueError`` for legs that are not finite, not positive or outside the model's leg limits.
-    Thread-safe (its own buffers); for many calls keep a :class:`LocalSolver` per thread."""
-    x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
-    legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
-    if x0.size != model.n_vars or legs.size != model.n_legs:
-        raise ValueError(f"expected {model.n_vars} variables and {model.n_legs} legs")
-    result = LocalSolver(model).solve(x0, legs, max_iter=max_iter, rtol=rtol, ftol=ftol)
-    if result is None:
-        raise ValueError("leg lengths must be finite, positive and within the leg limits")
-    return result

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from . import lm
+from .local import LocalSolver
 
 
 def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadline=None):
@@ -37,7 +37,7 @@ def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadli
         max_iter = 0
     x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
     legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
-    solver = lm.LocalSolver(model)
+    solver = LocalSolver(model)
     r = solver.solve(x0, legs, max_iter=max_iter, ftol=tolerance)
     if r is None or not math.isfinite(r.leg_fitness):
         return x0.copy(), math.inf, 1 if r is None else r.nfev, 0
@@ -84,7 +84,7 @@ def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None)
         max_iter = 0
     x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
     legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
-    r = lm.LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance)
+    r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance)
     if r is None:                       # legs outside the model's limits: evaluated, not refined
         return x0.copy(), float(model.fitness(x0, legs)[0]), 1
     x, f, nfev = r.x.copy(), r.fitness, r.nfev

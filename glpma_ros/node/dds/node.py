@@ -52,14 +52,14 @@ READER_THREADS = 2
 
 
 def pose_array_message(modes) -> PoseArray:
-    """:class:`~glpma_ros.node.service.PoseArrayOutput` -> ``geometry_msgs/PoseArray``."""
+    """:class:`~glpma_ros.node.assembly_modes.PoseArrayOutput` -> ``geometry_msgs/PoseArray``."""
     return PoseArray(header=Header(stamp=Time.from_ns(modes.stamp_ns), frame_id=modes.frame_id),
                      poses=[Pose(position=Point(*position), orientation=Quaternion(*orientation))
                             for position, orientation in modes.poses])
 
 
 def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
-    """:class:`~glpma_ros.node.service.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
+    """:class:`~glpma_ros.node.diagnostics.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
     status = DiagnosticStatus(level=report.level, name=report.name, message=report.message,
                               hardware_id=report.hardware_id,
                               values=[KeyValue(key=k, value=v) for k, v in report.values])

@@ -1,0 +1,115 @@
+"""Small dense linear algebra, compiled with Numba (no LAPACK: Numba's would need SciPy), for the
+few-by-few systems of the pose-space Levenberg-Marquardt (:mod:`glpma_ros.solvers.lm`) and the Kabsch fit
+(:mod:`glpma_ros.models.pose_kernels`): the normal equations ``J^T J``, ``J^T r``; the damped solve
+``(A + lam diag(A)) s = -g`` by Cholesky; the one-sided Jacobi SVD (Hestenes 1958).
+
+A leaf module (it imports nothing of the package), so that models and solvers can both use it."""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+#: sweeps of the one-sided Jacobi SVD (it converges quadratically: 6x6 needs 5-7)
+JACOBI_SWEEPS = 30
+#: two columns count as orthogonal when |a.b| <= JACOBI_TOL |a| |b| (a few units in the last place)
+JACOBI_TOL = 4e-16
+
+
+@njit(cache=True, error_model="numpy")
+def normal_equations(J, r, A, g):
+    """``A = J^T J`` and ``g = J^T r`` (the Gauss-Newton normal equations)."""
+    n_legs, n = J.shape
+    for i in range(n):
+        acc = 0.0
+        for k in range(n_legs):
+            acc += J[k, i] * r[k]
+        g[i] = acc
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(n_legs):
+                acc += J[k, i] * J[k, j]
+            A[i, j] = acc
+            A[j, i] = acc
+
+
+
+@njit(cache=True, error_model="numpy")
+def damped_solve(A, lam, g, step, L):
+    """Solve ``(A + lam diag(A)) step = -g`` by Cholesky; False when not positive definite."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            s = A[i, j]
+            if i == j:
+                s += lam * max(A[i, i], 1e-300)
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0 or not math.isfinite(s):
+                    return False
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    for i in range(n):                       # L y = -g
+        s = -g[i]
+        for k in range(i):
+            s -= L[i, k] * step[k]
+        step[i] = s / L[i, i]
+    for i in range(n - 1, -1, -1):           # L^T step = y
+        s = step[i]
+        for k in range(i + 1, n):
+            s -= L[k, i] * step[k]
+        step[i] = s / L[i, i]
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def jacobi_svd(A, V, s):
+    """One-sided Jacobi SVD (Hestenes 1958) of ``A`` (m x n, m >= n), in place: on return
+    ``A = U diag(s)`` (columns) and ``A_in V = U diag(s)``; singular values unsorted.  The squared
+    column norms are carried through each rotation (``alpha - t gamma``, ``beta + t gamma``) and
+    recomputed at every sweep, so a pair costs one dot product."""
+    m, n = A.shape
+    for i in range(n):
+        for j in range(n):
+            V[i, j] = 1.0 if i == j else 0.0
+    for _ in range(JACOBI_SWEEPS):
+        for j in range(n):
+            acc = 0.0
+            for k in range(m):
+                acc += A[k, j] * A[k, j]
+            s[j] = acc
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                alpha = s[p]
+                beta = s[q]
+                gamma = 0.0
+                for k in range(m):
+                    gamma += A[k, p] * A[k, q]
+                if not abs(gamma) > JACOBI_TOL * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.hypot(1.0, zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                sn = c * t
+                for k in range(m):
+                    ap = A[k, p]
+                    A[k, p] = c * ap - sn * A[k, q]
+                    A[k, q] = sn * ap + c * A[k, q]
+                for k in range(n):
+                    vp = V[k, p]
+                    V[k, p] = c * vp - sn * V[k, q]
+                    V[k, q] = sn * vp + c * V[k, q]
+                s[p] = max(alpha - t * gamma, 0.0)
+                s[q] = max(beta + t * gamma, 0.0)
+        if not rotated:
+            break
+    for j in range(n):
+        acc = 0.0
+        for k in range(m):
+            acc += A[k, j] * A[k, j]
+        s[j] = math.sqrt(acc)
+
