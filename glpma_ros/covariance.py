@@ -43,6 +43,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .linalg import jacobi_svd
+
 #: variance (m^2, rad^2) of a pose component the manipulator does not measure (the planar
 #: 3-RPR's z, roll and pitch): robot_localization's convention for "not measured"
 UNOBSERVED_VARIANCE = 1e6
@@ -54,10 +56,6 @@ SPATIAL_COLUMNS = np.arange(6)
 PLANAR_COLUMNS = np.array([0, 1, 5])
 #: first rotation column
 ROTATION = 3
-#: the Jacobi SVD treats two columns as orthogonal when their cosine is below this
-JACOBI_TOLERANCE = 1e-15
-#: sweeps after which the Jacobi SVD stops (a 6x6 converges in 5-8)
-JACOBI_MAX_SWEEPS = 30
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -94,52 +92,6 @@ def leg_jacobian(base, platform, position, quaternion, J):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def jacobi_svd(A, V):
-    """One-sided Jacobi SVD (Hestenes 1958; Demmel & Veselic 1992): rotate pairs of columns
-    of ``A`` (n, k; overwritten) until they are orthogonal, accumulating the rotations in
-    ``V`` (k, k).  Afterwards ``A_in V = A``: the column norms of ``A`` are the singular
-    values (returned), ``A[:, c] / s[c]`` the left singular vectors.  High relative accuracy
-    for the small singular values, which decide the covariance near a singularity."""
-    n, k = A.shape
-    V[:, :] = 0.0
-    for c in range(k):
-        V[c, c] = 1.0
-    for _ in range(JACOBI_MAX_SWEEPS):
-        rotated = False
-        for p in range(k - 1):
-            for q in range(p + 1, k):
-                alpha = beta = gamma = 0.0
-                for i in range(n):
-                    alpha += A[i, p] * A[i, p]
-                    beta += A[i, q] * A[i, q]
-                    gamma += A[i, p] * A[i, q]
-                if abs(gamma) <= JACOBI_TOLERANCE * math.sqrt(alpha * beta):
-                    continue
-                rotated = True
-                zeta = (beta - alpha) / (2.0 * gamma)
-                t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-                c = 1.0 / math.sqrt(1.0 + t * t)
-                s = c * t
-                for i in range(n):
-                    ap, aq = A[i, p], A[i, q]
-                    A[i, p] = c * ap - s * aq
-                    A[i, q] = s * ap + c * aq
-                for i in range(k):
-                    vp, vq = V[i, p], V[i, q]
-                    V[i, p] = c * vp - s * vq
-                    V[i, q] = s * vp + c * vq
-        if not rotated:
-            break
-    sv = np.empty(k)
-    for c in range(k):
-        acc = 0.0
-        for i in range(n):
-            acc += A[i, c] * A[i, c]
-        sv[c] = math.sqrt(acc)
-    return sv
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def covariance_and_twist(J, columns, length, sigma, cap, unobserved, rates, work, V, cov, twist):
     """Sigma (6x6, into ``cov``) and, when ``rates`` has one entry per leg, the least-squares
     twist (into ``twist``) from the measured ``columns`` of ``J``; ``work`` (n, k) and ``V``
@@ -149,7 +101,8 @@ def covariance_and_twist(J, columns, length, sigma, cap, unobserved, rates, work
         inv = 1.0 / length if columns[c] >= ROTATION else 1.0
         for i in range(n):
             work[i, c] = J[i, columns[c]] * inv
-    s = jacobi_svd(work, V)                       # work = U diag(s)
+    s = np.empty(k)
+    jacobi_svd(work, V, s)                        # work = U diag(s) (high relative accuracy)
     floor = sigma / math.sqrt(cap)
     capped = False
     for c in range(k):
