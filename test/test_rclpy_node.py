@@ -1,6 +1,12 @@
 """The rclpy transport (``ros2 run glpma_ros fk_node``): runs only where ROS 2 Jazzy is sourced."""
 import math
+import os
+import signal
+import subprocess
+import sys
+import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +22,9 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from conftest import RPR_YAML  # noqa: E402
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
+#: generous cap on the node's start (a first Numba compile takes minutes on a busy machine) and stop
+NODE_START_TIMEOUT_S = 1200
+NODE_STOP_TIMEOUT_S = 120
 
 
 @pytest.fixture
@@ -78,3 +87,34 @@ def test_leg_lengths_in_pose_out(fk_node):
     finally:
         executor.shutdown()
         client.destroy_node()
+
+
+def test_sigint_ends_the_node_process_cleanly():
+    """Ctrl-C on ``fk_node``: exit status 0, the summary logged, and no abort of a thread still in rclpy
+    ("terminate called without an active exception"), no traceback, no lost rosout message."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(Path(__import__("glpma_ros").__file__).resolve().parent.parent), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.Popen([sys.executable, "-m", "glpma_ros.node.ros_node", "--ros-args",
+                             "-p", f"manipulator_config:={RPR_YAML}", "-r", "__node:=glpma_fk_sigint_test"],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+    watchdog = threading.Timer(NODE_START_TIMEOUT_S, proc.kill)
+    watchdog.start()
+    try:
+        started = []
+        for line in proc.stderr:
+            started.append(line)
+            if "]: ready" in line:
+                break
+        assert proc.poll() is None, "".join(started)
+        proc.send_signal(signal.SIGINT)
+        _, rest = proc.communicate(timeout=NODE_STOP_TIMEOUT_S)
+    finally:
+        watchdog.cancel()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    err = "".join(started) + rest
+    assert proc.returncode == 0, err
+    assert "stopped: received" in err
+    for bad in ("terminate called", "Traceback", "Failed to publish log message"):
+        assert bad not in err, err
