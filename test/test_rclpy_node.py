@@ -1,5 +1,9 @@
 """The rclpy transport (``ros2 run glpma_ros fk_node``): runs only where ROS 2 Jazzy is sourced."""
 import math
+import os
+import signal
+import subprocess
+import sys
 import time
 
 import pytest
@@ -16,6 +20,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from conftest import RPR_YAML  # noqa: E402
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
+#: generous cap on the node's start (a first Numba compile takes minutes on a busy machine) and stop
 
 
 @pytest.fixture
