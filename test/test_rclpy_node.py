@@ -20,7 +20,6 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from conftest import RPR_YAML  # noqa: E402
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
-#: generous cap on the node's start (a first Numba compile takes minutes on a busy machine) and stop
 
 
 @pytest.fixture
