@@ -6,12 +6,25 @@ import sys
 
 import pytest
 
+from glpma_ros.cli import main
+
 from conftest import HEX_YAML, ROOT, RPR_YAML
+
+
+#: a bound for a hung command, not a timing figure: a cold Numba cache on a busy machine takes minutes
+TIMEOUT_S = 600
 
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "glpma_ros", *map(str, args)], capture_output=True, text=True,
-                          cwd=ROOT, timeout=300)
+                          cwd=ROOT, timeout=TIMEOUT_S)
+
+
+def run_json(*args, returncode=0):
+    """The command's JSON output, once its exit status and stderr say it ran to the end."""
+    p = run(*args)
+    assert p.returncode == returncode and "Traceback" not in p.stderr, f"exit status {p.returncode}\n{p.stderr}"
+    return json.loads(p.stdout)
 
 
 def test_solve_json():
@@ -26,17 +39,15 @@ def test_solve_json():
 
 
 def test_solve_near_warm_start_selects_branch():
-    p = run("solve", RPR_YAML, "--legs", 100, 120, 150, "--near", 97, 20, 1.5, "--json", "--solver", "g3pcx")
-    out = json.loads(p.stdout)
+    out = run_json("solve", RPR_YAML, "--legs", 100, 120, 150, "--near", 97, 20, 1.5, "--json", "--solver", "g3pcx")
+    assert out["status"] == "converged"
     assert abs(out["variables"][0] - 97.996115113) < 1e-6
 
 
 def test_solve_no_polish_reports_status():
-    p = run("solve", RPR_YAML, "--legs", 100, 120, 150, "--json", "--no-polish", "--solver", "rcga",
-            "--max-evals", 500)
-    out = json.loads(p.stdout)
+    out = run_json("solve", RPR_YAML, "--legs", 100, 120, 150, "--json", "--no-polish", "--solver", "rcga",
+                   "--max-evals", 500, returncode=1)
     assert out["status"] == "max_evals" and out["evaluations"] <= 500
-    assert p.returncode == 1
 
 
 def test_solve_all_json():
@@ -62,7 +73,21 @@ def test_solve_all_json():
     (["frobnicate"], "invalid choice"),
     ([], "required"),
 ])
-def test_bad_input_exit_2_one_line(args, words):
+def test_bad_input_exit_2_one_line(args, words, capsys):
+    """In this process (a new interpreter per case costs seconds on a busy machine: the two cases
+    below run as commands)."""
+    assert main([str(a) for a in args]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and words in lines[0], captured.err
+    assert captured.out == ""
+
+
+@pytest.mark.parametrize("args, words", [
+    (["solve", RPR_YAML, "--legs", 100, 120], "expected 3 leg lengths"),
+    (["solve", "missing.yaml", "--legs", 1, 2, 3], "cannot read"),
+])
+def test_bad_input_exit_2_one_line_from_the_command(args, words):
     p = run(*args)
     assert p.returncode == 2
     lines = p.stderr.strip().splitlines()
@@ -70,8 +95,9 @@ def test_bad_input_exit_2_one_line(args, words):
     assert "Traceback" not in p.stderr and p.stdout == ""
 
 
-def test_bad_config_file(tmp_path):
+def test_bad_config_file(tmp_path, capsys):
     bad = tmp_path / "bad.yaml"
     bad.write_text("manipulator: planar_3rpr\nunit: mm\nbase: [[0,0],[1,0],[0,1]]\nplatform: [[0,0],[1,0],[2,0]]\n")
-    p = run("solve", bad, "--legs", 1, 1, 1)
-    assert p.returncode == 2 and "collinear" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert main(["solve", str(bad), "--legs", "1", "1", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "collinear" in err and len(err.strip().splitlines()) == 1
