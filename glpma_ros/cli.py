@@ -239,7 +239,9 @@ def _add_solve(sub) -> None:
     s.add_argument("--max-evals", type=count_type, default=None,
                    help="evaluation cap of each search stage (default: the papers' 10,000 / 500,000)")
     s.add_argument("--tolerance", type=positive_float, default=1e-20,
-                   help="fitness (sum of squared leg residuals, config unit squared) that counts as converged")
+                   help="fitness (config unit squared) at which the evolutionary search stops; with the "
+                        "refinement a pose is converged when its leg residuals are at round-off relative to the "
+                        "geometry's size, with --no-polish when its fitness is below this (default 1e-20)")
     s.add_argument("--init-range", type=float, nargs=2, metavar=("LOW", "HIGH"), default=None,
                    help="uniform initial range of every variable of a cold start (default: the papers')")
     s.add_argument("--near", type=float, nargs="+", default=None, metavar="V",

@@ -73,7 +73,9 @@ PARAMETERS = (
     ParamSpec("time_budget_ms", DOUBLE, 2.0, "Hard time budget of one solve (ms)", range=(0.0, 60000.0),
               min_exclusive=True),
     ParamSpec("tolerance", DOUBLE, 1e-20,
-              "Convergence threshold on the fitness (sum of squared leg residuals, config unit squared)",
+              "Fitness (the papers' sum of squared residuals, config unit squared) at which the evolutionary "
+              "search hands over to the refinement; with polish a pose is converged when its leg residuals are at "
+              "round-off relative to the geometry's size (without polish: fitness below this)",
               range=(0.0, 1.0), min_exclusive=True),
     ParamSpec("frame_id", STRING, "base",
               "header.frame_id of pose_estimate and of every other output (the manipulator's base frame)"),
