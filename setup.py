@@ -35,7 +35,7 @@ setup(
         "test": TOOLS + ["pytest>=7", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
                          "dask[distributed]>=2024.1"],
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
-        # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map.py)
+        # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
         "bag": TOOLS + ["rosbags>=0.10"],
         "map": TOOLS + ["dask[distributed]>=2024.1"],
         # solve-all --exact: the msolve executable ships in this wheel (glpma_ros/exact.py)

@@ -17,6 +17,7 @@ from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from conftest import CONFIG, ROOT  # noqa: E402
 from glpma_tools import bag as B  # noqa: E402
+from glpma_tools import bag_codec as C  # noqa: E402
 from glpma_tools.sim.trajectories import variables_along  # noqa: E402
 
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -32,9 +33,9 @@ SENSOR_QOS = Qos(QosHistory.KEEP_LAST, 5, QosReliability.BEST_EFFORT, QosDurabil
 
 def _float64_multi_array(values) -> bytes:
     T = TS.types
-    msg = T[B.FLOAT64_MULTI_ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
+    msg = T[C.FLOAT64_MULTI_ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
                                    data=np.asarray(values, dtype=float))
-    return bytes(TS.serialize_cdr(msg, B.FLOAT64_MULTI_ARRAY))
+    return bytes(TS.serialize_cdr(msg, C.FLOAT64_MULTI_ARRAY))
 
 
 def _string(text) -> bytes:
@@ -46,9 +47,9 @@ def _joint_state(stamp_ns, names, positions) -> bytes:
     sec, nanosec = divmod(stamp_ns, 1_000_000_000)
     header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
                                       frame_id="")
-    msg = T[B.JOINT_STATE](header=header, name=list(names), position=np.asarray(positions, dtype=float),
+    msg = T[C.JOINT_STATE](header=header, name=list(names), position=np.asarray(positions, dtype=float),
                            velocity=np.zeros(0), effort=np.zeros(0))
-    return bytes(TS.serialize_cdr(msg, B.JOINT_STATE))
+    return bytes(TS.serialize_cdr(msg, C.JOINT_STATE))
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +65,7 @@ def write_legs_bag(path: Path, storage: str, legs_m, corrupt_at=None) -> None:
     ``corrupt_at``), and /chatter (std_msgs/String) every 10 ms."""
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as w:
-        legs = w.add_connection("/leg_lengths", B.FLOAT64_MULTI_ARRAY, typestore=TS, offered_qos_profiles=[SENSOR_QOS])
+        legs = w.add_connection("/leg_lengths", C.FLOAT64_MULTI_ARRAY, typestore=TS, offered_qos_profiles=[SENSOR_QOS])
         chatter = w.add_connection("/chatter", "std_msgs/msg/String", typestore=TS)
         for i, row in enumerate(legs_m):
             t = T0 + i * PERIOD_NS
@@ -118,12 +119,12 @@ def test_bag_poses_match_the_truth(tmp_path, truth, rpr, storage, capsys):
     for topic, messages in inp.items():                     # every input message, byte for byte
         assert out[topic] == messages
     assert conns["/leg_lengths"].ext.offered_qos_profiles == [SENSOR_QOS]
-    assert conns["/pose_estimate"].msgtype == B.POSE_STAMPED
-    assert conns["/tf"].msgtype == B.TF_MESSAGE
-    assert conns["/glpma_fk/status"].msgtype == B.DIAGNOSTIC_STATUS
+    assert conns["/pose_estimate"].msgtype == C.POSE_STAMPED
+    assert conns["/tf"].msgtype == C.TF_MESSAGE
+    assert conns["/glpma_fk/status"].msgtype == C.DIAGNOSTIC_STATUS
 
     stamps = [t for t, raw in inp["/leg_lengths"] if raw != CORRUPT]
-    poses = [(t, TS.deserialize_cdr(raw, B.POSE_STAMPED)) for t, raw in out["/pose_estimate"]]
+    poses = [(t, TS.deserialize_cdr(raw, C.POSE_STAMPED)) for t, raw in out["/pose_estimate"]]
     assert [t for t, _ in poses] == stamps
     for (t, msg), x in zip(poses, xs):
         assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == t   # the receive time
@@ -132,12 +133,12 @@ def test_bag_poses_match_the_truth(tmp_path, truth, rpr, storage, capsys):
         truth_m = x[:2] * rpr.metres_per_unit
         assert abs(p.x - truth_m[0]) < 1e-9 and abs(p.y - truth_m[1]) < 1e-9 and p.z == 0.0
         assert abs(q.z - math.sin(x[2] / 2)) < 1e-9 and abs(q.w - math.cos(x[2] / 2)) < 1e-9
-    transforms = [TS.deserialize_cdr(raw, B.TF_MESSAGE).transforms[0] for _, raw in out["/tf"]]
+    transforms = [TS.deserialize_cdr(raw, C.TF_MESSAGE).transforms[0] for _, raw in out["/tf"]]
     assert len(transforms) == STEPS
     assert transforms[7].child_frame_id == "platform" and transforms[7].header.frame_id == "base"
     assert transforms[7].transform.translation.x == poses[7][1].pose.position.x
 
-    statuses = [(t, TS.deserialize_cdr(raw, B.DIAGNOSTIC_STATUS)) for t, raw in out["/glpma_fk/status"]]
+    statuses = [(t, TS.deserialize_cdr(raw, C.DIAGNOSTIC_STATUS)) for t, raw in out["/glpma_fk/status"]]
     assert [t for t, _ in statuses] == [t for t, _ in inp["/leg_lengths"]]
     bad = [s for t, s in statuses if dict((kv.key, kv.value) for kv in s.values)["status"] != "converged"]
     assert len(bad) == 1 and bad[0].level == 2 and "cannot decode" in bad[0].message
@@ -151,7 +152,7 @@ def test_bag_poses_match_the_truth(tmp_path, truth, rpr, storage, capsys):
             schemas = {c.topic: s.name for s, c, _ in reader.iter_messages()}
             f.seek(0)
             count = sum(1 for _ in make_reader(f).iter_messages())
-        assert schemas["/pose_estimate"] == B.POSE_STAMPED and schemas["/tf"] == B.TF_MESSAGE
+        assert schemas["/pose_estimate"] == C.POSE_STAMPED and schemas["/tf"] == C.TF_MESSAGE
         assert count == sum(len(v) for v in out.values())
     else:
         assert list(dst.glob("*.db3"))
@@ -165,7 +166,7 @@ def test_bag_joint_states_keep_their_stamps(tmp_path, truth, rpr, capsys):
     names = ["wrist", "leg_c", "leg_a", "leg_b"]
     stamps = [T0 - 5_000_000 + i * PERIOD_NS for i in range(40)]     # stamped 5 ms before reception
     with Writer(src, version=9, storage_plugin=StoragePlugin.MCAP) as w:
-        js = w.add_connection("/robot/joint_states", B.JOINT_STATE, typestore=TS)
+        js = w.add_connection("/robot/joint_states", C.JOINT_STATE, typestore=TS)
         for i, stamp in enumerate(stamps):
             a, b, c = legs_m[i]
             w.write(js, T0 + i * PERIOD_NS, _joint_state(stamp, names, [0.3, c, a, b]))
@@ -177,7 +178,7 @@ def test_bag_joint_states_keep_their_stamps(tmp_path, truth, rpr, capsys):
     assert summary["converged"] == 40 and summary["rejected_by_reason"] == {"joint_states has no joint 'leg_c'": 1}
     out, _ = read_bag(dst)
     assert list(dst.glob("*.db3"))
-    poses = [TS.deserialize_cdr(raw, B.POSE_STAMPED) for _, raw in out["/pose_estimate"]]
+    poses = [TS.deserialize_cdr(raw, C.POSE_STAMPED) for _, raw in out["/pose_estimate"]]
     for msg, stamp, x in zip(poses, stamps, xs):
         assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == stamp
         assert abs(msg.pose.position.x - x[0] * rpr.metres_per_unit) < 1e-9
@@ -198,7 +199,7 @@ def test_existing_output_refused_unless_overwrite(tmp_path, truth, capsys):
 
 def test_codecs_agree_with_rosbags():
     rng = np.random.default_rng(5)
-    pose, tf = B.pose_stamped_codec(TS, "world_frame"), B.tf_codec(TS, "base", "platform_1")
+    pose, tf = C.pose_stamped_codec(TS, "world_frame"), C.tf_codec(TS, "base", "platform_1")
     assert pose.fast and tf.fast
     for _ in range(50):
         stamp = int(rng.integers(0, 2**31 * 1_000_000_000))  # builtin_interfaces/Time: int32 seconds
@@ -207,13 +208,13 @@ def test_codecs_agree_with_rosbags():
         assert pose.encode(stamp, values) == pose._serialize(sec, nanosec, values)
         assert tf.encode(stamp, values) == tf._serialize(sec, nanosec, values)
         data = rng.normal(size=int(rng.integers(0, 8)))
-        assert np.array_equal(B.decode_float64_multi_array(_float64_multi_array(data), TS), data)
+        assert np.array_equal(C.decode_float64_multi_array(_float64_multi_array(data), TS), data)
     T = TS.types        # a message with layout dimensions takes rosbags' path
     dims = [T["std_msgs/msg/MultiArrayDimension"](label="legs", size=3, stride=3)]
-    msg = T[B.FLOAT64_MULTI_ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0),
+    msg = T[C.FLOAT64_MULTI_ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0),
                                    data=np.array([1.0, 2.0, 3.0]))
-    raw = bytes(TS.serialize_cdr(msg, B.FLOAT64_MULTI_ARRAY))
-    assert B.decode_float64_multi_array(raw, TS).tolist() == [1.0, 2.0, 3.0]
+    raw = bytes(TS.serialize_cdr(msg, C.FLOAT64_MULTI_ARRAY))
+    assert C.decode_float64_multi_array(raw, TS).tolist() == [1.0, 2.0, 3.0]
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,149 @@
+"""Command line of ``glpma-fk map`` (:func:`main`): the arguments, the grid they describe
+(:func:`make_spec`, default ranges), the run (:func:`.engines.compute_map`) and its summary."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import textwrap
+from pathlib import Path
+
+import yaml
+
+from glpma_ros.cli import OneLineParser
+from glpma_ros.config import load_document, model_from_dict, resolve_config
+from glpma_ros.errors import GlpmaError, InputError
+
+from ..extras import require
+from .engines import EngineError, compute_map
+from .grid import ANGLES, COORDINATES, DEFAULT_RUNS, MapSpec
+
+PROG = "glpma-fk map"
+#: default half-margin of the x-y range around the base joints' bounding box, in units of the geometry's size
+XY_MARGIN = 0.5
+#: default range of z, in units of the geometry's size
+Z_RANGE = (0.0, 2.0)
+#: default z of a hexapod slice, in units of the geometry's size (the platform well above the base)
+Z_DEFAULT = 1.0
+DEFAULT_RESOLUTION = 101
+#: width of the --help texts
+HELP_WIDTH = 100
+
+
+def default_limits(model, name: str) -> tuple:
+    if name in ANGLES:
+        return (-180.0, 180.0)
+    if name == "z":
+        return tuple(f * model.scale for f in Z_RANGE)
+    k = "xy".index(name)
+    lo, hi = float(model.base[:, k].min()), float(model.base[:, k].max())
+    return (lo - XY_MARGIN * model.scale, hi + XY_MARGIN * model.scale)
+
+
+def make_spec(model, args) -> MapSpec:
+    names = COORDINATES[model.kind]
+    axes = tuple(args.axes)
+    for a in axes:
+        if a not in names:
+            raise InputError(f"--axes: {model.kind} has pose coordinates {' '.join(names)}, not {a!r}")
+    if axes[0] == axes[1]:
+        raise InputError("--axes needs two different coordinates")
+    fixed = {n: (Z_DEFAULT * model.scale if n == "z" else 0.0) for n in names if n not in axes}
+    for item in args.at or []:
+        name, sep, value = item.partition("=")
+        if not sep or name not in names:
+            raise InputError(f"--at expects NAME=VALUE with NAME one of {' '.join(names)}, got {item!r}")
+        if name in axes:
+            raise InputError(f"--at {name}: {name} is on the grid (--axes)")
+        try:
+            fixed[name] = float(value)
+        except ValueError:
+            raise InputError(f"--at {name}: {value!r} is not a number") from None
+        if not math.isfinite(fixed[name]):
+            raise InputError(f"--at {name}: must be finite")
+    if args.limits is None:
+        limits = (default_limits(model, axes[0]), default_limits(model, axes[1]))
+    else:
+        limits = ((args.limits[0], args.limits[1]), (args.limits[2], args.limits[3]))
+    for name, (lo, hi) in zip(axes, limits):
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+            raise InputError(f"--limits for {name}: needs finite LOW < HIGH, got {lo:g} {hi:g}")
+    resolution = list(args.resolution)
+    shape = (resolution[0], resolution[-1])
+    if min(shape) < 2 or len(resolution) > 2:
+        raise InputError("--resolution expects one or two numbers of points per axis, each at least 2")
+    if args.runs < 1:
+        raise InputError("--runs must be at least 1")
+    return MapSpec(model.kind, axes, limits, shape, tuple((n, float(fixed[n])) for n in names if n in fixed),
+                   int(args.runs), int(args.seed))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = OneLineParser(
+        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=textwrap.fill(
+            "Assembly-mode map of a 2-D slice of the workspace: at every point of a grid over two pose coordinates "
+            "(the others fixed), the number of real assembly modes of the legs of that pose (solve_all) and the "
+            "conditioning of the pose. Writes DIR/assembly_modes.npz and a PNG with the mode-count regions and "
+            "the singularity curves. Lengths in the config's unit, angles in degrees.",
+            HELP_WIDTH, break_on_hyphens=False),
+        epilog="pose coordinates: planar_3rpr x y theta; hexapod_66 x y z roll pitch yaw (R = Rz(yaw) Ry(pitch) "
+               "Rx(roll)).\ndefaults: x-y range = the base joints' bounding box +- half the geometry's size, z range "
+               "0 .. 2 sizes,\nangles -180 .. 180; fixed angles 0 and z = the geometry's size.\n"
+               "Finished chunks are kept in DIR/chunks/: a rerun of the same map (same config and grid) skips them.")
+    p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created; reused to resume)")
+    p.add_argument("--axes", nargs=2, default=("x", "y"), metavar=("A", "B"),
+                   help="pose coordinates along the columns and the rows (default x y)")
+    p.add_argument("--limits", nargs=4, type=float, default=None, metavar=("LOW_A", "HIGH_A", "LOW_B", "HIGH_B"),
+                   help="range of each axis (config unit or degrees; default: see below)")
+    p.add_argument("--resolution", nargs="+", type=int, default=[DEFAULT_RESOLUTION], metavar="N",
+                   help=f"points per axis: N, or N_A N_B (default {DEFAULT_RESOLUTION})")
+    p.add_argument("--at", nargs="+", default=None, metavar="NAME=VALUE",
+                   help="the fixed coordinates, e.g. --at theta=30 (3-RPR) or --at z=900 yaw=10 (hexapod)")
+    p.add_argument("--runs", type=int, default=DEFAULT_RUNS, metavar="N",
+                   help=f"solve_all searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="base seed; each point's seed derives from it and its index")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="local worker processes (default: all cores; 1 = in this process)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="run the chunks on this Dask distributed scheduler instead (workers need glpma_ros)")
+    p.add_argument("--chunk-size", type=int, default=None, metavar="N",
+                   help="grid points per chunk, the unit of work and of resumption (default: one grid row)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not "
+                                                               "a terminal)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    return p
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = build_parser().parse_args(argv)
+        require("map", PROG, modules=("matplotlib", "tqdm") + (("dask", "distributed") if args.scheduler else ()))
+        path = resolve_config(args.config)
+        doc = load_document(path)
+        model = model_from_dict(doc, str(path))
+        config_text = yaml.safe_dump(doc, sort_keys=True)
+        spec = make_spec(model, args)
+        workers = (os.cpu_count() or 1) if args.workers is None else args.workers
+        if workers < 1:
+            raise InputError("--workers must be at least 1")
+        if args.chunk_size is not None and args.chunk_size < 1:
+            raise InputError("--chunk-size must be at least 1")
+        result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
+                             chunk_size=args.chunk_size, progress=not args.no_progress)
+    except GlpmaError as exc:
+        print(f"error: {PROG}: {exc}", file=sys.stderr)
+        return 1 if isinstance(exc, EngineError) else 2
+    except KeyboardInterrupt:
+        return 130
+    print(json.dumps(result.as_dict()) if args.json else result.text())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

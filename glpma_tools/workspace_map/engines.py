@@ -1,0 +1,232 @@
+"""How ``glpma-fk map`` computes a map: chunks, engines, resumption, output files.
+
+The grid is cut into chunks (:func:`plan`); each finished chunk is saved under
+``DIR/chunks/<key>/`` and reused by a rerun; the chunks still to do run in this process,
+in local worker processes (spawned) or on a Dask distributed cluster; :func:`compute_map`
+assembles them, writes ``assembly_modes.npz`` and draws ``assembly_modes.png``
+(:mod:`.plot`).
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections import Counter
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from glpma_ros.config import model_from_dict
+from glpma_ros.errors import GlpmaError, InputError
+
+from .grid import OUTSIDE, MapSpec, solve_chunk
+from .plot import draw_map
+
+#: memory per grid point while assembling and drawing the map (arrays, their float copies, the image)
+BYTES_PER_POINT = 96
+#: share of the available memory a map may take
+MEMORY_SHARE = 0.5
+OUTPUT_NAME = "assembly_modes"
+#: how long to try to reach a Dask scheduler
+DASK_CONNECT_TIMEOUT = "5s"
+
+
+class EngineError(GlpmaError):
+    """A worker failed (exit status 1: not the user's input)."""
+
+
+
+# -- chunks on disk ---------------------------------------------------------------------------------
+
+def plan(n_points: int, chunk_size: int) -> list:
+    return [(a, min(a + chunk_size, n_points)) for a in range(0, n_points, chunk_size)]
+
+
+def chunk_path(chunk_dir: Path, start: int, stop: int) -> Path:
+    return chunk_dir / f"{start:010d}-{stop:010d}.npz"
+
+
+def load_chunk(path: Path, start: int, stop: int) -> dict | None:
+    """A finished chunk, or None when it is missing or unreadable (then it is computed again)."""
+    try:
+        with np.load(path) as f:
+            chunk = {k: f[k] for k in ("counts", "conditioning", "jacobian_sign")}
+    except (OSError, ValueError, KeyError, EOFError):
+        return None
+    return chunk if all(len(v) == stop - start for v in chunk.values()) else None
+
+
+def save_chunk(path: Path, chunk: dict) -> None:
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "wb") as f:
+        np.savez(f, counts=chunk["counts"], conditioning=chunk["conditioning"],
+                 jacobian_sign=chunk["jacobian_sign"])
+    os.replace(tmp, path)
+
+
+# -- engines ------------------------------------------------------------------------------------------
+
+def run_serial(tasks, args, done) -> None:
+    for start, stop in tasks:
+        done(solve_chunk(*args, start, stop))
+
+
+def run_processes(tasks, args, done, workers: int) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    # spawn: a clean interpreter per worker (no forked threads); Numba loads its cache there
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(solve_chunk, *args, start, stop) for start, stop in tasks]
+        try:
+            for future in as_completed(futures):
+                done(future.result())
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+
+
+def run_dask(tasks, args, done, scheduler: str) -> None:
+    from dask.distributed import Client, as_completed
+    try:
+        client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"cannot reach the Dask scheduler {scheduler}: {str(exc).splitlines()[0]}") from None
+    with client:
+        config = client.scatter(args[0], broadcast=True)
+        futures = [client.submit(solve_chunk, config, *args[1:], start, stop, pure=False) for start, stop in tasks]
+        try:
+            for future in as_completed(futures):
+                done(future.result())
+        except BaseException:
+            client.cancel(futures)
+            raise
+
+
+# -- the map --------------------------------------------------------------------------------------------
+
+@dataclass
+class MapResult:
+    npz: Path
+    png: Path
+    points: int
+    computed: int            # points computed in this run (the rest came from saved chunks)
+    chunks_computed: int
+    chunks_reused: int
+    elapsed_s: float
+    engine: str
+    modes: dict              # count -> points
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d.update(npz=str(self.npz), png=str(self.png), modes={str(k): v for k, v in self.modes.items()})
+        return d
+
+    def text(self) -> str:
+        rate = self.computed / self.elapsed_s if self.elapsed_s > 0 else 0.0
+        modes = ", ".join(f"{'no valid legs' if k == OUTSIDE else f'{k} modes'}: {v}"
+                          for k, v in sorted(self.modes.items()))
+        return (f"{self.npz} and {self.png}: {self.points} points ({self.computed} computed in {self.elapsed_s:.1f} s "
+                f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run)\n"
+                f"  {modes}")
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new process (Linux ``MemAvailable``; else the free pages), or None."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(n_points: int) -> None:
+    """:class:`InputError` when the map would not fit in memory."""
+    need = n_points * BYTES_PER_POINT
+    available = available_memory()
+    if available and need > MEMORY_SHARE * available:
+        raise InputError(f"a grid of {n_points:,} points needs about {need / 2**30:.1f} GiB, more than "
+                         f"{MEMORY_SHARE:.0%} of the {available / 2**30:.1f} GiB available; lower --resolution")
+
+
+def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, workers: int = 1,
+                scheduler: str | None = None, chunk_size: int | None = None, progress: bool = True) -> MapResult:
+    """Compute (or resume) the map and write ``assembly_modes.npz`` and ``.png`` in ``out_dir``."""
+    from tqdm import tqdm
+    check_memory(spec.n_points)
+    chunk_size = chunk_size or spec.shape[0]
+    chunk_dir = out_dir / "chunks" / spec.key(config_text)
+    try:
+        chunk_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create {chunk_dir}: {exc.strerror or exc}") from None
+    chunks = plan(spec.n_points, chunk_size)
+    counts = np.empty(spec.n_points, np.int16)
+    cond = np.empty(spec.n_points)
+    sign = np.empty(spec.n_points, np.int8)
+
+    def store(start, stop, chunk):
+        counts[start:stop], cond[start:stop], sign[start:stop] = (
+            chunk["counts"], chunk["conditioning"], chunk["jacobian_sign"])
+
+    todo = []
+    for start, stop in chunks:
+        chunk = load_chunk(chunk_path(chunk_dir, start, stop), start, stop)
+        if chunk is None:
+            todo.append((start, stop))
+        else:
+            store(start, stop, chunk)
+    engine = (f"Dask {scheduler}" if scheduler else "this process" if workers == 1 else f"{workers} processes")
+    t0 = time.perf_counter()
+    remaining = sum(b - a for a, b in todo)
+    with tqdm(total=spec.n_points, initial=spec.n_points - remaining, unit="pt", file=sys.stderr,
+              disable=None if progress else True, dynamic_ncols=True, desc="map") as bar:
+        def done(chunk):
+            start, stop = chunk["start"], chunk["stop"]
+            save_chunk(chunk_path(chunk_dir, start, stop), chunk)
+            store(start, stop, chunk)
+            bar.update(stop - start)
+
+        args = (config_text, source, spec)
+        try:
+            if not todo:
+                pass
+            elif scheduler:
+                run_dask(todo, args, done, scheduler)
+            elif workers == 1 or len(todo) == 1:
+                run_serial(todo, args, done)
+            else:
+                run_processes(todo, args, done, min(workers, len(todo)))
+        except (GlpmaError, KeyboardInterrupt):
+            raise
+        except Exception as exc:  # noqa: BLE001 - a worker's failure, reported in one line
+            raise EngineError(f"computing the map failed on {engine}: {type(exc).__name__}: {exc}") from None
+    elapsed = time.perf_counter() - t0
+    shape = (spec.shape[1], spec.shape[0])           # rows, columns
+    data = {"counts": counts.reshape(shape), "conditioning": cond.reshape(shape),
+            "jacobian_sign": sign.reshape(shape)}
+    npz, png = out_dir / f"{OUTPUT_NAME}.npz", out_dir / f"{OUTPUT_NAME}.png"
+    save_map(npz, data, spec, config_text)
+    model = model_from_dict(yaml.safe_load(config_text), source)
+    draw_map(png, data, spec, model, title=Path(source).name)
+    modes = Counter(int(c) for c in counts)
+    return MapResult(npz, png, spec.n_points, remaining, len(todo), len(chunks) - len(todo), elapsed, engine,
+                     dict(sorted(modes.items())))
+
+
+def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "wb") as f:
+        np.savez(f, **data, axis_names=np.array(spec.axes), axis_0=spec.axis_values(0), axis_1=spec.axis_values(1),
+                 fixed_names=np.array([n for n, _ in spec.fixed], dtype=str),
+                 fixed_values=np.array([v for _, v in spec.fixed], dtype=float),
+                 runs=spec.runs, seed=spec.seed, config=np.array(config_text))
+    os.replace(tmp, path)

@@ -1,0 +1,115 @@
+"""The grid of ``glpma-fk map`` and what is computed at its points.
+
+:class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each
+point is solved; :func:`solve_point` gives the number of real assembly modes
+(:func:`glpma_ros.solve_all.solve_all`, seeded from the point's index by
+:func:`point_seed`), the conditioning and the sign of det J of one point;
+:func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import yaml
+
+from glpma_ros.config import model_from_dict
+from glpma_ros.errors import InputError
+
+#: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
+COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
+ANGLES = ("theta", "roll", "pitch", "yaw")
+#: independent searches of solve_all per grid point
+DEFAULT_RUNS = 50
+#: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
+OUTSIDE = -1
+
+
+@dataclass(frozen=True)
+class MapSpec:
+    """A grid over two pose coordinates, the other coordinates fixed, and how each point is solved."""
+
+    kind: str
+    axes: tuple            # (name along the columns, name along the rows)
+    limits: tuple          # ((low, high), (low, high)), config unit or degrees
+    shape: tuple           # (columns, rows)
+    fixed: tuple           # ((name, value), ...) every coordinate not on the grid
+    runs: int
+    seed: int
+
+    @property
+    def n_points(self) -> int:
+        return self.shape[0] * self.shape[1]
+
+    def axis_values(self, k: int) -> np.ndarray:
+        return np.linspace(*self.limits[k], self.shape[k])
+
+    def coordinates(self, index: int) -> dict:
+        """All pose coordinates of grid point ``index`` (row-major: ``row * columns + column``)."""
+        row, col = divmod(int(index), self.shape[0])
+        coords = dict(self.fixed)
+        coords[self.axes[0]] = float(self.axis_values(0)[col])
+        coords[self.axes[1]] = float(self.axis_values(1)[row])
+        return coords
+
+    def key(self, config_text: str) -> str:
+        """Identifies the chunks of this map of this configuration."""
+        blob = json.dumps({"spec": asdict(self), "config": config_text}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Unit quaternion [qx, qy, qz, qw] of R = Rz(yaw) Ry(pitch) Rx(roll) (radians), as in REP 103."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return np.array([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                     cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy])
+
+
+def pose_variables(model, coords: dict) -> np.ndarray:
+    """Solver variables of the pose with these coordinates (config unit, angles in degrees)."""
+    if model.kind == "planar_3rpr":
+        position = (coords["x"], coords["y"], 0.0)
+        orientation = quaternion_from_rpy(0.0, 0.0, math.radians(coords["theta"]))
+    else:
+        position = (coords["x"], coords["y"], coords["z"])
+        orientation = quaternion_from_rpy(*(math.radians(coords[a]) for a in ("roll", "pitch", "yaw")))
+    return model.variables_from_pose(np.array(position, dtype=float), orientation)
+
+
+def point_seed(seed: int, index: int) -> int:
+    """solve_all's seed at grid point ``index``: independent of the engine and of the chunking."""
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
+
+
+def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int]:
+    """(real assembly modes, conditioning, sign of det J) at grid point ``index``."""
+    from glpma_ros.solve_all import solve_all
+    x = pose_variables(model, spec.coordinates(index))
+    try:
+        legs = model.check_legs(model.inverse_kinematics(x))
+    except InputError:                       # a leg of length 0 or outside the leg limits: no such pose
+        return OUTSIDE, math.nan, 0
+    modes = solve_all(model, legs, runs=spec.runs, seed=point_seed(spec.seed, index))
+    _, J = model.pose_residuals_jacobian(model.pose_state(x), legs)
+    sign = int(np.sign(np.linalg.det(J * model.pose_column_scale)))
+    return len(modes.solutions), float(model.conditioning(x, legs)), sign
+
+
+_MODELS: dict = {}     # per process: configuration text -> model
+
+
+def solve_chunk(config_text: str, source: str, spec: MapSpec, start: int, stop: int) -> dict:
+    """Grid points ``start`` .. ``stop - 1``: what a worker (process or Dask) runs."""
+    model = _MODELS.get(config_text)
+    if model is None:
+        model = _MODELS[config_text] = model_from_dict(yaml.safe_load(config_text), source)
+    n = stop - start
+    counts, cond, sign = np.empty(n, np.int16), np.empty(n), np.empty(n, np.int8)
+    for k in range(n):
+        counts[k], cond[k], sign[k] = solve_point(model, spec, start + k)
+    return {"start": start, "stop": stop, "counts": counts, "conditioning": cond, "jacobian_sign": sign}
