@@ -222,6 +222,8 @@ def _options_of(help_text: str) -> tuple[set, set]:
 
 @pytest.mark.parametrize("command", [None] + _subcommands())
 def test_help_describes_every_option(command, capsys):
+    if command == "bag":        # the optional extra: without it `bag --help` says which pip command installs it
+        pytest.importorskip("rosbags", reason="glpma-fk bag needs the optional rosbags (pip install '.[bag]')")
     args = ["--help"] if command is None else [command, "--help"]
     code = main(args)
     text = capsys.readouterr().out
@@ -248,7 +250,7 @@ def test_a_manipulator_yaml_as_params_file_is_refused(tmp_path):
 
 @pytest.mark.parametrize("config, key", [(RPR_YAML, "real_solutions"), (HEX_YAML, "published_solutions")])
 def test_mock_controller_drives_a_users_config_without_known_solutions(config, key):
-    from glpma_tools.mock_controller import legs_for, start_pose
+    from glpma_tools.sim.trajectories import legs_for, start_pose
     from glpma_ros.models.rotations import quaternion_from_matrix
     doc = yaml.safe_load(config.read_text())
     doc.pop(key)
