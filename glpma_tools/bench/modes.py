@@ -68,7 +68,7 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
     """Rows per case; ``per_kind``: random cases per manipulator (None = all); G3-PCX runs on every
     3-RPR case and on the first ``g3pcx_hexapods`` hexapod cases."""
     try:
-        from ..exact import msolve_executable
+        from glpma_ros.exact import msolve_executable
         msolve_executable()
         exact_status = "run"
     except GlpmaError as exc:
