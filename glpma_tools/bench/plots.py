@@ -1,6 +1,7 @@
 """Figures (matplotlib, Agg backend): PNG files, one per question."""
 from __future__ import annotations
 
+import inspect
 import warnings
 from pathlib import Path
 
@@ -130,7 +131,10 @@ def deadline_plot(path: Path, rows, margin_ms) -> Path:
     for ax, b in zip(axes[0], budgets):
         by_label = {r.label: r.overrun_ms for r in rows if r.budget_ms == b}
         data = [by_label.get(label, np.array([np.nan])) for label in labels]
-        ax.boxplot(data, orientation="horizontal", whis=(0, 100), showfliers=False)
+        # matplotlib >= 3.10 says orientation= (vert= is deprecated there); 3.6 to 3.9 know only vert=
+        horizontal = ({"orientation": "horizontal"} if "orientation" in inspect.signature(ax.boxplot).parameters
+                      else {"vert": False})
+        ax.boxplot(data, whis=(0, 100), showfliers=False, **horizontal)
         ax.axvline(0.0, color="k", lw=0.8)
         ax.axvline(margin_ms, color="tab:red", ls=":", label=f"budget + {margin_ms:g} ms")
         ax.set_xlabel("elapsed − budget (ms)")
