@@ -44,7 +44,7 @@ def test_pcx_children_centred_on_index_parent_with_stated_spreads():
     # mean perpendicular distance of the other parents to the line through g along d
     perp = [np.linalg.norm((p - g) - ((p - g) @ dhat) * dhat) for p in parents[1:]]
     D_bar = np.mean(perp)
-    kids = np.vstack([g3pcx.pcx_children(parents, 2, 0.1, 0.1, rng, parents) for _ in range(20000)])
+    kids = g3pcx.pcx_children(parents, 40000, 0.1, 0.1, rng, parents)      # independent children
     offsets = kids - parents[0]
     along = offsets @ dhat
     across = offsets - np.outer(along, dhat)
