@@ -49,6 +49,7 @@ def check(res, session):
                        f"{session.node.output()}"
 
 
+@pytest.mark.timing
 def test_overload_1khz_keeps_the_newest_input_and_its_memory(session, capsys):
     res = session.overload(3.0, 1000.0)
     show(capsys, "overload 1 kHz 3 s", res)
@@ -60,6 +61,7 @@ def test_overload_1khz_keeps_the_newest_input_and_its_memory(session, capsys):
     assert res["rss_growth_mb"] <= stress.RSS_SLACK_MB
 
 
+@pytest.mark.timing
 def test_burst_of_2000_messages(session, capsys):
     res = session.burst(2000)
     show(capsys, "burst 2000", res)
