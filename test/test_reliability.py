@@ -49,7 +49,6 @@ def check(res, session):
                        f"{session.node.output()}"
 
 
-@pytest.mark.timing
 def test_overload_1khz_keeps_the_newest_input_and_its_memory(session, capsys):
     res = session.overload(3.0, 1000.0)
     show(capsys, "overload 1 kHz 3 s", res)
