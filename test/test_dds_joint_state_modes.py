@@ -233,7 +233,7 @@ def test_hexapod_assembly_modes_while_streaming(start_node, dds_env, capsys):
         print(f"\n[hexapod 100 Hz JointState] pose latency before a request: p50 {b50:.3f} ms, p99 {b99:.3f} ms, "
               f"max {bmax:.3f} ms ({len(before)} poses); while 16 assembly modes are computed "
               f"({', '.join(f'{(b - a) * 1e-9:.2f} s' for a, b in windows)}): p50 {d50:.3f} ms, p99 {d99:.3f} ms, "
-              f"max {dmax:.3f} ms ({len(during)} poses); {len(latency)}/{len(sent)} poses; node: "
+              f"max {dmax:.3f} ms ({len(during)} poses); {len(latency)}/{len(sent)} poses ({100 * ratio:.1f} %); node: "
               + ", ".join(f"{k} {diag[k]}" for k in ("inputs received", "inputs rejected", "inputs dropped",
                                                       "deadline misses")))
     # the node answers while the modes are computed in its worker process; how fast it answers (the

@@ -13,6 +13,7 @@ from conftest import ROOT
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
 
+@pytest.mark.timing
 def test_demo_tracks_and_writes_figure(tmp_path):
     env = dict(os.environ, CYCLONEDDS_URI=(ROOT / "config" / "cyclonedds-localhost.xml").as_uri())
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--duration", "2", "--out", str(tmp_path),

@@ -63,6 +63,7 @@ def test_overload_1khz_keeps_the_newest_input(session, capsys):
     assert res["poses"] == res["solved"] and res["unpaired"] == 0
 
 
+@pytest.mark.timing
 def test_burst_of_2000_messages(session, capsys):
     res = stress.burst(session, 2000)
     show(capsys, "burst 2000", res)
