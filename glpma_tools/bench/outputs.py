@@ -89,7 +89,10 @@ def _env(domain: int) -> dict:
 def _legs_along_trajectory(config: str, n: int, period_s: float):
     from glpma_ros.config import load_document, model_from_dict, resolve_config
     from glpma_ros.models.rotations import quaternion_from_matrix
-    from glpma_tools.mock_controller import legs_for, start_pose, trajectory
+    try:                                    # the shared trajectories' module, where it exists
+        from glpma_tools.sim.trajectories import legs_for, start_pose, trajectory
+    except ImportError:
+        from glpma_tools.mock_controller import legs_for, start_pose, trajectory
     path = resolve_config(config)
     doc = load_document(path)
     model = model_from_dict(doc, str(path))
@@ -173,8 +176,10 @@ def output_costs(n_inputs: int, domain: int, pace_s: float = PACE_S) -> list[dic
     return rows
 
 
-def end_to_end(seconds: float, rate_hz: float, domain: int) -> list[dict]:
-    """Part 2: legs written -> pose read, with the node as a process."""
+def end_to_end(seconds: float, rate_hz: float, domain: int, node_root: Path = ROOT, label: str = "",
+               extra_args=()) -> list[dict]:
+    """Part 2: legs written -> pose read, with the node as a process (from the checkout ``node_root``;
+    ``extra_args``: more ``--ros-args``)."""
     from cyclonedds.util import duration
 
     from glpma_ros.node.dds import cdr, endpoints
@@ -183,11 +188,12 @@ def end_to_end(seconds: float, rate_hz: float, domain: int) -> list[dict]:
     rows = []
     for k, (config, params_file) in enumerate(CONFIGS):
         env = _env(domain + 1 + k)
+        env["PYTHONPATH"] = str(node_root)
         os.environ.update({key: env[key] for key in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")})
         err = tempfile.TemporaryFile(mode="w+")
         node = subprocess.Popen([sys.executable, "-m", "glpma_ros.node.dds.node", "--ros-args", "--params-file",
-                                 str(ROOT / "config" / params_file)], stdout=subprocess.PIPE, stderr=err, text=True,
-                                env=env, cwd=ROOT)
+                                 str(ROOT / "config" / params_file), *extra_args], stdout=subprocess.PIPE,
+                                stderr=err, text=True, env=env, cwd=node_root)
         try:
             node.stdout.readline()
             model, legs = _legs_along_trajectory(config, int(seconds * rate_hz), 1.0 / rate_hz)
@@ -243,7 +249,7 @@ def end_to_end(seconds: float, rate_hz: float, domain: int) -> list[dict]:
         def stats(v):
             a = np.asarray(v)
             return float(np.percentile(a, 50)), float(np.percentile(a, 99)), float(a.max())
-        rows.append({"manipulator": model.kind, "rate_hz": rate_hz, "seconds": seconds, "sent": len(sent),
+        rows.append({"manipulator": model.kind + label, "rate_hz": rate_hz, "seconds": seconds, "sent": len(sent),
                      "poses": len(received), "total_ms": stats(total), "to_node_ms": stats(to_node),
                      "in_node_ms": stats(in_node), "cpu": cpu, "node": summary[-1].split("stopped: ")[-1] if summary
                      else ""})
@@ -359,16 +365,24 @@ def section(costs: list[dict], e2e: list[dict], pace_s: float = PACE_S, ros: lis
            "extra outputs, wall p50 / p99 (us) | pose encode + write, CPU / wall p50 (us) | solve, wall p50 (us) |",
            "|---|---|---|---|---|---|---|"]
     for r in costs:
-        out.append(f"| {r['manipulator']} | {r['outputs']} | {r['extras_cpu_us'][0]:.1f} / {r['extras_cpu_us'][1]:.1f} | "
-                   f"{r['build_cpu_us'][0]:.1f} | "
+        out.append(f"| {r['manipulator']} | {r['outputs']} | "
+                   f"{r['extras_cpu_us'][0]:.1f} / {r['extras_cpu_us'][1]:.1f} | {r['build_cpu_us'][0]:.1f} | "
                    f"{r['extras_us'][0]:.1f} / {r['extras_us'][1]:.1f} | "
                    f"{r['pose_cpu_us'][0]:.1f} / {r['pose_us'][0]:.1f} | {r['solve_us'][0]:.0f} |")
     out += ["", "CPU = the solving thread's CPU time (`time.thread_time`), which preemption by other processes "
-            "does not inflate; wall = `perf_counter`."]
+            "does not inflate; wall = `perf_counter`. Reading: an extra output costs what the node does to build "
+            "it (the *building* column: the compiled Jacobian, covariance and twist, the finite difference, "
+            "the markers' geometry) plus one struct-packed encoding and one Cyclone DDS write; the write to a "
+            "reader in another process is most of it, as the pose's own write in the last column shows. An "
+            "output nobody subscribes to costs its building and a write without readers; one switched off "
+            "costs nothing. `~/markers` are built at most every `markers_period_s` (0.1 s), so at 1 kHz the "
+            "median input builds none."]
     out += ["", "Legs written -> pose read, the node as a process with the shipped params file (all default "
-            "outputs on), split at the pose's stamp (the node's arrival time):", "",
+            "outputs on, then off; a baseline checkout's node if given), split at the pose's stamp (the node's "
+            "arrival time):", "",
             "| manipulator | rate | sent / poses | written -> pose read p50 / p99 / max (ms) | "
-            "written -> taken by the node p50 / p99 (ms) | taken -> pose read p50 / p99 (ms) | node CPU | node summary |",
+            "written -> taken by the node p50 / p99 (ms) | taken -> pose read p50 / p99 (ms) | node CPU | "
+            "node summary |",
             "|---|---|---|---|---|---|---|---|"]
     for r in e2e:
         t, a, b = r["total_ms"], r["to_node_ms"], r["in_node_ms"]
@@ -398,15 +412,24 @@ def main(argv=None) -> int:
     parser.add_argument("--rclpy-seconds", type=float, default=10.0,
                         help="seconds per rclpy variant of part 3 (default 10; 0 = skip; needs rclpy)")
     parser.add_argument("--rclpy-rate", type=float, default=500.0, help="input rate of part 3 (default 500 Hz)")
+    parser.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
+                        help="part 2 also with the node of another checkout (e.g. the transport before this one)")
     parser.add_argument("--markdown", type=Path, default=ROOT / "BENCHMARKS.md")
     parser.add_argument("--no-markdown", action="store_true")
     args = parser.parse_args(argv)
     costs = output_costs(args.inputs, args.domain, args.pace)
-    e2e = end_to_end(args.e2e_seconds, args.rate, args.domain) if args.e2e_seconds > 0 else []
+    e2e = []
+    if args.e2e_seconds > 0:
+        e2e = end_to_end(args.e2e_seconds, args.rate, args.domain)
+        off = ("-p", "publish_tf:=false", "-p", "publish_covariance:=false", "-p", "publish_twist:=false")
+        e2e += end_to_end(args.e2e_seconds, args.rate, args.domain, label=", extra outputs off", extra_args=off)
+        if args.baseline is not None:
+            e2e += end_to_end(args.e2e_seconds, args.rate, args.domain, args.baseline.resolve(),
+                              f", baseline node from {args.baseline}")
     ros = None
     if args.rclpy_seconds > 0:
         try:
-            import rclpy  # noqa: F401
+            import rclpy  # noqa: F401 - only whether it imports
         except ImportError:
             print("rclpy not importable (source ROS 2 Jazzy): part 3 skipped", file=sys.stderr)
         else:
@@ -414,10 +437,23 @@ def main(argv=None) -> int:
     lines = section(costs, e2e, args.pace, ros)
     print("\n".join(lines))
     if not args.no_markdown:
-        from glpma_tools.stress import splice_section
         text = args.markdown.read_text() if args.markdown.exists() else ""
-        args.markdown.write_text(splice_section(text, lines, HEADING))
+        args.markdown.write_text(splice(text, lines))
     return 0
+
+
+def splice(text: str, section_lines: list[str]) -> str:
+    """``text`` with its :data:`HEADING` section (up to the next ``## ``) replaced by
+    ``section_lines``, or with them appended."""
+    lines = text.splitlines()
+    start = next((i for i, ln in enumerate(lines) if ln.strip() == HEADING), None)
+    new = "\n".join(section_lines).rstrip().splitlines()
+    if start is None:
+        body = text.rstrip()
+        return (body + "\n\n" if body else "") + "\n".join(new) + "\n"
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
+    rest = lines[end:]
+    return "\n".join(lines[:start] + new + ([""] + rest if rest else [])).rstrip() + "\n"
 
 
 if __name__ == "__main__":
