@@ -59,7 +59,7 @@ class MarkerOutput:
     action: int = ADD
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)          # built for every pose: no frozen-dataclass overhead
 class ExtraOutputs:
     """The further messages of one published pose; a field is None when its output is off
     (or, for the twist, not available yet)."""
@@ -121,11 +121,15 @@ class OutputBuilder:
     def reset(self) -> None:
         """Forget the previous pose (no finite difference across a restart of tracking) and the
         colour range of the legs seen so far."""
-        self._previous = None            # (stamp_ns, position (m), orientation)
+        self.reset_previous()
         self._last_markers_ns = None
         self._seen = [math.inf, -math.inf]
         self.capped = 0                  # covariances capped at a singularity so far
         self.twist_source = None         # of the last twist published
+
+    def reset_previous(self) -> None:
+        """Forget the previous pose: the next twist by finite difference waits for two poses."""
+        self._previous = None            # (stamp_ns, position (m), orientation)
 
     def build(self, outcome, params: dict) -> ExtraOutputs:
         """The outputs for ``outcome`` (a published pose) under ``params``."""

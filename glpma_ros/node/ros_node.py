@@ -8,12 +8,16 @@ through :class:`~glpma_ros.node.loops.AssemblyModesLoop`, and messages are
 converted here.  Importable only where rclpy is.
 
 Executor: a ``SingleThreadedExecutor`` (the recommended one for this node), spinning in a
-thread of its own.  Its callbacks only convert messages and hand each input to the
-:class:`~glpma_ros.node.loops.SolveLoop`'s solver thread (newest input wins, the rest count as
-dropped), so the executor is never blocked by a solve: the diagnostics timer and the parameter
-services keep answering, and no input waits in the middleware's queue (where a full queue
-would lose inputs without counting them).  A ``MultiThreadedExecutor`` adds a thread pool and
-futures to every callback and buys nothing here.  Signals: rclpy's own handler is not installed
+thread of its own, and the default callback group.  The input callback takes the newest input
+waiting in the subscription's queue (the ones it passes over count as dropped: the node's
+newest-input rule) and solves it right there (:meth:`SolveLoop.offer
+<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and the other outputs; a
+solve holds up the diagnostics timer and the parameter services for at most the time budget.
+Handing each input to a solver thread instead costs a thread switch per input, and the Python
+executor, busy taking the next messages, competes with that thread for the GIL, so it is
+slower end to end (BENCHMARKS.md, "Extra outputs and the transport path"); a
+``MultiThreadedExecutor`` with a reentrant group adds a thread pool and futures to every
+callback and is slower still.  Signals: rclpy's own handler is not installed
 (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
 the context is still valid and then shuts down -- no "publisher's context is invalid" at Ctrl-C.
 """
@@ -45,7 +49,7 @@ from . import params as P
 from ..errors import GlpmaError
 from .loops import AssemblyModesLoop, SolveLoop
 from .ros_args import check_params_files
-from .service import FkService
+from .service import FkService, JointStateInput
 
 #: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
 TF_DEPTH = 100
@@ -106,12 +110,13 @@ class FkNode(Node):
         latched = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.modes_pub = self.create_publisher(PoseArray, "~/assembly_modes", latched)
-        self.loop = SolveLoop(self.service, self._publish_pose, publish_extras=self._publish_extras).start()
+        # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
+        self.loop = SolveLoop(self.service, self._publish_pose, publish_extras=self._publish_extras)
         self.modes = AssemblyModesLoop(self.service, self._publish_modes).start()
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
-            self.create_subscription(JointState, "joint_states", self._on_joint_state, qos)
+            self.input_sub = self.create_subscription(JointState, "joint_states", self._on_joint_state, qos)
         else:
-            self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
+            self.input_sub = self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
         self.create_subscription(Empty, "~/request_assembly_modes", self._on_request_modes, qos)
         self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -124,13 +129,29 @@ class FkNode(Node):
             value = None
         return spec.default if value is None else _plain(value)
 
+    def _newest(self, msg):
+        """The newest input waiting: ``msg`` or a later one still in the subscription's queue (taken
+        now, as the executor would; the ones passed over count as dropped)."""
+        sub, passed_over = self.input_sub, 0
+        while True:
+            with sub.handle:
+                taken = sub.handle.take_message(sub.msg_type, sub.raw)
+            if taken is None:
+                break
+            msg, passed_over = taken[0], passed_over + 1
+        if passed_over:
+            self.service.note_dropped(passed_over)
+        return msg
+
     def _on_legs(self, msg: Float64MultiArray) -> None:
-        self.loop.submit(list(msg.data), self.get_clock().now().nanoseconds)
+        arrival_ns = self.get_clock().now().nanoseconds
+        self.loop.offer(tuple(self._newest(msg).data), arrival_ns)
 
     def _on_joint_state(self, msg: JointState) -> None:
+        msg = self._newest(msg)
         stamp = msg.header.stamp
-        self.loop.submit_joint_state(msg.name, msg.position, stamp.sec * 1_000_000_000 + stamp.nanosec,
-                                     msg.velocity)
+        self.loop.offer(JointStateInput(tuple(msg.name), tuple(msg.position), tuple(msg.velocity)),
+                        stamp.sec * 1_000_000_000 + stamp.nanosec)
 
     def _on_request_modes(self, _msg: Empty) -> None:
         self.modes.request(self.get_clock().now().nanoseconds)

@@ -333,9 +333,14 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         """TF, covariance, twist and markers (:class:`~glpma_ros.node.outputs.ExtraOutputs`) of a
         published pose, as the ``publish_*`` parameters ask; None when every one is off.  Called
         by the thread that solved ``outcome``, after the pose went out."""
+        params = self.params
         if outcome.pose is None:
             return None
-        extras = self.outputs.build(outcome, self.params)
+        if not (params["publish_tf"] or params["publish_covariance"] or params["publish_twist"]
+                or params["publish_markers"]):
+            self.outputs.reset_previous()      # no finite difference across a time it was off
+            return None
+        extras = self.outputs.build(outcome, params)
         return extras if extras.any else None
 
     def note_extras_time(self, seconds: float) -> None:
