@@ -4,9 +4,9 @@ input replaced before it was picked up counts as dropped) and publishes its pose
 off the real-time path; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes``."""
 from __future__ import annotations
 
+import queue
 import threading
 import time
-from collections import deque
 
 from ..errors import InputError
 from .service import FkService, JointStateInput
@@ -43,59 +43,53 @@ class LatestInput:
 
 
 #: poses whose extra outputs may wait for the extras thread (0.1 s at 1 kHz); beyond, the
-#: oldest waiting is dropped (counted) -- the pose itself never waits for them
+#: oldest waiting are dropped (counted) -- the pose itself never waits for them
 EXTRAS_BACKLOG = 100
+#: seconds between two looks of :meth:`ExtrasLoop.flush`
+FLUSH_POLL_S = 1e-3
 
 
 class ExtrasLoop:
     """The extra outputs of each published pose -- TF, covariance, twist, markers -- built
     (:meth:`FkService.extras <glpma_ros.node.service.FkService.extras>`) and published by a thread
     of their own, in the order of the poses, so that the solving thread only hands the outcome
-    over and is free for the next input.  An output nobody subscribes to is neither built nor
-    written (``subscribed()`` names the outputs that have subscribers; None: all of them)."""
+    over (a ``queue.SimpleQueue.put``) and is free for the next input.  An output nobody
+    subscribes to is neither built nor written (``subscribed()`` names the outputs that have
+    subscribers; None: all of them)."""
 
     def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras"):
         self.service = service
         self.publish_extras = publish_extras
         self.subscribed = subscribed
-        self._cond = threading.Condition()
-        self._queue: deque = deque()         # (outcome, params at hand-off)
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()    # (outcome, params at hand-off); None = stop
+        self._handed = self._finished = 0    # poses handed over / published or dropped
         self._closed = False
-        self._working = False                # the thread is publishing one it took
+        self._start_lock = threading.Lock()
         self._thread = None
         self._name = name
 
     def put(self, outcome) -> None:
         """Hand ``outcome`` (a published pose) over; the thread starts on the first call."""
-        with self._cond:
-            if self._closed:
-                return
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
-                self._thread.start()
-            self._queue.append((outcome, self.service.params))
-            overflow = len(self._queue) - EXTRAS_BACKLOG
-            for _ in range(max(overflow, 0)):
-                self._queue.popleft()
-            self._cond.notify()
-        if overflow > 0:
-            self.service.note_extras_dropped(overflow)
+        if self._thread is None:
+            with self._start_lock:
+                if self._thread is None and not self._closed:
+                    self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
+                    self._thread.start()
+        if not self._closed:
+            self._handed += 1           # one solving thread at a time (SolveLoop)
+            self._queue.put((outcome, self.service.params))
 
     def _run(self) -> None:
+        get = self._queue.get
         while True:
-            with self._cond:
-                while not self._queue and not self._closed:
-                    self._cond.wait()
-                if not self._queue:
-                    return
-                outcome, params = self._queue.popleft()
-                self._working = True
-            try:
-                self.publish(outcome, params)
-            finally:
-                with self._cond:
-                    self._working = False
-                    self._cond.notify_all()
+            item = get()
+            if item is None:
+                return
+            if self._queue.qsize() >= EXTRAS_BACKLOG:   # behind: the newer ones are kept
+                self.service.note_extras_dropped(1)
+            else:
+                self.publish(*item)
+            self._finished += 1
 
     def publish(self, outcome, params) -> None:
         """Build and publish the extra outputs of one pose in this thread."""
@@ -110,17 +104,21 @@ class ExtrasLoop:
         self.service.note_extras_time(time.perf_counter() - t0)
 
     def flush(self, timeout: float = 2.0) -> bool:
-        """Wait until every pose handed over so far has had its extra outputs published; False
-        on timeout."""
-        with self._cond:
-            return self._cond.wait_for(lambda: not self._queue and not self._working, timeout)
+        """Wait until every pose handed over so far has had its extra outputs published (or
+        dropped); False on timeout."""
+        end = time.monotonic() + timeout
+        while self._finished < self._handed:
+            if time.monotonic() > end:
+                return False
+            time.sleep(FLUSH_POLL_S)
+        return True
 
     def stop(self, timeout: float = 2.0) -> None:
         """Publish what is waiting, then end the thread."""
-        with self._cond:
+        with self._start_lock:
             self._closed = True
-            self._cond.notify_all()
         if self._thread is not None and self._thread.is_alive():
+            self._queue.put(None)
             self._thread.join(timeout)
 
 
@@ -220,7 +218,7 @@ class SolveLoop:
         except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
             self.service.log.error(f"publishing the pose failed: {exc!r}")
             return
-        if self.extras is not None:
+        if self.extras is not None and self.service.extras_on():
             t0 = time.perf_counter()
             self.extras.put(outcome)
             self.service.note_extras_handoff(time.perf_counter() - t0)

@@ -349,6 +349,11 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         extras = self.outputs.build(outcome, params)
         return extras if extras.any else None
 
+    def extras_on(self) -> bool:
+        """Whether any extra output is switched on (else no pose is handed to the extras thread)."""
+        params = self.params
+        return any(params[key] for key in OUTPUT_PARAMS.values())
+
     def note_extras_time(self, seconds: float) -> None:
         """Time the extras thread spent on the extra outputs of one pose: building, converting, writing."""
         with self._lock:
