@@ -231,3 +231,49 @@ def test_joint_state_velocities_reach_the_twist():
     for velocities in ((), (1.0, 0.0), (0.0, float("nan"), 0.0, 0.0)):
         out = svc.handle(JointStateInput(names, (9.0, 0.15, 0.1, 0.12), velocities), 8)
         assert out.leg_rates_m is None
+
+
+def test_extras_thread_publishes_in_order_only_what_is_subscribed(service):
+    """The solving thread hands each pose over; the extras thread builds and publishes them in
+    order, and builds only the outputs that have a subscriber (none: nothing at all)."""
+    from glpma_ros.node.loops import SolveLoop
+    poses, extras, subscribed = [], [], [{"tf", "twist"}]
+    loop = SolveLoop(service, poses.append, publish_extras=extras.append, subscribed=lambda: subscribed[0])
+    for k in range(20):
+        loop.offer((0.1, 0.12, 0.15 + 1e-5 * k), 1_000_000 * (k + 1))
+    assert loop.extras.flush(30.0)
+    assert [e.stamp_ns for e in extras] == [p.stamp_ns for p in poses] and len(poses) == 20
+    assert all(e.child_frame_id == "platform" and e.covariance is None and e.markers is None for e in extras)
+    assert all(e.twist is not None for e in extras[1:])          # differences of consecutive poses
+    subscribed[0] = set()
+    loop.offer((0.1, 0.12, 0.1503), 30_000_000)
+    assert loop.extras.flush(30.0)
+    assert len(poses) == 21 and len(extras) == 20                # no subscriber: not even built
+    st = service.stats
+    assert len(st.extras_handoff_s) == 21 and len(st.extras_s) == 21 and st.extras_dropped == 0
+    loop.stop()
+
+
+def test_extras_backlog_drops_the_oldest_and_counts_them(service):
+    """A stalled extras thread never holds up the poses: beyond EXTRAS_BACKLOG the oldest
+    waiting extras are dropped and counted on /diagnostics."""
+    import threading
+
+    from glpma_ros.node.loops import EXTRAS_BACKLOG, SolveLoop
+    release, poses, extras = threading.Event(), [], []
+
+    def slow_publish(e):
+        release.wait(60.0)
+        extras.append(e)
+    loop = SolveLoop(service, poses.append, publish_extras=slow_publish)
+    n = EXTRAS_BACKLOG + 30
+    for k in range(n):
+        loop.offer((0.1, 0.12, 0.15 + 1e-6 * k), 1_000_000 * (k + 1))
+    assert len(poses) == n                                       # every pose went out at once
+    release.set()
+    assert loop.extras.flush(60.0)
+    st = service.stats
+    assert st.extras_dropped + len(extras) == n and st.extras_dropped >= n - EXTRAS_BACKLOG - 1
+    assert extras[-1].stamp_ns == poses[-1].stamp_ns             # the newest are kept
+    assert dict(service.diagnostics().values)["extra outputs dropped (backlog)"] == str(st.extras_dropped)
+    loop.stop()

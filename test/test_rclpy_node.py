@@ -122,9 +122,15 @@ def test_tf_covariance_twist_and_markers(ros):
         third = iter(0.150 + 1e-5 * k for k in range(10**6))
         assert _spin_until(executor, lambda: len(got["twist"]) >= 2 and len(got["markers"]) >= 2,
                            publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, next(third)])))
-        executor.spin_once(timeout_sec=0.2)
-        tf_by_stamp = {(t.header.stamp.sec, t.header.stamp.nanosec): t for m in got["tf"] for t in m.transforms}
-        cov_by_stamp = {(c.header.stamp.sec, c.header.stamp.nanosec): c for c in got["cov"]}
+        # the extra outputs follow each pose from the node's extras thread: wait for those of the
+        # first poses (a pose without its TF and covariance fails below)
+        first = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in got["pose"][:5]}
+
+        def stamps(key):
+            msgs = [t for m in got[key] for t in m.transforms] if key == "tf" else got[key]
+            return {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in msgs}
+        _spin_until(executor, lambda: first <= set(stamps("tf")) and first <= set(stamps("cov")), timeout_s=10.0)
+        tf_by_stamp, cov_by_stamp = stamps("tf"), stamps("cov")
         for pose in got["pose"][:5]:
             key = (pose.header.stamp.sec, pose.header.stamp.nanosec)
             t = tf_by_stamp[key]

@@ -45,6 +45,7 @@ class DiagnosticsMixin:
             solve = percentiles_ms(st.solve_s)
             latency = percentiles_ms(st.latency_s)
             extras = percentiles_ms(st.extras_s)
+            handoff = percentiles_ms(st.extras_handoff_s)
             last = st.last_estimate
             cond_last = last.conditioning if last is not None else math.nan
             with self._modes_lock:
@@ -97,6 +98,9 @@ class DiagnosticsMixin:
                 ("twist source", self.outputs.twist_source or "none yet"),
                 ("extra outputs time p50 (ms)", f"{extras[0]:.4g}"),
                 ("extra outputs time p99 (ms)", f"{extras[1]:.4g}"),
+                ("extra outputs hand-off p50 (ms)", f"{handoff[0]:.4g}"),
+                ("extra outputs hand-off p99 (ms)", f"{handoff[1]:.4g}"),
+                ("extra outputs dropped (backlog)", st.extras_dropped),
             ]
             values += modes
             values += [(f"rejected: {reason}", n) for reason, n in st.reasons.most_common()]

@@ -1,10 +1,12 @@
 """The threads both transports share: :class:`SolveLoop` solves the newest pending input (an
-input replaced before it was picked up counts as dropped) and publishes its pose and extra
-outputs; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes`` off the real-time path."""
+input replaced before it was picked up counts as dropped) and publishes its pose;
+:class:`ExtrasLoop` builds and publishes the pose's TF, covariance, twist and markers after it,
+off the real-time path; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes``."""
 from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 
 from ..errors import InputError
 from .service import FkService, JointStateInput
@@ -40,9 +42,91 @@ class LatestInput:
             self._cond.notify_all()
 
 
+#: poses whose extra outputs may wait for the extras thread (0.1 s at 1 kHz); beyond, the
+#: oldest waiting is dropped (counted) -- the pose itself never waits for them
+EXTRAS_BACKLOG = 100
+
+
+class ExtrasLoop:
+    """The extra outputs of each published pose -- TF, covariance, twist, markers -- built
+    (:meth:`FkService.extras <glpma_ros.node.service.FkService.extras>`) and published by a thread
+    of their own, in the order of the poses, so that the solving thread only hands the outcome
+    over and is free for the next input.  An output nobody subscribes to is neither built nor
+    written (``subscribed()`` names the outputs that have subscribers; None: all of them)."""
+
+    def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras"):
+        self.service = service
+        self.publish_extras = publish_extras
+        self.subscribed = subscribed
+        self._cond = threading.Condition()
+        self._queue: deque = deque()         # (outcome, params at hand-off)
+        self._closed = False
+        self._working = False                # the thread is publishing one it took
+        self._thread = None
+        self._name = name
+
+    def put(self, outcome) -> None:
+        """Hand ``outcome`` (a published pose) over; the thread starts on the first call."""
+        with self._cond:
+            if self._closed:
+                return
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
+                self._thread.start()
+            self._queue.append((outcome, self.service.params))
+            overflow = len(self._queue) - EXTRAS_BACKLOG
+            for _ in range(max(overflow, 0)):
+                self._queue.popleft()
+            self._cond.notify()
+        if overflow > 0:
+            self.service.note_extras_dropped(overflow)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if not self._queue:
+                    return
+                outcome, params = self._queue.popleft()
+                self._working = True
+            try:
+                self.publish(outcome, params)
+            finally:
+                with self._cond:
+                    self._working = False
+                    self._cond.notify_all()
+
+    def publish(self, outcome, params) -> None:
+        """Build and publish the extra outputs of one pose in this thread."""
+        t0 = time.perf_counter()
+        try:
+            subscribed = self.subscribed() if self.subscribed is not None else None
+            extras = self.service.extras(outcome, params, subscribed)
+            if extras is not None:
+                self.publish_extras(extras)
+        except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
+            self.service.log.error(f"publishing tf / covariance / twist / markers failed: {exc!r}")
+        self.service.note_extras_time(time.perf_counter() - t0)
+
+    def flush(self, timeout: float = 2.0) -> bool:
+        """Wait until every pose handed over so far has had its extra outputs published; False
+        on timeout."""
+        with self._cond:
+            return self._cond.wait_for(lambda: not self._queue and not self._working, timeout)
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Publish what is waiting, then end the thread."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread is not None and self._thread.is_alive():
+            self._thread.join(timeout)
+
+
 class SolveLoop:
-    """Solves the newest input and publishes its pose (then its extra outputs), one input at a
-    time.  Two ways in:
+    """Solves the newest input and publishes its pose (then hands it to an :class:`ExtrasLoop`
+    for its extra outputs), one input at a time.  Two ways in:
 
     * :meth:`offer` (the DDS transport's reader threads): solve in the calling thread at once
       unless a solve is in progress -- then the input waits in a one-slot mailbox, replacing
@@ -53,12 +137,14 @@ class SolveLoop:
 
     Either way the newest input wins and every input replaced unsolved counts as dropped."""
 
-    def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver", publish_extras=None):
+    def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver", publish_extras=None,
+                 subscribed=None):
         """``publish(PoseOutput)``; ``publish_extras(ExtraOutputs)`` (TF, covariance, twist,
-        markers; None: not published)."""
+        markers; None: not published), called by the extras thread; ``subscribed()``: the
+        outputs that have subscribers (see :class:`ExtrasLoop`)."""
         self.service = service
         self.publish = publish
-        self.publish_extras = publish_extras
+        self.extras = None if publish_extras is None else ExtrasLoop(service, publish_extras, subscribed)
         self._cond = threading.Condition()
         self._pending = None            # the input waiting for the solver
         self._busy = False              # a thread is solving (and will take _pending next)
@@ -134,16 +220,10 @@ class SolveLoop:
         except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
             self.service.log.error(f"publishing the pose failed: {exc!r}")
             return
-        if self.publish_extras is None:
-            return
-        t0 = time.perf_counter()
-        try:
-            extras = self.service.extras(outcome)
-            if extras is not None:
-                self.publish_extras(extras)
-        except Exception as exc:  # noqa: BLE001
-            self.service.log.error(f"publishing tf / covariance / twist / markers failed: {exc!r}")
-        self.service.note_extras_time(time.perf_counter() - t0)
+        if self.extras is not None:
+            t0 = time.perf_counter()
+            self.extras.put(outcome)
+            self.service.note_extras_handoff(time.perf_counter() - t0)
 
     def _run(self) -> None:
         while True:
@@ -162,6 +242,8 @@ class SolveLoop:
             self._cond.notify_all()
         if self._thread.is_alive():
             self._thread.join(timeout)
+        if self.extras is not None:
+            self.extras.stop(timeout)
 
 
 class AssemblyModesLoop:

@@ -31,6 +31,9 @@ TWIST_FROM_VELOCITIES = "joint_states velocities (forward velocity kinematics)"
 TWIST_FROM_POSES = "finite difference of consecutive poses"
 #: a finite difference over a longer gap between two poses is no velocity (tracking was interrupted)
 TWIST_MAX_GAP_S = 1.0
+#: the extra outputs, named as ``subscribed()`` names them, and the parameter switching each
+OUTPUT_PARAMS = {"tf": "publish_tf", "covariance": "publish_covariance", "twist": "publish_twist",
+                 "markers": "publish_markers"}
 
 #: visualization_msgs/Marker types and action used here
 SPHERE_LIST, LINE_STRIP, LINE_LIST = 7, 4, 5

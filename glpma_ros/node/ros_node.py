@@ -11,8 +11,10 @@ Executor: a ``SingleThreadedExecutor`` (the recommended one for this node), spin
 thread of its own, and the default callback group.  The input callback takes the newest input
 waiting in the subscription's queue (the ones it passes over count as dropped: the node's
 newest-input rule) and solves it right there (:meth:`SolveLoop.offer
-<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and the other outputs; a
-solve holds up the diagnostics timer and the parameter services for at most the time budget.
+<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and hands it to the extras
+thread (:class:`~glpma_ros.node.loops.ExtrasLoop`), which publishes TF, covariance, twist and
+markers on the topics that have subscribers; a solve holds up the diagnostics timer and the
+parameter services for at most the time budget.
 Handing each input to a solver thread instead costs a thread switch per input, and the Python
 executor, busy taking the next messages, competes with that thread for the GIL, so it is
 slower end to end (BENCHMARKS.md, "Extra outputs and the transport path"); a
@@ -111,7 +113,10 @@ class FkNode(Node):
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.modes_pub = self.create_publisher(PoseArray, "~/assembly_modes", latched)
         # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
-        self.loop = SolveLoop(self.service, self._publish_pose, publish_extras=self._publish_extras)
+        self._extra_pubs = (("tf", self.tf_pub), ("covariance", self.cov_pub), ("twist", self.twist_pub),
+                            ("markers", self.markers_pub))
+        self.loop = SolveLoop(self.service, self._publish_pose, publish_extras=self._publish_extras,
+                              subscribed=self._subscribed)
         self.modes = AssemblyModesLoop(self.service, self._publish_modes).start()
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
             self.input_sub = self.create_subscription(JointState, "joint_states", self._on_joint_state, qos)
@@ -175,6 +180,10 @@ class FkNode(Node):
         o = msg.pose.orientation
         o.x, o.y, o.z, o.w = pose.orientation
         self.pose_pub.publish(msg)
+
+    def _subscribed(self) -> set:
+        """The extra outputs some subscription is matched with (the others are not built)."""
+        return {name for name, pub in self._extra_pubs if pub.get_subscription_count()}
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""

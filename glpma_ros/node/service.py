@@ -9,10 +9,11 @@ the assembly modes on request (:mod:`.assembly_modes`).  The threads both
 transports share are in :mod:`.loops`.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
-``SolveLoop.submit(msg.data, arrival_ns)`` (``input_type`` float64_multi_array) or
-``SolveLoop.submit_joint_state(msg.name, msg.position, msg.header.stamp)`` (``joint_state``) in,
-``publish(PoseOutput)`` out -- then ``publish_extras(service.extras(outcome))``: TF, covariance,
-twist and markers (:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s``, and
+``SolveLoop.offer(legs_m, arrival_ns)`` (``input_type`` float64_multi_array) or
+``SolveLoop.offer(JointStateInput(...), msg.header.stamp)`` (``joint_state``) in,
+``publish(PoseOutput)`` out -- then, from the extras thread,
+``publish_extras(service.extras(outcome, ...))``: TF, covariance, twist and markers
+(:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s``, and
 ``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
 ``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
 received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
@@ -38,7 +39,7 @@ from ..estimator import Estimator
 from ..precompile import COMPILED_S
 from .assembly_modes import AssemblyModesMixin
 from .diagnostics import DiagnosticsMixin
-from .outputs import OutputBuilder
+from .outputs import OUTPUT_PARAMS, OutputBuilder
 from .stats import LogThrottle, Statistics
 
 #: solvers warmed up at start (with the configured one): the papers' real-time solvers
@@ -329,24 +330,38 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             rates = self.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
             return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
 
-    def extras(self, outcome: Outcome):
+    def extras(self, outcome: Outcome, params: dict | None = None, subscribed=None):
         """TF, covariance, twist and markers (:class:`~glpma_ros.node.outputs.ExtraOutputs`) of a
-        published pose, as the ``publish_*`` parameters ask; None when every one is off.  Called
-        by the thread that solved ``outcome``, after the pose went out."""
-        params = self.params
+        published pose, as the ``publish_*`` parameters (``params``, default the current ones)
+        ask and, when ``subscribed`` (names of :data:`~glpma_ros.node.outputs.OUTPUT_PARAMS`) is
+        given, only those with a subscriber; None when none is left.  Called for the poses in
+        their order (by the :class:`~glpma_ros.node.loops.ExtrasLoop` thread), after each went out."""
+        params = self.params if params is None else params
         if outcome.pose is None:
             return None
-        if not (params["publish_tf"] or params["publish_covariance"] or params["publish_twist"]
-                or params["publish_markers"]):
+        wanted = {name: params[key] and (subscribed is None or name in subscribed)
+                  for name, key in OUTPUT_PARAMS.items()}
+        if not any(wanted.values()):
             self.outputs.reset_previous()      # no finite difference across a time it was off
             return None
+        if not all(wanted[name] == params[key] for name, key in OUTPUT_PARAMS.items()):
+            params = {**params, **{OUTPUT_PARAMS[name]: on for name, on in wanted.items()}}
         extras = self.outputs.build(outcome, params)
         return extras if extras.any else None
 
     def note_extras_time(self, seconds: float) -> None:
-        """Time spent on the extra outputs of one pose: building, converting, writing."""
+        """Time the extras thread spent on the extra outputs of one pose: building, converting, writing."""
         with self._lock:
             self.stats.extras_s.append(seconds)
+
+    def note_extras_handoff(self, seconds: float) -> None:
+        """Time the solving thread spent handing a pose over to the extras thread."""
+        self.stats.extras_handoff_s.append(seconds)
+
+    def note_extras_dropped(self, count: int) -> None:
+        """Poses whose extra outputs were dropped: the extras thread was ``EXTRAS_BACKLOG`` behind."""
+        with self._drop_lock:
+            self.stats.extras_dropped += count
 
     def _finish(self, arrival: float) -> float:
         latency = time.perf_counter() - arrival

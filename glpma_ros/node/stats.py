@@ -65,6 +65,8 @@ class Statistics:
         self.residual_m: deque = deque(maxlen=WINDOW)
         self.conditioning: deque = deque(maxlen=WINDOW)
         self.extras_s: deque = deque(maxlen=WINDOW)   # TF, covariance, twist, markers of a pose
+        self.extras_handoff_s: deque = deque(maxlen=WINDOW)   # the solving thread's part of them
+        self.extras_dropped = 0       # poses whose extra outputs the extras thread never caught up with
         self.capped_reported = 0      # covariances capped at a singularity, at the last report
         self.last_estimate = None
         self.last_reason = ""

@@ -8,11 +8,13 @@ both run :class:`~glpma_ros.node.service.FkService` through
 Threads.  Two reader threads take turns as the *leader* (leader/followers, Schmidt et al.,
 *Pattern-Oriented Software Architecture* vol. 2): the leader waits for leg lengths (or joint
 states) and assembly-modes requests, takes them (the newest input wins, older ones count as
-dropped), hands the leadership over and solves the input itself -- pose, then TF, covariance,
-twist and markers -- unless a solve is in progress, in which case the input waits for it
+dropped), hands the leadership over and solves the input itself, then publishes the pose,
+unless a solve is in progress, in which case the input waits for it
 (:meth:`SolveLoop.offer <glpma_ros.node.loops.SolveLoop.offer>`).  So an input goes from the
 DDS reader to the solver without a thread switch, and inputs arriving during a solve are
-still taken (and counted) at once.  The hot messages are encoded and decoded by
+still taken (and counted) at once.  TF, covariance, twist and markers of each pose are built
+and written by the extras thread (:class:`~glpma_ros.node.loops.ExtrasLoop`), only for the
+topics some reader is matched with.  The hot messages are encoded and decoded by
 :mod:`.cdr` rather than by the binding's generic serializer.  The assembly-modes thread hands
 requests to its worker process and publishes the PoseArray; the main thread publishes
 ``/diagnostics`` every ``diagnostics_period_s`` and handles signals (SIGINT and SIGTERM stop
@@ -106,7 +108,10 @@ class DdsNode:
         self.input_reader = participant.reader(self.topics[self.input_name],
                                                JointState if self.joint_state else Float64MultiArray, depth)
         self.request_reader = participant.reader(self.topics[endpoints.REQUEST_ASSEMBLY_MODES], Empty, depth)
-        self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras)
+        self._extra_writers = (("tf", self.tf_writer), ("covariance", self.cov_writer),
+                               ("twist", self.twist_writer), ("markers", self.markers_writer))
+        self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
+                              subscribed=self._subscribed)
         self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
         self._stop = threading.Event()
         self._waitset, self._guard = endpoints.reader_waitset(participant, [self.input_reader, self.request_reader])
@@ -179,6 +184,10 @@ class DdsNode:
     def _publish_pose(self, pose) -> None:
         self._raw_pose.write(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
                                                        pose.orientation))
+
+    def _subscribed(self) -> set:
+        """The extra outputs some reader is matched with (the others are not built)."""
+        return {name for name, writer in self._extra_writers if cdr.matched_readers(writer)}
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
