@@ -440,7 +440,7 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
         for k, sc in enumerate(scenarios):
             for j, target in enumerate(TARGETS):
                 say(f"{sc.label}: legs written -> pose read, {target}, {seconds:g} s")
-                res["paths"].append(path_latency(sc, target, seconds, domain + 1 + 3 * k + j))
+                res["paths"].append(path_latency(sc, target, seconds, domain + 1 + len(TARGETS) * k + j))
     if profile_samples > 0:
         say(f"micro-profile: {profile_samples} writes and thread round trips")
         res["profile"] = micro_profile(scenarios[0], profile_samples, domain + 10)
