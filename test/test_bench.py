@@ -8,7 +8,7 @@ SECTIONS = ["## Summary", "## The papers' tables (001 Tables 5 and 8)", "### 3-R
             "## Success vs evaluations", "## Pure G3-PCX against peer implementations",
             "## Why the papers' pure G3-PCX figures do not reproduce", "## All real assembly modes",
             "## Warm tracking latency (solve only)", "## Warm solve against `scipy.optimize.least_squares`",
-            "## Deadline honouring", "## DDS end to end"]
+            "## Deadline honouring", "## DDS end to end", "## Extra outputs and the transport path"]
 
 
 @pytest.fixture(scope="module")
@@ -17,8 +17,9 @@ def report(tmp_path_factory):
     md = out / "BENCH.md"
     rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
                "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma", "--solve-all-runs", "20",
-               "--dds-steps", "20", "--no-progress", "--out", str(out), "--markdown", str(md),
-               "--reliability", str(out / "none.json")])
+               "--dds-steps", "20", "--outputs-inputs", "5", "--outputs-seconds", "0.3", "--outputs-profile", "20",
+               "--outputs-rclpy-seconds", "0", "--no-progress", "--out", str(out), "--markdown", str(md),
+               "--reliability", str(out / "none.json"), "--save-data", str(out / "res.pkl")])
     assert rc == 0
     return out, md.read_text()
 
@@ -75,3 +76,17 @@ def test_quick_never_writes_over_the_committed_report():
     out, md = output_paths(build_parser().parse_args(["--quick", "--markdown", "/tmp/x/B.md"]))
     assert str(md) == "/tmp/x/B.md" and str(out) == "/tmp/x"
     assert output_paths(build_parser().parse_args([])) == (DEFAULT_OUT, DEFAULT_MARKDOWN)
+
+
+def test_render_rewrites_the_report_from_saved_data(report):
+    out, text = report
+    md = out / "again.md"
+    assert main(["--render", str(out / "res.pkl"), "--markdown", str(md), "--out", str(out),
+                 "--reliability", str(out / "none.json")]) == 0
+    again = md.read_text()
+    for heading in SECTIONS:
+        assert heading in again, heading
+    section = again.split("## Extra outputs and the transport path")[1].split("\n## ")[0]
+    assert section == text.split("## Extra outputs and the transport path")[1].split("\n## ")[0]
+    for process in ("node", "node, extra outputs off", "echo (transport floor)"):
+        assert f"| 3-RPR | {process} | 1000 Hz, 0.3 s |" in section, process

@@ -77,3 +77,23 @@ def test_the_tests_loop_starts_at_the_given_variables(run):
     loop = variables_along(plan.model, x0, 100, amplitude=2.0)
     assert loop.shape == (100, plan.model.n_vars)
     assert plan.model.distance(loop[0], x0) < 1e-9 * plan.model.scale
+
+
+def test_poses_that_carry_their_legs_pair_by_them_and_split_at_the_stamp(run):
+    """The echo node's poses (legs instead of a pose), paired with ``legs_of``; the latency
+    split at the stamp adds up to written -> received."""
+    from glpma_tools.sim.matching import split_at_stamp
+    plan, sent = run
+    n = plan.model.n_legs
+
+    def echoed(i, arrival_ns, late_ns):
+        numbers = np.r_[sent[i].legs * plan.mpu, np.zeros(7 - n)]
+        return (arrival_ns + late_ns, arrival_ns, "base", numbers[:3], numbers[3:])
+    # input 11 arrives after input 12 was written (its stamp is later than 12's send time)
+    poses = [echoed(10, sent[10].send_ns + 300_000, 200_000), echoed(11, sent[12].send_ns + 1, 100_000),
+             echoed(900, sent[900].send_ns + 50_000, 70_000), echoed(900, sent[900].send_ns + 60_000, 0)]
+    pairs, unpaired = pair(plan.model, sent, poses, legs_of=lambda p: np.r_[p[3], p[4]][:n] / plan.mpu)
+    assert [i for i, _, _ in pairs] == [10, 11, 900] and len(unpaired) == 1    # one input, one pose
+    to_node, in_node = split_at_stamp(sent, [i for i, _, _ in pairs], [p for _, p, _ in pairs])
+    np.testing.assert_allclose(to_node, [0.3, 5.0 + 1e-6, 0.05])
+    np.testing.assert_allclose(in_node, [0.2, 0.1, 0.07])

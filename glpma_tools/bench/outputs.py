@@ -1,35 +1,38 @@
-"""Cost of the node's extra outputs and of its DDS transport path, for BENCHMARKS.md.
+"""The ``outputs`` section of ``glpma-fk bench``: what the node's extra outputs cost per input,
+and where the time between legs written and pose read goes over DDS.
 
-``python -m glpma_tools.bench.outputs [--inputs N] [--e2e-seconds S] [--rate HZ] [--markdown PATH]``
+1. **Extra outputs, per input** (:func:`output_costs`) -- a
+   :class:`~glpma_ros.node.dds.node.DdsNode` in this process, its readers not started, fed
+   through :meth:`SolveLoop.offer <glpma_ros.node.loops.SolveLoop.offer>` (the path its reader
+   threads take) with warm inputs along the simulated motion (:mod:`glpma_tools.sim.trajectories`),
+   a subscriber process (:func:`subscribe_outputs`) taking every topic.  For each output alone
+   (``/tf``, ``pose_estimate_cov``, ``twist_estimate`` from poses and from ``joint_states``
+   velocities, ``~/markers`` with every pose), the shipped ones and all of them: the solving
+   thread's hand-off of each pose to the extras thread (:class:`~glpma_ros.node.loops.ExtrasLoop`)
+   and the extras thread's building and writing of its extra messages, beside the pose's own
+   encoding and write and the solve.
+2. **Legs written -> pose read** (:func:`path_latency`) -- the simulated controller
+   (:class:`glpma_tools.sim.controller.Controller`) writing ``leg_lengths`` at the DDS section's
+   rate (:data:`glpma_tools.bench.dds.END_TO_END`) and taking ``pose_estimate``, against three
+   processes in turn: the node with its shipped params file (the default extra outputs on), the
+   node with every extra output off, and the echo (:mod:`glpma_tools.sim.echo_node`: the node's
+   reading and writing without a solve) -- the floor of Python and Cyclone DDS on the machine.
+   The latency is split at the pose's stamp (the arrival time at the node, same clock):
+   *written -> taken* (delivery, the reader's wake-up and take) and *taken -> read* (decode,
+   solve, encode, write, delivery back, the client's wake-up).
+3. **A micro-profile** (:func:`micro_profile`), measured in the same run: one Cyclone DDS write
+   of a ``leg_lengths`` sample without a reader and with a reader in another process (CPU and
+   wall time), a Python thread wake-up round trip (``threading.Event`` ping-pong), decoding an
+   input and encoding a pose.
+4. **The rclpy adapter** (:func:`rclpy_variants`, where ``rclpy`` imports): legs published by an
+   rclpy client process -> pose received, for the shipped executor set-up and two alternatives.
 
-1. **Extra outputs, per input** -- a :class:`~glpma_ros.node.dds.node.DdsNode` in this process,
-   its readers not started, fed through :meth:`SolveLoop.offer` (the path its reader threads
-   take) with warm inputs along the mock controller's trajectory, a subscriber process taking
-   every topic.  For each output alone (``/tf``, ``pose_estimate_cov``, ``twist_estimate`` from
-   poses and from ``joint_states`` velocities, ``~/markers`` with every pose) and for all of them,
-   the time the node spends on the extra messages of one pose -- building, encoding, writing
-   (``/diagnostics``' ``extra outputs time``) -- p50 and p99, beside the time of the pose's own
-   encoding and write and of the solve.
-2. **Legs written -> pose read** -- the node as a process (``glpma_ros.node.dds.node``, shipped
-   params file, every default output on), a client writing ``leg_lengths`` at ``--rate`` for
-   ``--e2e-seconds`` and taking ``pose_estimate``: latency p50/p99/max split at the pose's stamp
-   (the node's arrival time, same clock): *written -> taken by the node* (DDS delivery, the
-   reader's wake-up, take and decode) and *taken -> pose read* (solve, encode, write, the
-   client's wake-up); node CPU and inputs dropped.
-3. **The rclpy adapter** (where rclpy is importable): the same from an rclpy client, for the
-   shipped executor set-up (``SingleThreadedExecutor``, the newest input solved in the
-   subscription callback) and two alternatives (a hand-off to a solver thread; a two-thread
-   ``MultiThreadedExecutor`` with a reentrant group).
-
-Writes a ``## Extra outputs and the transport path`` section into ``--markdown`` (default
-BENCHMARKS.md; other sections kept) and prints it.  Timings are wall clock on a shared machine.
+:func:`measure` runs them for the bench; :func:`section` renders the results (prose in
+``templates/outputs.md``).  Timings are wall clock on a shared machine unless said CPU.
 """
 from __future__ import annotations
 
-import argparse
 import os
-import signal
-import struct
 import subprocess
 import sys
 import tempfile
@@ -39,9 +42,14 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_tools.stats import distribution
+from glpma_tools.tables import fmt, table
+
 HEADING = "## Extra outputs and the transport path"
-ROOT = Path(__file__).resolve().parents[2]
-CONFIGS = (("planar_3rpr_seed", "params_3rpr.yaml"), ("hexapod_66_rolland", "params_hexapod.yaml"))
+#: the outputs the shipped params files switch on: the row judged against :data:`EXTRAS_TARGET_US`
+SHIPPED = "shipped (/tf, covariance, twist)"
+#: per-input cost of the shipped extra outputs at p50 (µs) that issue 12 asks for
+EXTRAS_TARGET_US = 20.0
 #: the output configurations of part 1: name -> parameters
 CASES = (
     ("none", {}),
@@ -50,226 +58,298 @@ CASES = (
     ("twist_estimate (poses)", {"publish_twist": True}),
     ("twist_estimate (velocities)", {"publish_twist": True, "input_type": "joint_state"}),
     ("~/markers (every pose)", {"publish_markers": True, "markers_period_s": 0.0}),
-    ("all (defaults + markers 10 Hz)", {"publish_tf": True, "publish_covariance": True, "publish_twist": True,
-                                        "publish_markers": True}),
+    (SHIPPED, {"publish_tf": True, "publish_covariance": True, "publish_twist": True}),
+    ("all (shipped + markers 10 Hz)", {"publish_tf": True, "publish_covariance": True, "publish_twist": True,
+                                       "publish_markers": True}),
 )
 OFF = {"publish_tf": False, "publish_covariance": False, "publish_twist": False, "publish_markers": False}
 #: seconds between two inputs of part 1 (the subscriber keeps up; the inputs stay warm)
 PACE_S = 1e-3
-SUBSCRIBER = r"""
-import sys, time
-from glpma_ros.node.dds import cdr, endpoints
-from glpma_ros.node.dds.messages import PoseStamped, TFMessage, PoseWithCovarianceStamped, TwistStamped, MarkerArray
-p = endpoints.Participant()
-readers = [p.reader(t, m, 100) for t, m in ((endpoints.POSE_ESTIMATE, PoseStamped), (endpoints.TF, TFMessage),
-           (endpoints.POSE_ESTIMATE_COV, PoseWithCovarianceStamped), (endpoints.TWIST_ESTIMATE, TwistStamped),
-           (endpoints.MARKERS, MarkerArray))]
-ws, guard = endpoints.reader_waitset(p, readers)
-from cyclonedds.util import duration
-print("ready", flush=True)
-while True:
-    ws.wait(duration(milliseconds=100))
-    for r in readers:
-        cdr.take_raw(r, 1000)
-"""
+#: the processes part 2 drives: label -> (module, extra --ros-args)
+NODE, NODE_OFF, ECHO = "node", "node, extra outputs off", "echo (transport floor)"
+TARGETS = {NODE: ("glpma_ros.node.dds.node", ()),
+           NODE_OFF: ("glpma_ros.node.dds.node", tuple(a for k in OFF for a in ("-p", f"{k}:=false"))),
+           ECHO: ("glpma_tools.sim.echo_node", ())}
+#: seconds to wait for the controller's endpoints to match the process's, and to let it settle
+CONNECT_S = 60.0
+SETTLE_S = 0.5
+#: seconds to wait for the last poses after the last input
+TAIL_S = 1.0
+#: the micro-profile's pace (s between two writes or round trips) and repetitions of the pure-CPU steps
+PROFILE_PACE_S = 1e-3
+PROFILE_CPU_REPEATS = 5000
+#: first ROS domain of the section (each process gets its own)
+DOMAIN_BASE = 100
 
 
-def _percentiles_us(values) -> tuple[float, float]:
-    arr = np.asarray(values, dtype=float) * 1e6
-    return float(np.percentile(arr, 50)), float(np.percentile(arr, 99))
+def _us(values) -> dict:
+    return distribution(values, 1e6)
 
 
-def _env(domain: int) -> dict:
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
-               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
-    env.setdefault("CYCLONEDDS_URI", (ROOT / "config" / "cyclonedds-localhost.xml").as_uri())
-    return env
+# -- part 1: the extra outputs, per input ---------------------------------------------------------------
+def subscribe_outputs() -> None:
+    """A subscriber process of part 1: takes every output of the node, raw, until killed."""
+    from cyclonedds.util import duration
+
+    from glpma_ros.node.dds import cdr, endpoints
+    from glpma_ros.node.dds.messages import (MarkerArray, PoseStamped, PoseWithCovarianceStamped, TFMessage,
+                                             TwistStamped)
+    p = endpoints.Participant()
+    readers = [p.reader(t, m, 100) for t, m in ((endpoints.POSE_ESTIMATE, PoseStamped), (endpoints.TF, TFMessage),
+               (endpoints.POSE_ESTIMATE_COV, PoseWithCovarianceStamped), (endpoints.TWIST_ESTIMATE, TwistStamped),
+               (endpoints.MARKERS, MarkerArray))]
+    waitset, _ = endpoints.reader_waitset(p, readers)
+    print("ready", flush=True)
+    while True:
+        waitset.wait(duration(milliseconds=100))
+        for r in readers:
+            cdr.take_raw(r, 1000)
 
 
-def _legs_along_trajectory(config: str, n: int, period_s: float):
-    from glpma_ros.config import load_document, model_from_dict, resolve_config
-    from glpma_ros.models.rotations import quaternion_from_matrix
-    try:                                    # the shared trajectories' module, where it exists
-        from glpma_tools.sim.trajectories import legs_for, start_pose, trajectory
-    except ImportError:
-        from glpma_tools.mock_controller import legs_for, start_pose, trajectory
-    path = resolve_config(config)
-    doc = load_document(path)
-    model = model_from_dict(doc, str(path))
-    p0, R0 = start_pose(model, doc)
-    at = trajectory(model, p0, R0)
-    legs = []
-    for i in range(n + 1):
-        p, R = at(i * period_s)
-        legs.append(legs_for(model, p, quaternion_from_matrix(R)) * model.metres_per_unit)
-    return model, np.array(legs)
-
-
-def output_costs(n_inputs: int, domain: int, pace_s: float = PACE_S) -> list[dict]:
-    """Part 1: per configuration and manipulator, p50/p99 of the extras, pose publish and solve."""
+def _params_file(kind: str) -> dict:
     import yaml
 
+    from glpma_ros.config import config_dir
+    from .dds import END_TO_END
+    text = (config_dir() / END_TO_END[kind][1]).read_text()
+    return yaml.safe_load(text)["glpma_fk"]["ros__parameters"]
+
+
+def _timed(function, sink: list):
+    """``function``, also appending ``(CPU s of the calling thread, wall s)`` of each call to ``sink``."""
+    def call(*args):
+        c, t = time.thread_time_ns(), time.perf_counter_ns()
+        try:
+            return function(*args)
+        finally:
+            sink.append(((time.thread_time_ns() - c) * 1e-9, (time.perf_counter_ns() - t) * 1e-9))
+    return call
+
+
+def output_costs(scenarios, n_inputs: int, domain: int, pace_s: float = PACE_S) -> list[dict]:
+    """Part 1: per manipulator and output configuration (µs): on the solving thread the solve,
+    the pose's encoding and write and the hand-off of the pose to the extras thread; on the
+    extras thread the building and writing of the extra outputs of one pose."""
     from glpma_ros.node.dds import endpoints
     from glpma_ros.node.dds.node import DdsNode
     from glpma_ros.node.params import resolve
-    from glpma_ros.node.service import FkService, JointStateInput
+    from glpma_ros.node.service import FkService, JointStateInput, default_joint_names
+    from glpma_tools.sim.node_process import node_environment
+    from glpma_tools.sim.trajectories import Plan
 
-    os.environ.update({k: v for k, v in _env(domain).items() if k in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")})
-    sub = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], stdout=subprocess.PIPE, text=True, env=_env(domain))
+    env = node_environment(domain)
+    sub = subprocess.Popen([sys.executable, "-c", "from glpma_tools.bench.outputs import subscribe_outputs; "
+                            "subscribe_outputs()"], stdout=subprocess.PIPE, text=True, env=env)
     rows = []
     try:
         sub.stdout.readline()
         participant = endpoints.Participant(domain)
-        for config, params_file in CONFIGS:
-            file_params = yaml.safe_load((ROOT / "config" / params_file).read_text())["glpma_fk"]["ros__parameters"]
-            model, legs = _legs_along_trajectory(config, n_inputs, PACE_S)
+        for sc in scenarios:
+            plan = Plan(sc.path)
+            file_params = _params_file(plan.model.kind)
+            legs = np.array([plan.sample(i * pace_s)[0] * plan.mpu for i in range(n_inputs + 1)])
+            rates = np.gradient(legs, pace_s, axis=0)
             for name, case in CASES:
-                values, _ = resolve({**file_params, **OFF, **case})
+                values, _ = resolve({**file_params, "manipulator_config": sc.path, **OFF, **case})
                 service = FkService(values)
                 service.warm_up(solvers=(values["solver"],))
                 node = DdsNode(service, participant, modes_solve=lambda *a: [])
-                pose_s, pose_cpu, extras_cpu, build_cpu, current = [], [], [], [], [0, 0]
-                publish, build, publish_extras = node._publish_pose, service.extras, node.loop.publish_extras
-
-                def timed_pose(pose, publish=publish, pose_s=pose_s, pose_cpu=pose_cpu):
-                    t, c = time.perf_counter(), time.thread_time_ns()
-                    publish(pose)
-                    pose_cpu.append((time.thread_time_ns() - c) * 1e-9)
-                    pose_s.append(time.perf_counter() - t)
-
-                def timed(function, slot, current=current):
-                    def call(arg):
-                        c = time.thread_time_ns()
-                        try:
-                            return function(arg)
-                        finally:
-                            current[slot] += time.thread_time_ns() - c
-                    return call
-                node.loop.publish = timed_pose
-                service.extras = timed(build, 0)                    # TF, covariance, twist, markers
-                node.loop.publish_extras = timed(publish_extras, 1)  # their encoding and DDS writes
-                names = tuple(f"leg_{i + 1}" for i in range(model.n_legs))
-                rates = np.gradient(legs, PACE_S, axis=0)
-                time.sleep(0.5)                     # discovery of the subscriber
+                loop, extras = node.loop, node.loop.extras
+                names = tuple(values["joint_names"] or default_joint_names(plan.model.n_legs))
+                pose, handoff, thread, build = [], [], [], []
+                loop.publish = _timed(loop.publish, pose)                # solving thread: encode + write the pose
+                extras.put = _timed(extras.put, handoff)                 # solving thread: the hand-off
+                extras.publish = _timed(extras.publish, thread)          # extras thread: one pose's extras
+                service.extras = _timed(service.extras, build)           # extras thread: building them
+                if not endpoints.wait_for_match([node.pose_writer], CONNECT_S):
+                    raise TimeoutError(f"the subscriber did not match within {CONNECT_S:g} s")
+                time.sleep(SETTLE_S)                                     # the other topics' discovery
                 for i in range(n_inputs):
-                    stamp = 1_795_000_000 * 10**9 + int(i * PACE_S * 1e9)
+                    stamp = 1_795_000_000 * 10**9 + int(i * pace_s * 1e9)
                     if values["input_type"] == "joint_state":
                         item = JointStateInput(names, tuple(legs[i]), tuple(rates[i]))
                     else:
                         item = tuple(legs[i])
-                    current[:] = [0, 0]
-                    node.loop.offer(item, stamp)
-                    extras_cpu.append(sum(current) * 1e-9)
-                    build_cpu.append(current[0] * 1e-9)
+                    loop.offer(item, stamp)
                     if pace_s:
                         time.sleep(pace_s)
+                extras.flush()
+                loop.stop()
                 st = service.stats
-                extras = _percentiles_us(st.extras_s) if st.extras_s else (0.0, 0.0)
-                rows.append({"manipulator": model.kind, "outputs": name, "inputs": n_inputs,
-                             "published": st.published, "extras_us": extras, "pose_us": _percentiles_us(pose_s),
-                             "extras_cpu_us": _percentiles_us(extras_cpu), "pose_cpu_us": _percentiles_us(pose_cpu),
-                             "build_cpu_us": _percentiles_us(build_cpu),
-                             "solve_us": _percentiles_us(st.solve_s)})
+
+                def cpu(pairs):
+                    return _us([c for c, _ in pairs])
+                rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, "published": st.published,
+                             "solve_us": _us(st.solve_s), "pose_cpu_us": cpu(pose),
+                             "pose_us": _us([w for _, w in pose]),
+                             "handoff_cpu_us": cpu(handoff), "handoff_us": _us(st.extras_handoff_s),
+                             "extras_cpu_us": cpu(thread), "build_cpu_us": cpu(build), "extras_us": _us(st.extras_s),
+                             "extras_dropped": st.extras_dropped})
     finally:
         sub.kill()
         sub.wait()
     return rows
 
 
-def end_to_end(seconds: float, rate_hz: float, domain: int, node_root: Path = ROOT, label: str = "",
-               extra_args=()) -> list[dict]:
-    """Part 2: legs written -> pose read, with the node as a process (from the checkout ``node_root``;
-    ``extra_args``: more ``--ros-args``)."""
-    from cyclonedds.util import duration
+# -- part 2: legs written -> pose read ------------------------------------------------------------------
+def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
+    """Part 2: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
+    ``seconds`` at the DDS section's rate; latency split at the pose's stamp (ms), the
+    process's CPU share while driven, poses that answer no input or a wrong one."""
+    from glpma_ros.config import config_dir
+    from glpma_ros.node.dds import endpoints
+    from glpma_tools.sim.controller import Controller
+    from glpma_tools.sim.echo_node import legs_of
+    from glpma_tools.sim.matching import compare, pair, split_at_stamp
+    from glpma_tools.sim.node_process import NodeProcess, node_environment
+    from glpma_tools.sim.trajectories import Plan
+    from .dds import END_TO_END
 
-    from glpma_ros.node.dds import cdr, endpoints
-    from glpma_ros.node.dds.messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout, PoseStamped
-
-    rows = []
-    for k, (config, params_file) in enumerate(CONFIGS):
-        env = _env(domain + 1 + k)
-        env["PYTHONPATH"] = str(node_root)
-        os.environ.update({key: env[key] for key in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")})
-        err = tempfile.TemporaryFile(mode="w+")
-        node = subprocess.Popen([sys.executable, "-m", "glpma_ros.node.dds.node", "--ros-args", "--params-file",
-                                 str(ROOT / "config" / params_file), *extra_args], stdout=subprocess.PIPE,
-                                stderr=err, text=True, env=env, cwd=node_root)
+    plan = Plan(sc.path)
+    rate, params = END_TO_END[plan.model.kind]
+    module, extra = TARGETS[target]
+    with tempfile.TemporaryDirectory(prefix="glpma_outputs_") as logs:
+        proc = NodeProcess(["--params-file", str(config_dir() / params), "-p", f"manipulator_config:={sc.path}",
+                            *extra], node_environment(domain), Path(logs), module=module)
+        proc.start()
         try:
-            node.stdout.readline()
-            model, legs = _legs_along_trajectory(config, int(seconds * rate_hz), 1.0 / rate_hz)
-            part = endpoints.Participant(domain + 1 + k)
-            writer = part.writer(endpoints.LEG_LENGTHS, Float64MultiArray, 10)
-            reader = part.reader(endpoints.POSE_ESTIMATE, PoseStamped, 100)
-            waitset, guard = endpoints.reader_waitset(part, [reader])
-            received, stop = [], threading.Event()
-
-            def listen():
-                while not stop.is_set():
-                    waitset.wait(duration(milliseconds=100))
-                    for data, _ in cdr.take_raw(reader, 256):
-                        t = time.time_ns()
-                        sec, nanosec = struct.unpack_from("<iI", data, 4)
-                        received.append((sec * 1_000_000_000 + nanosec, t))
-            listener = threading.Thread(target=listen, daemon=True)
-            listener.start()
-            if not endpoints.wait_for_match([writer, reader], 120):
-                raise TimeoutError("the node did not come up")
-            time.sleep(0.5)
-            layout = MultiArrayLayout(dim=[MultiArrayDimension(label="legs", size=model.n_legs, stride=model.n_legs)])
-            raw = [Float64MultiArray(layout=layout, data=[float(v) for v in row]).serialize() for row in legs]
-            out = cdr.RawWriter(writer)
-            sent = []
-            cpu0, wall0 = _cpu_s(node.pid), time.monotonic()
-            t0 = time.perf_counter()
-            for i, data in enumerate(raw):
-                delay = t0 + i / rate_hz - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
-                sent.append(time.time_ns())
-                out.write(data)
-            time.sleep(1.0)
-            cpu = (_cpu_s(node.pid) - cpu0) / (time.monotonic() - wall0)
-            stop.set()
-            guard.set(True)
-            listener.join()
+            ctl = Controller(plan.model, domain, listen_depth=1000)
+            try:
+                if not endpoints.wait_for_match([ctl.writer, ctl.listener.reader], CONNECT_S):
+                    raise TimeoutError(f"{target} did not match the controller within {CONNECT_S:g} s")
+                time.sleep(SETTLE_S)
+                cpu0, wall0 = proc.cpu_s(), time.perf_counter()
+                sent, late = ctl.send(plan, 0.0, max(1, round(rate * seconds)), rate, 1.0 / rate)
+                cpu_share = (proc.cpu_s() - cpu0) / (time.perf_counter() - wall0)
+                deadline = time.monotonic() + TAIL_S
+                while time.monotonic() < deadline and len(ctl.listener.poses) < len(sent):
+                    time.sleep(0.01)
+                poses = list(ctl.listener.poses)
+            finally:
+                ctl.close()
         finally:
-            node.send_signal(signal.SIGINT)
-            node.wait(30)
-        err.seek(0)
-        summary = [ln for ln in err.read().splitlines() if "stopped:" in ln]
-        sent_ns = np.array(sent)
-        total, to_node, in_node = [], [], []
-        for stamp, t in received:
-            j = int(np.searchsorted(sent_ns, stamp)) - 1
-            if j >= 0:
-                total.append((t - sent_ns[j]) * 1e-6)
-                to_node.append((stamp - sent_ns[j]) * 1e-6)
-                in_node.append((t - stamp) * 1e-6)
-
-        def stats(v):
-            a = np.asarray(v)
-            return float(np.percentile(a, 50)), float(np.percentile(a, 99)), float(a.max())
-        rows.append({"manipulator": model.kind + label, "rate_hz": rate_hz, "seconds": seconds, "sent": len(sent),
-                     "poses": len(received), "total_ms": stats(total), "to_node_ms": stats(to_node),
-                     "in_node_ms": stats(in_node), "cpu": cpu, "node": summary[-1].split("stopped: ")[-1] if summary
-                     else ""})
-    return rows
+            proc.stop()
+        summary = proc.stopped_line()
+    if target == ECHO:          # the echo's poses carry their legs
+        pairs, unpaired = pair(plan.model, sent, poses,
+                               legs_of=lambda pose: np.array(legs_of(pose, plan.model.n_legs)) / plan.mpu)
+        index, paired, wrong = [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired)
+    else:
+        c = compare(plan.model, sent, poses)
+        index, paired = c.index, c.poses
+        wrong = len(c.unpaired) + int(np.sum(~c.on_truth))
+    to_node, in_node = split_at_stamp(sent, index, paired)
+    return {"manipulator": sc.label, "key": sc.key, "target": target, "rate_hz": rate,
+            "seconds": seconds, "sent": len(sent), "poses": len(poses), "paired": len(paired), "wrong": wrong,
+            "late_sends": late, "total_ms": distribution(to_node + in_node), "to_node_ms": distribution(to_node),
+            "in_node_ms": distribution(in_node), "cpu_percent": 100.0 * cpu_share, "summary": summary}
 
 
+# -- part 3: the micro-profile -------------------------------------------------------------------------
+def _per_call_us(function, repeats: int) -> float:
+    """Mean µs of ``function()`` called back to back (CPU-bound steps)."""
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        function()
+    return (time.perf_counter() - t0) / repeats * 1e6
+
+
+def _timed_writes(writer, data: bytes, n: int) -> dict:
+    """CPU and wall time (µs) of ``n`` raw writes, :data:`PROFILE_PACE_S` apart."""
+    cpu, wall = [], []
+    for _ in range(n):
+        c, t = time.thread_time_ns(), time.perf_counter_ns()
+        writer.write(data)
+        wall.append((time.perf_counter_ns() - t) * 1e-3)
+        cpu.append((time.thread_time_ns() - c) * 1e-3)
+        time.sleep(PROFILE_PACE_S)
+    return {"cpu_us": distribution(cpu), "wall_us": distribution(wall)}
+
+
+def wake_round_trip(n: int) -> dict:
+    """A Python thread wake-up round trip (µs): this thread sets an ``Event`` another waits on,
+    which sets one this thread waits on; :data:`PROFILE_PACE_S` between two round trips."""
+    ping, pong, times = threading.Event(), threading.Event(), []
+
+    def answer():
+        for _ in range(n):
+            ping.wait()
+            ping.clear()
+            pong.set()
+    other = threading.Thread(target=answer, daemon=True)
+    other.start()
+    for _ in range(n):
+        t = time.perf_counter_ns()
+        ping.set()
+        pong.wait()
+        pong.clear()
+        times.append((time.perf_counter_ns() - t) * 1e-3)
+        time.sleep(PROFILE_PACE_S)
+    other.join()
+    return distribution(times)
+
+
+def micro_profile(sc, n: int, domain: int) -> dict:
+    """Part 3, on ``sc``'s inputs: decoding one input and encoding one pose (µs, back to back),
+    ``n`` paced writes of an input without a reader and with the echo's reader in another process,
+    and ``n`` thread wake-up round trips."""
+    from glpma_ros.node.dds import cdr, endpoints
+    from glpma_tools.sim.controller import Controller
+    from glpma_tools.sim.node_process import NodeProcess, node_environment
+    from glpma_tools.sim.trajectories import Plan
+
+    plan = Plan(sc.path)
+    env = node_environment(domain)
+    ctl = Controller(plan.model, domain)
+    try:
+        data, _ = ctl.encoded(plan.sample(0.0)[0])
+        encoder, position, orientation = cdr.Encoder(), (0.1, 0.2, 0.0), (0.0, 0.0, 0.0, 1.0)
+        out = {"decode_us": _per_call_us(lambda: cdr.float64_multi_array_data(data), PROFILE_CPU_REPEATS),
+               "encode_us": _per_call_us(lambda: encoder.pose_stamped(time.time_ns(), "base", position, orientation),
+                                         PROFILE_CPU_REPEATS),
+               "write_alone": _timed_writes(ctl.raw_writer, data, n)}
+        with tempfile.TemporaryDirectory(prefix="glpma_outputs_") as logs:
+            echo = NodeProcess([], env, Path(logs), module=TARGETS[ECHO][0])
+            echo.start()
+            try:
+                if not endpoints.wait_for_match([ctl.writer], CONNECT_S):
+                    raise TimeoutError(f"the echo did not match within {CONNECT_S:g} s")
+                time.sleep(SETTLE_S)
+                out["write_remote"] = _timed_writes(ctl.raw_writer, data, n)
+            finally:
+                echo.stop()
+    finally:
+        ctl.close()
+    out["wake_us"] = wake_round_trip(n)
+    out["samples"] = n
+    return out
+
+
+# -- part 4: the rclpy adapter ---------------------------------------------------------------------------
 RCLPY_CLIENT = r"""
 import sys, time, threading
 import numpy as np, rclpy
 from std_msgs.msg import Float64MultiArray
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
+from glpma_tools.sim.controller import Sent
+from glpma_tools.sim.matching import compare
+from glpma_tools.sim.trajectories import Plan
 config, rate, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
-from glpma_tools.bench.outputs import _legs_along_trajectory
-model, legs = _legs_along_trajectory(config, int(rate * seconds), 1.0 / rate)
+plan = Plan(config)
+samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
 rclpy.init()
 node = rclpy.create_node("glpma_fk_bench_client")
 received = []
-node.create_subscription(PoseStamped, "pose_estimate", lambda m: received.append(
-    (m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec, time.time_ns())), 100)
+
+
+def take(m):
+    p, q = m.pose.position, m.pose.orientation
+    received.append((time.time_ns(), m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec, m.header.frame_id,
+                     np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])))
+
+
+node.create_subscription(PoseStamped, "pose_estimate", take, 100)
 pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
 executor = SingleThreadedExecutor()
 executor.add_node(node)
@@ -278,18 +358,19 @@ while pub.get_subscription_count() == 0:
     time.sleep(0.1)
 time.sleep(1.0)
 sent, t0 = [], time.perf_counter()
-for i, row in enumerate(legs[:-1]):
+for i, (legs, position, quaternion) in enumerate(samples):
     delay = t0 + i / rate - time.perf_counter()
     if delay > 0:
         time.sleep(delay)
-    sent.append(time.time_ns())
-    pub.publish(Float64MultiArray(data=[float(v) for v in row]))
+    msg = Float64MultiArray(data=[float(v) for v in legs * plan.mpu])
+    sent.append(Sent(time.time_ns(), legs, position, quaternion))
+    pub.publish(msg)
 time.sleep(1.0)
-s = np.array(sent)
-lat = [(t - s[np.searchsorted(s, st) - 1]) * 1e-6 for st, t in received if np.searchsorted(s, st) > 0]
-print(len(sent), len(received), np.percentile(lat, 50), np.percentile(lat, 99), flush=True)
+c = compare(plan.model, sent, list(received))
+print(len(sent), len(received), np.percentile(c.latency_ms, 50), np.percentile(c.latency_ms, 99),
+      len(c.unpaired) + int(np.sum(~c.on_truth)), flush=True)
 """
-#: rclpy adapter variants of part 3: the shipped one, and two alternatives that were measured
+#: rclpy adapter variants of part 4: the shipped one, and two alternatives
 RCLPY_VARIANTS = (
     ("SingleThreadedExecutor, newest input solved in the callback (shipped)", "shipped"),
     ("SingleThreadedExecutor, hand-off to a solver thread", "submit"),
@@ -297,10 +378,9 @@ RCLPY_VARIANTS = (
 )
 
 
-def rclpy_variants(seconds: float, rate_hz: float, domain: int) -> list[dict]:
-    """Part 3 (where rclpy is importable): legs published by an rclpy client process -> pose received,
-    for the adapter as shipped and two alternatives (3-RPR, shipped params)."""
-    import yaml
+def rclpy_variants(sc, seconds: float, rate_hz: float, domain: int) -> list[dict]:
+    """Part 4 (where rclpy imports): legs published by an rclpy client process -> pose received,
+    for the adapter as shipped and two alternatives (``sc``'s shipped params)."""
     import rclpy
     from rclpy.callback_groups import ReentrantCallbackGroup
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
@@ -308,12 +388,11 @@ def rclpy_variants(seconds: float, rate_hz: float, domain: int) -> list[dict]:
     from std_msgs.msg import Float64MultiArray
 
     from glpma_ros.node.ros_node import FkNode
-    config, params_file = CONFIGS[0]
-    values = yaml.safe_load((ROOT / "config" / params_file).read_text())["glpma_fk"]["ros__parameters"]
+    from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
+    values = {**_params_file(sc.model.kind), "manipulator_config": sc.path}
     rows = []
     for k, (label, variant) in enumerate(RCLPY_VARIANTS):
-        env = _env(domain + 10 + k)
-        os.environ.update({key: env[key] for key in ("ROS_DOMAIN_ID", "CYCLONEDDS_URI")})
+        env = node_environment(domain + k)
         rclpy.init()
         node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
         if variant != "shipped":
@@ -330,12 +409,13 @@ def rclpy_variants(seconds: float, rate_hz: float, domain: int) -> list[dict]:
         spinner = threading.Thread(target=executor.spin, daemon=True)
         spinner.start()
         try:
-            out = subprocess.run([sys.executable, "-c", RCLPY_CLIENT, config, str(rate_hz), str(seconds)], env=env,
-                                 capture_output=True, text=True, timeout=seconds + 300, cwd=ROOT)
-            sent, poses, p50, p99 = out.stdout.split()
+            out = subprocess.run([sys.executable, "-c", RCLPY_CLIENT, sc.path, str(rate_hz), str(seconds)], env=env,
+                                 capture_output=True, text=True, timeout=seconds + 300, cwd=PACKAGE_PARENT)
+            sent, poses, p50, p99, wrong = out.stdout.split()
             st = node.service.stats
             rows.append({"variant": label, "sent": int(sent), "poses": int(poses), "p50": float(p50),
-                         "p99": float(p99), "received": st.handled + st.dropped, "dropped": st.dropped})
+                         "p99": float(p99), "wrong": int(wrong), "received": st.handled + st.dropped,
+                         "dropped": st.dropped})
         finally:
             executor.shutdown()
             spinner.join()
@@ -345,116 +425,145 @@ def rclpy_variants(seconds: float, rate_hz: float, domain: int) -> list[dict]:
     return rows
 
 
-def _cpu_s(pid: int) -> float:
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def section(costs: list[dict], e2e: list[dict], pace_s: float = PACE_S, ros: list | None = None) -> list[str]:
-    pace = f"one every {pace_s * 1e3:g} ms" if pace_s else "back to back"
-    out = [HEADING, "",
-           "`python -m glpma_tools.bench.outputs` (issue 12: each extra output costs at most 20 us per input at "
-           "p50; issue 11: where the time between legs written and pose read goes). Wall clock on a shared "
-           "2-core machine.", "",
-           "Per input, the node's time on the extra messages of one published pose (build, encode, write; "
-           "`extra outputs time` on `/diagnostics`), beside the pose's own encoding and write and the solve "
-           f"({costs[0]['inputs'] if costs else 0} warm inputs per row, {pace}, a subscriber process on every "
-           "topic):", "",
-           "| manipulator | outputs on | extra outputs, CPU p50 / p99 (us) | of which building them, CPU p50 (us) | "
-           "extra outputs, wall p50 / p99 (us) | pose encode + write, CPU / wall p50 (us) | solve, wall p50 (us) |",
-           "|---|---|---|---|---|---|---|"]
-    for r in costs:
-        out.append(f"| {r['manipulator']} | {r['outputs']} | "
-                   f"{r['extras_cpu_us'][0]:.1f} / {r['extras_cpu_us'][1]:.1f} | {r['build_cpu_us'][0]:.1f} | "
-                   f"{r['extras_us'][0]:.1f} / {r['extras_us'][1]:.1f} | "
-                   f"{r['pose_cpu_us'][0]:.1f} / {r['pose_us'][0]:.1f} | {r['solve_us'][0]:.0f} |")
-    out += ["", "CPU = the solving thread's CPU time (`time.thread_time`), which preemption by other processes "
-            "does not inflate; wall = `perf_counter`. Reading: an extra output costs what the node does to build "
-            "it (the *building* column: the compiled Jacobian, covariance and twist, the finite difference, "
-            "the markers' geometry) plus one struct-packed encoding and one Cyclone DDS write; the write to a "
-            "reader in another process is most of it, as the pose's own write in the last column shows. An "
-            "output nobody subscribes to costs its building and a write without readers; one switched off "
-            "costs nothing. `~/markers` are built at most every `markers_period_s` (0.1 s), so at 1 kHz the "
-            "median input builds none."]
-    out += ["", "Legs written -> pose read, the node as a process with the shipped params file (all default "
-            "outputs on, then off; a baseline checkout's node if given), split at the pose's stamp (the node's "
-            "arrival time):", "",
-            "| manipulator | rate | sent / poses | written -> pose read p50 / p99 / max (ms) | "
-            "written -> taken by the node p50 / p99 (ms) | taken -> pose read p50 / p99 (ms) | node CPU | "
-            "node summary |",
-            "|---|---|---|---|---|---|---|---|"]
-    for r in e2e:
-        t, a, b = r["total_ms"], r["to_node_ms"], r["in_node_ms"]
-        out.append(f"| {r['manipulator']} | {r['rate_hz']:g} Hz, {r['seconds']:g} s | {r['sent']} / {r['poses']} | "
-                   f"{t[0]:.3f} / {t[1]:.3f} / {t[2]:.2f} | {a[0]:.3f} / {a[1]:.3f} | {b[0]:.3f} / {b[1]:.3f} | "
-                   f"{100 * r['cpu']:.0f} % | {r['node']} |")
-    if ros:
-        out += ["", "The rclpy adapter (ROS 2 Jazzy, rmw_cyclonedds_cpp), 3-RPR: legs published by an rclpy client "
-                "process -> pose received. *received* = inputs that reached the node's callback (the rest were "
-                "lost in the middleware's keep-last queue while the executor was busy, uncounted):", "",
-                "| executor | sent / received / poses | dropped (newest wins) | latency p50 / p99 (ms) |",
-                "|---|---|---|---|"]
-        for r in ros:
-            out.append(f"| {r['variant']} | {r['sent']} / {r['received']} / {r['poses']} | {r['dropped']} | "
-                       f"{r['p50']:.3f} / {r['p99']:.3f} |")
-    return out + [""]
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m glpma_tools.bench.outputs", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--inputs", type=int, default=3000, help="inputs per row of part 1 (default 3000)")
-    parser.add_argument("--e2e-seconds", type=float, default=60.0, help="seconds of part 2 (default 60)")
-    parser.add_argument("--rate", type=float, default=1000.0, help="input rate of part 2 (default 1000 Hz)")
-    parser.add_argument("--domain", type=int, default=150 + os.getpid() % 50, help="first ROS_DOMAIN_ID used")
-    parser.add_argument("--pace", type=float, default=PACE_S,
-                        help="seconds between two inputs of part 1 (default 0.001; 0 = back to back)")
-    parser.add_argument("--rclpy-seconds", type=float, default=10.0,
-                        help="seconds per rclpy variant of part 3 (default 10; 0 = skip; needs rclpy)")
-    parser.add_argument("--rclpy-rate", type=float, default=500.0, help="input rate of part 3 (default 500 Hz)")
-    parser.add_argument("--baseline", type=Path, default=None, metavar="CHECKOUT",
-                        help="part 2 also with the node of another checkout (e.g. the transport before this one)")
-    parser.add_argument("--markdown", type=Path, default=ROOT / "BENCHMARKS.md")
-    parser.add_argument("--no-markdown", action="store_true")
-    args = parser.parse_args(argv)
-    costs = output_costs(args.inputs, args.domain, args.pace)
-    e2e = []
-    if args.e2e_seconds > 0:
-        e2e = end_to_end(args.e2e_seconds, args.rate, args.domain)
-        off = ("-p", "publish_tf:=false", "-p", "publish_covariance:=false", "-p", "publish_twist:=false")
-        e2e += end_to_end(args.e2e_seconds, args.rate, args.domain, label=", extra outputs off", extra_args=off)
-        if args.baseline is not None:
-            e2e += end_to_end(args.e2e_seconds, args.rate, args.domain, args.baseline.resolve(),
-                              f", baseline node from {args.baseline}")
-    ros = None
-    if args.rclpy_seconds > 0:
+# -- the bench's entry and the report ------------------------------------------------------------------
+def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_seconds: float, say=print) -> dict:
+    """Every part for the bench: ``res["outputs"]``.  ``inputs``: per row of part 1 (0 = skip);
+    ``seconds``: per run of part 2 (0 = skip); ``profile_samples``: writes and round trips of
+    part 3 (0 = skip); ``rclpy_seconds``: per variant of part 4 (0 = skip; needs rclpy)."""
+    domain = DOMAIN_BASE + os.getpid() % 50
+    res = {"keys": [sc.key for sc in scenarios], "pace_s": PACE_S, "costs": [], "paths": [], "profile": None,
+           "rclpy": None, "rclpy_reason": None}
+    if inputs > 0:
+        say(f"extra outputs: {inputs} inputs per configuration")
+        res["costs"] = output_costs(scenarios, inputs, domain)
+    if seconds > 0:
+        for k, sc in enumerate(scenarios):
+            for j, target in enumerate(TARGETS):
+                say(f"{sc.label}: legs written -> pose read, {target}, {seconds:g} s")
+                res["paths"].append(path_latency(sc, target, seconds, domain + 1 + len(TARGETS) * k + j))
+    if profile_samples > 0:
+        say(f"micro-profile: {profile_samples} writes and thread round trips")
+        res["profile"] = micro_profile(scenarios[0], profile_samples, domain + 10)
+    if rclpy_seconds > 0:
         try:
             import rclpy  # noqa: F401 - only whether it imports
         except ImportError:
-            print("rclpy not importable (source ROS 2 Jazzy): part 3 skipped", file=sys.stderr)
+            res["rclpy_reason"] = "rclpy does not import in the Python that ran the bench"
         else:
-            ros = rclpy_variants(args.rclpy_seconds, args.rclpy_rate, args.domain)
-    lines = section(costs, e2e, args.pace, ros)
-    print("\n".join(lines))
-    if not args.no_markdown:
-        text = args.markdown.read_text() if args.markdown.exists() else ""
-        args.markdown.write_text(splice(text, lines))
-    return 0
+            from .dds import END_TO_END
+            sc = scenarios[0]
+            say(f"{sc.label}: the rclpy adapter's executors")
+            rate = END_TO_END[sc.model.kind][0]
+            res["rclpy_setup"] = {"manipulator": sc.label, "rate": rate, "seconds": rclpy_seconds}
+            res["rclpy"] = rclpy_variants(sc, rclpy_seconds, rate, domain + 20)
+    return res
 
 
-def splice(text: str, section_lines: list[str]) -> str:
-    """``text`` with its :data:`HEADING` section (up to the next ``## ``) replaced by
-    ``section_lines``, or with them appended."""
-    lines = text.splitlines()
-    start = next((i for i, ln in enumerate(lines) if ln.strip() == HEADING), None)
-    new = "\n".join(section_lines).rstrip().splitlines()
-    if start is None:
-        body = text.rstrip()
-        return (body + "\n\n" if body else "") + "\n".join(new) + "\n"
-    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
-    rest = lines[end:]
-    return "\n".join(lines[:start] + new + ([""] + rest if rest else [])).rstrip() + "\n"
+def _p(d, key, digits=3) -> str:
+    return "—" if not d or d.get(key) is None else f"{d[key]:.{digits}f}"
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def _pair(d, digits=3) -> str:
+    return f"{_p(d, 'p50', digits)} / {_p(d, 'p99', digits)}"
+
+
+def _verdict(measured: float | None, target: float | None) -> str:
+    """``met`` or by how much it is missed."""
+    if target is None or measured is None:
+        return ""
+    if measured <= target:
+        return f"{measured:.3f} ms (target ≤ {target:g}: met)"
+    return f"{measured:.3f} ms (target ≤ {target:g}: missed by {measured - target:.3f} ms, {measured / target:.1f}×)"
+
+
+def section(res) -> list[str]:
+    """The section of BENCHMARKS.md from ``res["outputs"]`` (nothing when it did not run)."""
+    from .report import prose
+    from .scenarios import END_TO_END_TARGET_MS
+    o = res.get("outputs")
+    if not o:
+        return []
+    from .scenarios import LABEL
+    targets = "; ".join(f"{LABEL[key]} " + " and ".join(f"{q} ≤ {v:g} ms" for q, v in zip(("p50", "p99"), pair)
+                                                         if v is not None)
+                        for key, pair in END_TO_END_TARGET_MS.items() if key in o["keys"])
+    out = [HEADING, "", prose("outputs", extras_target=f"{EXTRAS_TARGET_US:g}", e2e_targets=targets), ""]
+    if o["costs"]:
+        c0 = o["costs"][0]
+        body = [[r["manipulator"], r["outputs"], _pair(r["handoff_cpu_us"], 1), _pair(r["handoff_us"], 1),
+                 _pair(r["extras_cpu_us"], 1), _p(r["build_cpu_us"], "p50", 1), _pair(r["extras_us"], 1),
+                 r["extras_dropped"], f"{_p(r['pose_cpu_us'], 'p50', 1)} / {_p(r['pose_us'], 'p50', 1)}",
+                 _p(r["solve_us"], "p50", 0)] for r in o["costs"]]
+        out += [prose("outputs", "costs", inputs=c0["inputs"], pace=f"{1e3 * o['pace_s']:g}"), "",
+                table(["manipulator", "outputs on", "solving thread: hand-off, CPU p50 / p99 (µs)",
+                       "hand-off, wall p50 / p99 (µs)", "extras thread: build + write, CPU p50 / p99 (µs)",
+                       "of which building, CPU p50 (µs)", "extras thread, wall p50 / p99 (µs)", "extras dropped",
+                       "pose encode + write, CPU / wall p50 (µs)", "solve, wall p50 (µs)"], body), ""]
+        for r in (r for r in o["costs"] if r["outputs"] == SHIPPED):
+            p50 = r["handoff_cpu_us"]["p50"]
+            out.append("- " + prose("outputs", "costs_target", manipulator=r["manipulator"], handoff=f"{p50:.1f}",
+                                    handoff_wall=_p(r["handoff_us"], "p50", 1), target=f"{EXTRAS_TARGET_US:g}",
+                                    verdict="met" if p50 <= EXTRAS_TARGET_US else
+                                    f"missed by {p50 - EXTRAS_TARGET_US:.1f} µs ({p50 / EXTRAS_TARGET_US:.1f}×)",
+                                    thread=_p(r["extras_cpu_us"], "p50", 1), build=_p(r["build_cpu_us"], "p50", 1)))
+        out += ["", prose("outputs", "costs_reading"), ""]
+    if o["paths"]:
+        body = [[r["manipulator"], r["target"], f"{r['rate_hz']:g} Hz, {r['seconds']:g} s",
+                 f"{r['sent']:,} / {r['paired']:,}", r["wrong"],
+                 f"{_pair(r['total_ms'])} / {_p(r['total_ms'], 'max', 2)}", _pair(r["to_node_ms"]),
+                 _pair(r["in_node_ms"]), f"{r['cpu_percent']:.0f} %", r["summary"]] for r in o["paths"]]
+        out += [prose("outputs", "paths"), "",
+                table(["manipulator", "process", "rate", "sent / poses", "wrong",
+                       "written -> read p50 / p99 / max (ms)",
+                       "written -> taken p50 / p99 (ms)", "taken -> read p50 / p99 (ms)", "process CPU",
+                       "process summary"], body), ""]
+        for kind_label in dict.fromkeys(r["manipulator"] for r in o["paths"]):
+            rows = {r["target"]: r for r in o["paths"] if r["manipulator"] == kind_label}
+            node, floor = rows.get(NODE), rows.get(ECHO)
+            if node is None or floor is None:
+                continue
+            t50, t99 = END_TO_END_TARGET_MS[node["key"]]
+            n50, n99 = node["total_ms"]["p50"], node["total_ms"]["p99"]
+            f50, f99 = floor["total_ms"]["p50"], floor["total_ms"]["p99"]
+            off = rows.get(NODE_OFF)
+            out.append("- " + prose(
+                "outputs", "targets", manipulator=kind_label,
+                p50=_verdict(n50, t50) or f"{n50:.3f} ms", p99=_verdict(n99, t99) or f"{n99:.3f} ms",
+                off=_pair(off["total_ms"]) if off else "—", floor=_pair(floor["total_ms"]),
+                floor_to_node=_pair(floor["to_node_ms"]), floor_in_node=_pair(floor["in_node_ms"]),
+                above_p50=f"{n50 - f50:+.3f}", above_p99=f"{n99 - f99:+.3f}",
+                floor_share=(f"{100 * f50 / t50:.0f} % of the p50 target and " if t50 else "")
+                + f"{100 * f99 / t99:.0f} % of the p99 target"))
+        out.append("")
+    p = o.get("profile")
+    if p:
+        solve = {r["manipulator"]: r["solve_us"]["p50"] for r in o["costs"] if r["outputs"] == "none"}
+        pose = {r["manipulator"]: r["pose_cpu_us"]["p50"] for r in o["costs"] if r["outputs"] == "none"}
+        body = [["decode one `leg_lengths` sample (`struct`)", fmt(p["decode_us"]), "—"],
+                ["encode one `PoseStamped` (`struct`)", fmt(p["encode_us"]), "—"],
+                ["one Cyclone DDS write, no reader", _pair(p["write_alone"]["cpu_us"], 1),
+                 _pair(p["write_alone"]["wall_us"], 1)],
+                ["one Cyclone DDS write, a reader in another process", _pair(p["write_remote"]["cpu_us"], 1),
+                 _pair(p["write_remote"]["wall_us"], 1)],
+                ["Python thread wake-up round trip (`threading.Event`)", "—", _pair(p["wake_us"], 1)]]
+        body += [[f"{label}: warm solve (part 1, p50)", "—", fmt(v)] for label, v in solve.items()]
+        body += [[f"{label}: pose encode + write with a subscriber (part 1, CPU p50)", fmt(v), "—"]
+                 for label, v in pose.items()]
+        out += [prose("outputs", "profile", samples=p["samples"]), "",
+                table(["step", "CPU µs (p50 / p99, or mean)", "wall µs (p50 / p99)"], body), "",
+                prose("outputs", "profile_reading", write_remote=_p(p["write_remote"]["cpu_us"], "p50", 1),
+                      write_alone=_p(p["write_alone"]["cpu_us"], "p50", 1), wake=_p(p["wake_us"], "p50", 1),
+                      decode=fmt(p["decode_us"]), encode=fmt(p["encode_us"])), ""]
+    if o.get("rclpy"):
+        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}", r["dropped"], r["wrong"],
+                 f"{r['p50']:.3f} / {r['p99']:.3f}"] for r in o["rclpy"]]
+        setup = o["rclpy_setup"]
+        out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
+                      seconds=f"{setup['seconds']:g}"), "",
+                table(["executor", "sent / received / poses", "dropped (newest wins)", "wrong",
+                       "latency p50 / p99 (ms)"],
+                      body), ""]
+    elif o.get("rclpy_reason"):
+        out += [prose("outputs", "rclpy_not_run", reason=o["rclpy_reason"]), ""]
+    return out
+

@@ -101,6 +101,7 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     ``reliability_source`` (None: there are none yet)."""
     from . import sections as s
     from .modes import section as modes_section
+    from .outputs import section as outputs_section
     from .reliability import reliability_section
     parts = header(res) + summary_section(res)
     if res["tables"]:
@@ -125,6 +126,7 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
         parts += s.baselines_section(res)
     if res.get("dds") is not None:
         parts += s.dds_section(res)
+    parts += outputs_section(res)
     if res.get("offline") is not None:
         parts += s.offline_section(res)
     parts += reliability_section(reliability, reliability_source)

@@ -10,7 +10,7 @@ from pathlib import Path
 from glpma_ros.cli import OneLineParser
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
-SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "offline")
+SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "offline")
 
 #: default run counts: (full, --quick)
 DEFAULTS = {
@@ -23,6 +23,10 @@ DEFAULTS = {
     "solve_all_repeats": (5, 1),
     "gap_runs": (100, 10),
     "dds_steps": (60_000, 2000),     # inputs per DDS end-to-end run at 1 kHz (60 s)
+    "outputs_inputs": (3000, 200),    # inputs per output configuration of the extra outputs' cost
+    "outputs_seconds": (60, 2),       # seconds per legs written -> pose read run (node, outputs off, echo)
+    "outputs_profile": (5000, 500),   # writes and thread round trips of the micro-profile
+    "outputs_rclpy_seconds": (10, 2),  # seconds per rclpy executor variant (where rclpy imports)
     "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
     "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
     "modes_g3pcx_hexapods": (3, 0),
@@ -72,6 +76,14 @@ def build_parser() -> OneLineParser:
                    help="hexapod cases of that comparison also solved by 200 G3-PCX runs (default 3; --quick 0)")
     p.add_argument("--dds-steps", type=int,
                    help="inputs of each DDS end-to-end run at 1 kHz (default 60000, i.e. 60 s; --quick 2000)")
+    p.add_argument("--outputs-inputs", type=int, help="inputs per output configuration of the extra outputs' "
+                   "cost (default 3000; --quick 200; 0 = skipped)")
+    p.add_argument("--outputs-seconds", type=float, help="seconds of each legs written -> pose read run of the "
+                   "outputs section: node, node with extra outputs off, echo (default 60; --quick 2; 0 = skipped)")
+    p.add_argument("--outputs-profile", type=int, help="writes and thread round trips of the outputs section's "
+                   "micro-profile (default 5000; --quick 500; 0 = skipped)")
+    p.add_argument("--outputs-rclpy-seconds", type=float, help="seconds per rclpy executor variant of the outputs "
+                   "section, where rclpy imports (default 10; --quick 2; 0 = skipped)")
     p.add_argument("--bag-messages", type=int, help="inputs of the recorded run glpma-fk bag processes "
                    "(default 10000; --quick 1000)")
     p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grid (default 24; "
@@ -153,7 +165,7 @@ def main(argv=None) -> int:
     res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
            "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
            "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
-           "baselines": None, "offline": None,
+           "baselines": None, "outputs": None, "offline": None,
            "figures": {}, "load": []}
     if "tables" in sections:
         for k, sc in scenarios.items():
@@ -204,6 +216,11 @@ def main(argv=None) -> int:
         res["dds"] = dds.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
         if res["dds"].get("status") != "run":
             print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
+    if "outputs" in sections:
+        from . import outputs
+        say("extra outputs and the transport path", "outputs")
+        res["outputs"] = outputs.measure(list(scenarios.values()), counts["outputs_inputs"], counts["outputs_seconds"],
+                                         counts["outputs_profile"], counts["outputs_rclpy_seconds"], say)
 
     if "offline" in sections:
         from . import offline

@@ -16,6 +16,8 @@ CONFIGS = {"3rpr": "planar_3rpr_seed.yaml", "hexapod": "hexapod_66_rolland.yaml"
 LABEL = {"3rpr": "3-RPR", "hexapod": "6-6 hexapod"}
 #: solve-only tracking latency targets (p99, ms)
 LATENCY_TARGET_MS = {"3rpr": 0.06, "hexapod": 0.12}
+#: legs written -> pose read over DDS at 1 kHz: (p50, p99) targets in ms (None: no target)
+END_TO_END_TARGET_MS = {"3rpr": (0.25, 0.5), "hexapod": (None, 0.7)}
 
 
 @dataclass

@@ -77,10 +77,12 @@ def _pose_legs(model, pose) -> np.ndarray | None:
     return legs if np.all(np.isfinite(legs)) else None
 
 
-def pair(model, sent: list, poses: list, by_stamp: bool = False) -> tuple[list, list]:
+def pair(model, sent: list, poses: list, by_stamp: bool = False, legs_of=None) -> tuple[list, list]:
     """``([(input index, pose, legs of the pose or None)], unpaired poses)``: each pose with the
     input it answers (see the module docstring); ``by_stamp`` for ``joint_state`` input.
-    ``sent``: :class:`.controller.Sent`."""
+    ``sent``: :class:`.controller.Sent`; ``legs_of(pose)``: the legs a pose stands for (config
+    unit, None for none; default: by inverse kinematics of the pose)."""
+    legs_of = legs_of or (lambda pose: _pose_legs(model, pose))
     if not sent:
         return [], list(poses)
     send_ns = np.array([s.send_ns for s in sent], dtype=np.int64)
@@ -101,7 +103,7 @@ def pair(model, sent: list, poses: list, by_stamp: bool = False) -> tuple[list, 
     first = legs_all[order, 0]
     tol = LEGS_MATCH_REL * model.scale
     for pose in poses:
-        legs = _pose_legs(model, pose)
+        legs = legs_of(pose)
         if legs is None:
             unpaired.append(pose)
             continue
@@ -136,3 +138,13 @@ def compare(model, sent: list, poses: list, by_stamp: bool = False) -> Compariso
         res.append(math.inf if legs is None else float(np.max(np.abs(legs - sent[i].legs))) * mpu)
     return Comparison(np.array([i for i, _, _ in pairs], dtype=int), [p for _, p, _ in pairs], np.array(lat),
                       np.array(pos), np.array(ang), np.array(res), unpaired)
+
+
+def split_at_stamp(sent: list, index, poses: list) -> tuple[np.ndarray, np.ndarray]:
+    """For poses stamped with their input's arrival time at the node (``leg_lengths`` input, one
+    clock) paired with ``sent[index]``: the latency split at the stamp, ``(written -> taken by
+    the node, taken -> pose received)`` in ms per pose."""
+    send_ns = np.array([sent[i].send_ns for i in index], dtype=np.int64)
+    stamp_ns = np.array([p[1] for p in poses], dtype=np.int64)
+    recv_ns = np.array([p[0] for p in poses], dtype=np.int64)
+    return (stamp_ns - send_ns) * 1e-6, (recv_ns - stamp_ns) * 1e-6

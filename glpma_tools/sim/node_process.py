@@ -1,6 +1,7 @@
 """A ``glpma_fk`` node as a child process over Cyclone DDS, for the demo, the
 stress tool and the benchmark: started with ``--ros-args``, ready when it prints
-its ``ready`` line, stopped with SIGINT, its RSS read from ``/proc``."""
+its ``ready`` line, stopped with SIGINT, its RSS read from ``/proc``.  The same for a
+stand-in that behaves so (:mod:`.echo_node`)."""
 from __future__ import annotations
 
 import os
@@ -14,13 +15,18 @@ from glpma_ros.config import config_dir
 
 #: a first run on a fresh machine compiles the solvers before the node is ready
 READY_TIMEOUT_S = 240.0
-PACKAGE_PARENT = Path(__file__).resolve().parents[1]
+#: the directory that holds the glpma_ros and glpma_tools packages (the checkout, or site-packages)
+PACKAGE_PARENT = Path(__file__).resolve().parents[2]
+#: the module run as the node
+NODE_MODULE = "glpma_ros.node.dds.node"
 
 
 class NodeProcess:
-    """``python -m glpma_ros.node.dds.node --ros-args ...`` with its output in files; restartable."""
+    """``python -m glpma_ros.node.dds.node --ros-args ...`` (or ``module``) with its output in
+    files; restartable."""
 
-    def __init__(self, ros_args, env: dict, log_dir: Path):
+    def __init__(self, ros_args, env: dict, log_dir: Path, module: str = NODE_MODULE):
+        self.module = module
         self.ros_args = list(ros_args)
         self.env = env
         self.log_dir = Path(log_dir)
@@ -40,7 +46,7 @@ class NodeProcess:
         self.starts += 1
         t0 = time.monotonic()
         with open(self.stdout, "w") as fo, open(self.stderr, "w") as fe:
-            self.proc = subprocess.Popen([sys.executable, "-m", "glpma_ros.node.dds.node", "--ros-args", *self.ros_args],
+            self.proc = subprocess.Popen([sys.executable, "-m", self.module, "--ros-args", *self.ros_args],
                                          stdout=fo, stderr=fe, env=self.env, cwd=PACKAGE_PARENT)
         while time.monotonic() - t0 < timeout:
             if "ready" in self.stdout.read_text():

@@ -1,0 +1,96 @@
+"""The outputs section of glpma-fk bench: the controller's raw pose reading, the echo node (the
+transport floor) over real Cyclone DDS, and the section rendered from measurements."""
+import re
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
+
+from glpma_ros.node.dds import cdr  # noqa: E402
+from glpma_ros.node.dds.messages import Header, Point, Pose, PoseStamped, Quaternion, Time  # noqa: E402
+from glpma_tools.bench import outputs  # noqa: E402
+from glpma_tools.bench.scenarios import END_TO_END_TARGET_MS  # noqa: E402
+from glpma_tools.sim.controller import pose_stamped_fields  # noqa: E402
+from test_dds_integration import dds_env  # noqa: E402,F401 - fixture
+
+
+@pytest.mark.parametrize("frame_id", ["", "a", "base", "world_frame_x", "ünïcode"])
+def test_the_controller_reads_a_pose_as_the_binding_does(frame_id):
+    msg = PoseStamped(header=Header(stamp=Time(sec=1_795_000_000, nanosec=123_456_789), frame_id=frame_id),
+                      pose=Pose(position=Point(1.5, -2.25, 3e-9), orientation=Quaternion(0.1, -0.2, 0.3, 0.9)))
+    data = msg.serialize()
+    stamp, frame, position, quaternion = pose_stamped_fields(data.ljust(-(-len(data) // 4) * 4, b"\0"))
+    assert stamp == 1_795_000_000_123_456_789 and frame == frame_id
+    assert position.tolist() == [1.5, -2.25, 3e-9] and quaternion.tolist() == [0.1, -0.2, 0.3, 0.9]
+    assert pose_stamped_fields(cdr.Encoder().pose_stamped(stamp, frame_id, position, quaternion))[0] == stamp
+
+
+def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, tmp_path):   # noqa: F811
+    """The floor's stand-in over real DDS: each pose carries the legs of the input it answers and
+    is stamped between that input's write and the pose's receipt."""
+    from glpma_ros.node.dds import endpoints
+    from glpma_tools.sim.controller import Controller
+    from glpma_tools.sim.echo_node import legs_of
+    from glpma_tools.sim.matching import pair, split_at_stamp
+    from glpma_tools.sim.node_process import NodeProcess
+    from glpma_tools.sim.trajectories import Plan
+
+    plan = Plan("hexapod_66_rolland")
+    echo = NodeProcess([], dds_env, tmp_path, module="glpma_tools.sim.echo_node")
+    echo.start()
+    try:
+        ctl = Controller(plan.model)
+        try:
+            assert endpoints.wait_for_match([ctl.writer, ctl.listener.reader], 60)
+            sent, _ = ctl.send(plan, 0.0, 40, 100.0, 0.01)
+            deadline = time.monotonic() + 2.0
+            while len(ctl.listener.poses) < len(sent) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            poses = list(ctl.listener.poses)
+        finally:
+            ctl.close()
+    finally:
+        assert echo.stop() == 0
+    pairs, unpaired = pair(plan.model, sent, poses, legs_of=lambda p: np.array(legs_of(p, 6)) / plan.mpu)
+    assert not unpaired and len(pairs) >= 30, (len(pairs), len(unpaired))      # a busy machine may drop a few
+    index = [i for i, _, _ in pairs]
+    to_node, in_node = split_at_stamp(sent, index, [p for _, p, _ in pairs])
+    assert np.all(to_node >= 0) and np.all(in_node >= 0)
+    assert re.search(r"received \d+, echoed \d+, dropped \d+", echo.stopped_line())
+
+
+def _fake(key, label):
+    """Measurements of every part for one manipulator, as :func:`outputs.measure` returns them."""
+    d = {"p50": 0.3, "p99": 0.9, "max": 2.0, "mean": 0.35}
+    us = {"p50": 15.0, "p99": 40.0, "max": 90.0, "mean": 18.0}
+    costs = [{"manipulator": label, "outputs": name, "inputs": 50, "published": 50, "solve_us": us, "pose_cpu_us": us,
+              "pose_us": us, "handoff_cpu_us": us, "handoff_us": us, "extras_cpu_us": us, "build_cpu_us": us,
+              "extras_us": us, "extras_dropped": 0} for name, _ in outputs.CASES]
+    paths = [{"manipulator": label, "key": key, "target": target, "rate_hz": 1000.0, "seconds": 1.0, "sent": 1000,
+              "poses": 990, "paired": 990, "wrong": 0, "late_sends": 0,
+              "total_ms": {**d, "p50": 0.1} if target == outputs.ECHO else d, "to_node_ms": d, "in_node_ms": d,
+              "cpu_percent": 20.0, "summary": "received 1000"} for target in outputs.TARGETS]
+    return costs, paths
+
+
+def test_the_section_states_targets_figures_and_misses():
+    import pickle
+    costs, paths = _fake("3rpr", "3-RPR")
+    profile = {"decode_us": 2.0, "encode_us": 2.5, "samples": 10, "wake_us": {"p50": 40.0, "p99": 90.0},
+               "write_alone": {"cpu_us": {"p50": 13.0, "p99": 30.0}, "wall_us": {"p50": 14.0, "p99": 31.0}},
+               "write_remote": {"cpu_us": {"p50": 31.0, "p99": 60.0}, "wall_us": {"p50": 35.0, "p99": 70.0}}}
+    res = {"outputs": {"keys": ["3rpr"], "pace_s": 1e-3, "costs": costs, "paths": paths, "profile": profile,
+                       "rclpy": None, "rclpy_reason": "rclpy does not import"}}
+    res = pickle.loads(pickle.dumps(res))                        # what --save-data / --render go through
+    text = "\n".join(outputs.section(res))
+    assert text.startswith(outputs.HEADING) and "$" not in text and "hexapod" not in text
+    p50, p99 = END_TO_END_TARGET_MS["3rpr"]
+    assert f"p50 0.300 ms (target ≤ {p50:g}: missed by 0.050 ms, 1.2×)" in text
+    assert f"p99 0.900 ms (target ≤ {p99:g}: missed by 0.400 ms, 1.8×)" in text
+    assert "the floor (echo) 0.100 / 0.900 ms" in text and "+0.200 ms at p50" in text
+    assert f"against the target of {outputs.EXTRAS_TARGET_US:g} µs: met" in text       # hand-off 15 µs
+    assert "31.0 / 60.0" in text and "40.0 / 90.0" in text                             # the micro-profile
+    assert "rclpy does not import" in text
+    assert outputs.section({"outputs": None}) == []
