@@ -7,6 +7,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections import deque
 
 from ..errors import InputError
 from .service import FkService, JointStateInput
@@ -45,6 +46,12 @@ class LatestInput:
 #: poses whose extra outputs may wait for the extras thread (0.1 s at 1 kHz); beyond, the
 #: oldest waiting are dropped (counted) -- the pose itself never waits for them
 EXTRAS_BACKLOG = 100
+#: while poses keep coming, the extras thread looks for new ones every EXTRAS_POLL_S rather than
+#: being woken: waking a blocked thread costs the waking (solving) thread a futex call and an
+#: inter-processor interrupt, tens of microseconds on a virtual machine (BENCHMARKS.md)
+EXTRAS_POLL_S = 0.5e-3
+#: ... and goes back to a blocking wait (woken by the next hand-off) after this long without one
+EXTRAS_LINGER_S = 0.05
 #: seconds between two looks of :meth:`ExtrasLoop.flush`
 FLUSH_POLL_S = 1e-3
 
@@ -53,15 +60,21 @@ class ExtrasLoop:
     """The extra outputs of each published pose -- TF, covariance, twist, markers -- built
     (:meth:`FkService.extras <glpma_ros.node.service.FkService.extras>`) and published by a thread
     of their own, in the order of the poses, so that the solving thread only hands the outcome
-    over (a ``queue.SimpleQueue.put``) and is free for the next input.  An output nobody
-    subscribes to is neither built nor written (``subscribed()`` names the outputs that have
-    subscribers; None: all of them)."""
+    over and is free for the next input.  An output nobody subscribes to is neither built nor
+    written (``subscribed()`` names the outputs that have subscribers; None: all of them).
+
+    Hand-off: the solving thread appends to a queue and wakes the extras thread only when it
+    sleeps in a blocking wait; while poses stream in, the extras thread polls the queue every
+    :data:`EXTRAS_POLL_S` instead (hybrid polling), so the real-time path pays an append, and an
+    extra output follows its pose by at most that period plus its building and writing."""
 
     def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras"):
         self.service = service
         self.publish_extras = publish_extras
         self.subscribed = subscribed
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()    # (outcome, params at hand-off); None = stop
+        self._pending: deque = deque()       # (outcome, params at hand-off)
+        self._bell: queue.SimpleQueue = queue.SimpleQueue()    # wakes the thread from its blocking wait
+        self._asleep = False                 # the thread is (about to be) in its blocking wait
         self._handed = self._finished = 0    # poses handed over / published or dropped
         self._closed = False
         self._start_lock = threading.Lock()
@@ -75,21 +88,35 @@ class ExtrasLoop:
                 if self._thread is None and not self._closed:
                     self._thread = threading.Thread(target=self._run, name=self._name, daemon=True)
                     self._thread.start()
-        if not self._closed:
-            self._handed += 1           # one solving thread at a time (SolveLoop)
-            self._queue.put((outcome, self.service.params))
+        if self._closed:
+            return
+        self._handed += 1               # one solving thread at a time (SolveLoop)
+        self._pending.append((outcome, self.service.params))
+        if self._asleep:                # read after the append: see _run
+            self._bell.put(True)
 
     def _run(self) -> None:
-        get = self._queue.get
+        pending, last = self._pending, time.monotonic()
         while True:
-            item = get()
-            if item is None:
+            if pending:
+                item = pending.popleft()
+                if len(pending) >= EXTRAS_BACKLOG:      # behind: the newer ones are kept
+                    self.service.note_extras_dropped(1)
+                else:
+                    self.publish(*item)
+                self._finished += 1
+                last = time.monotonic()
+            elif self._closed:
                 return
-            if self._queue.qsize() >= EXTRAS_BACKLOG:   # behind: the newer ones are kept
-                self.service.note_extras_dropped(1)
+            elif time.monotonic() - last < EXTRAS_LINGER_S:
+                time.sleep(EXTRAS_POLL_S)
             else:
-                self.publish(*item)
-            self._finished += 1
+                # set before the last look: a hand-off after that look sees it and rings
+                self._asleep = True
+                if not pending and not self._closed:
+                    self._bell.get()
+                self._asleep = False
+                last = time.monotonic()
 
     def publish(self, outcome, params) -> None:
         """Build and publish the extra outputs of one pose in this thread."""
@@ -118,7 +145,7 @@ class ExtrasLoop:
         with self._start_lock:
             self._closed = True
         if self._thread is not None and self._thread.is_alive():
-            self._queue.put(None)
+            self._bell.put(True)
             self._thread.join(timeout)
 
 
