@@ -124,14 +124,15 @@ def test_tf_covariance_twist_and_markers(ros):
                            publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, next(third)])))
         # the extra outputs follow each pose from the node's extras thread: wait for those of the
         # first poses (a pose without its TF and covariance fails below)
-        first = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in got["pose"][:5]}
+        poses = list(got["pose"][:5])       # more may arrive while waiting (inputs still in flight)
+        first = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in poses}
 
         def stamps(key):
             msgs = [t for m in got[key] for t in m.transforms] if key == "tf" else got[key]
             return {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in msgs}
         _spin_until(executor, lambda: first <= set(stamps("tf")) and first <= set(stamps("cov")), timeout_s=10.0)
         tf_by_stamp, cov_by_stamp = stamps("tf"), stamps("cov")
-        for pose in got["pose"][:5]:
+        for pose in poses:
             key = (pose.header.stamp.sec, pose.header.stamp.nanosec)
             t = tf_by_stamp[key]
             assert (t.header.frame_id, t.child_frame_id) == ("base", "platform")
