@@ -149,8 +149,8 @@ class FkNode(Node):
         return msg
 
     def _on_legs(self, msg: Float64MultiArray) -> None:
-        arrival_ns = self.get_clock().now().nanoseconds
-        self.loop.offer(tuple(self._newest(msg).data), arrival_ns)
+        msg = self._newest(msg)         # the pose's stamp is the arrival of the input it answers:
+        self.loop.offer(tuple(msg.data), self.get_clock().now().nanoseconds)   # taken after the newest
 
     def _on_joint_state(self, msg: JointState) -> None:
         msg = self._newest(msg)
