@@ -26,6 +26,8 @@ from cyclonedds.util import duration  # noqa: E402
 
 from conftest import CONFIG  # noqa: E402
 from test_dds_integration import dds_env, start_node  # noqa: E402,F401 - fixtures
+# the independent client's types it shares with the contract participant there (no glpma_ros import)
+from test_dds_integration import Float64MultiArray, Header, Point, Pose, PoseStamped, Quaternion  # noqa: E402
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 HASHES = {
@@ -39,21 +41,9 @@ HASHES = {
 
 
 @dataclass
-class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
-    sec: int32 = 0
-    nanosec: uint32 = 0
-
-
-@dataclass
 class Duration(IdlStruct, typename="builtin_interfaces::msg::dds_::Duration_"):
     sec: int32 = 0
     nanosec: uint32 = 0
-
-
-@dataclass
-class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
-    stamp: Time = field(default_factory=Time)
-    frame_id: str = ""
 
 
 @dataclass
@@ -65,56 +55,10 @@ class ColorRGBA(IdlStruct, typename="std_msgs::msg::dds_::ColorRGBA_"):
 
 
 @dataclass
-class MultiArrayDimension(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayDimension_"):
-    label: str = ""
-    size: uint32 = 0
-    stride: uint32 = 0
-
-
-@dataclass
-class MultiArrayLayout(IdlStruct, typename="std_msgs::msg::dds_::MultiArrayLayout_"):
-    dim: sequence[MultiArrayDimension] = field(default_factory=list)
-    data_offset: uint32 = 0
-
-
-@dataclass
-class Float64MultiArray(IdlStruct, typename="std_msgs::msg::dds_::Float64MultiArray_"):
-    layout: MultiArrayLayout = field(default_factory=MultiArrayLayout)
-    data: sequence[float64] = field(default_factory=list)
-
-
-@dataclass
-class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
-    x: float64 = 0.0
-    y: float64 = 0.0
-    z: float64 = 0.0
-
-
-@dataclass
 class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
     x: float64 = 0.0
     y: float64 = 0.0
     z: float64 = 0.0
-
-
-@dataclass
-class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
-    x: float64 = 0.0
-    y: float64 = 0.0
-    z: float64 = 0.0
-    w: float64 = 1.0
-
-
-@dataclass
-class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
-    position: Point = field(default_factory=Point)
-    orientation: Quaternion = field(default_factory=Quaternion)
-
-
-@dataclass
-class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
-    header: Header = field(default_factory=Header)
-    pose: Pose = field(default_factory=Pose)
 
 
 @dataclass
