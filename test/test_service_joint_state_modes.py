@@ -129,7 +129,7 @@ def test_solve_loop_takes_joint_states(service):
     published = []
     loop = SolveLoop(service, published.append).start()
     try:
-        loop.submit_joint_state(["j_b", "j_a", "x", "j_c"], [0.12, 0.1, 0.0, 0.15], 77)
+        loop.submit(JointStateInput(("j_b", "j_a", "x", "j_c"), (0.12, 0.1, 0.0, 0.15), ()), 77)
         deadline = time.monotonic() + WAIT_S
         while not published and time.monotonic() < deadline:
             time.sleep(0.001)

@@ -10,7 +10,7 @@ import time
 from collections import deque
 
 from ..errors import InputError
-from .service import FkService, JointStateInput
+from .service import FkService
 
 
 class LatestInput:
@@ -157,8 +157,10 @@ class SolveLoop:
       unless a solve is in progress -- then the input waits in a one-slot mailbox, replacing
       (and dropping) any input already waiting, and the thread that is solving takes it next;
       no thread hand-off on the way from input to pose;
-    * :meth:`submit` (the rclpy transport's callbacks): the input goes to the mailbox and the
-      loop's own thread (started by :meth:`start`) solves it.
+    * :meth:`submit`: the input goes to the mailbox and the loop's own thread (started by
+      :meth:`start`) solves it -- a thread hand-off per input, which both transports avoid (the
+      rclpy adapter solves in its subscription callback through :meth:`offer`); BENCHMARKS.md
+      compares the two.
 
     Either way the newest input wins and every input replaced unsolved counts as dropped."""
 
@@ -186,16 +188,12 @@ class SolveLoop:
         return legs_m, int(stamp_ns), time.perf_counter() if arrival is None else arrival
 
     def submit(self, legs_m, stamp_ns: int) -> None:
-        """Called by the transport on arrival of leg lengths (metres), ``stamp_ns`` = arrival time."""
+        """Hand an input (leg lengths in metres, ``stamp_ns`` = arrival time, or a
+        :class:`~glpma_ros.node.service.JointStateInput`, ``stamp_ns`` = its header.stamp) to the loop's thread."""
         self._wait_or_replace(self._item(legs_m, stamp_ns, None))
 
-    def submit_joint_state(self, names, positions, stamp_ns: int, velocities=()) -> None:
-        """Called by the transport on arrival of a JointState, ``stamp_ns`` = its header.stamp.
-        The legs are picked out by the solver thread (a rejection is counted there)."""
-        self.submit(JointStateInput(tuple(names), tuple(positions), tuple(velocities)), stamp_ns)
-
     def offer(self, legs_m, stamp_ns: int, arrival: float | None = None) -> bool:
-        """Solve an input (leg lengths in metres or a :class:`JointStateInput`) in this thread
+        """Solve an input (leg lengths in metres or a :class:`~glpma_ros.node.service.JointStateInput`) in this thread
         unless another is being solved; then it waits for that solve to end (replacing and
         dropping an input already waiting).  Returns True when this thread solved it (and
         whatever arrived meanwhile)."""
