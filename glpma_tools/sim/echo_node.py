@@ -23,8 +23,6 @@ import sys
 import threading
 import time
 
-#: samples taken per read, as the node takes them
-TAKE_BATCH = 256
 #: the wait set's timeout (s): how often the loop looks at the stop flag
 WAIT_S = 0.2
 #: numbers of a pose: position (3) and orientation (4)
