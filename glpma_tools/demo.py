@@ -12,7 +12,6 @@ how busy the machine is: they are reported, with what made it look busy, not jud
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from glpma_ros.cli import OneLineParser
 from glpma_ros.config import config_dir
 from glpma_ros.node.params import SOLVER_CHOICES
 from glpma_tools import mock_controller
+from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 from glpma_tools.stats import distribution
 from glpma_tools.tables import fmt, spread, table
@@ -40,7 +40,7 @@ def _parser() -> OneLineParser:
     p.add_argument("--solver", choices=SOLVER_CHOICES, default="glpma", help="the node's solver parameter")
     p.add_argument("--budget-ms", type=float, default=None, help="the node's time_budget_ms")
     p.add_argument("--out", default="demo_out", help="directory of the figure and the JSON summary")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: a private one)")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: one this demo claims, that no other run on the host uses)")
     return p
 
 
@@ -110,7 +110,8 @@ def main(argv=None) -> int:
     rate = args.rate or spec["rate"]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 200
+    claim = None if args.domain_id is not None else claim_domain()     # held until the demo exits
+    domain = args.domain_id if claim is None else claim.domain_id
     ros_args = ["--params-file", str(config_dir() / spec["params"]), "-p", f"solver:={args.solver}"]
     if args.budget_ms is not None:
         ros_args += ["-p", f"time_budget_ms:={args.budget_ms}"]

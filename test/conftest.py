@@ -1,5 +1,6 @@
 import gc
 import math
+import os
 import time
 from pathlib import Path
 
@@ -8,11 +9,14 @@ import pytest
 import yaml
 
 from glpma_ros.config import load_manipulator
+from glpma_tools.sim.domains import claim_domain
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config"
 RPR_YAML = CONFIG / "planar_3rpr_seed.yaml"
 HEX_YAML = CONFIG / "hexapod_66_rolland.yaml"
+#: loopback-only unicast discovery (no multicast): every DDS process of the tests uses it
+DDS_CONFIG = CONFIG / "cyclonedds-localhost.xml"
 
 #: A budget no correct solve comes near, even on a busy machine: tests of what is computed use it
 #: (or an evaluation cap), so that their result does not depend on how busy the machine is.
@@ -68,3 +72,23 @@ def rpr_solutions():
 @pytest.fixture(scope="session")
 def hex_published():
     return np.array(yaml.safe_load(HEX_YAML.read_text())["published_solutions"])
+
+
+@pytest.fixture
+def dds_domain():
+    """A ROS domain id no other process on the host uses (glpma_tools.sim.domains: an exclusive lock
+    per id, held until the test ends), so that a second run of the suite, the demo or a robot's own
+    nodes never exchange messages with this test."""
+    with claim_domain() as claim:
+        yield claim.domain_id
+
+
+@pytest.fixture
+def dds_env(dds_domain, monkeypatch):
+    """Environment of one test's processes: loopback unicast discovery and the test's own domain; set
+    in this process too, for participants created inside it."""
+    env = dict(os.environ, CYCLONEDDS_URI=DDS_CONFIG.as_uri(), ROS_DOMAIN_ID=str(dds_domain),
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
+    for key in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID"):
+        monkeypatch.setenv(key, env[key])
+    return env

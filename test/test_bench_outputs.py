@@ -13,7 +13,6 @@ from glpma_ros.node.dds.messages import Header, Point, Pose, PoseStamped, Quater
 from glpma_tools.bench import outputs  # noqa: E402
 from glpma_tools.bench.scenarios import END_TO_END_TARGET_MS  # noqa: E402
 from glpma_tools.sim.controller import pose_stamped_fields  # noqa: E402
-from test_dds_integration import dds_env  # noqa: E402,F401 - fixture
 
 
 @pytest.mark.parametrize("frame_id", ["", "a", "base", "world_frame_x", "ünïcode"])
@@ -45,7 +44,7 @@ def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, 
         try:
             assert endpoints.wait_for_match([ctl.writer, ctl.listener.reader], 60)
             sent, _ = ctl.send(plan, 0.0, 40, 100.0, 0.01)
-            deadline = time.monotonic() + 2.0
+            deadline = time.monotonic() + 10.0       # bounds the wait, not a timing figure
             while len(ctl.listener.poses) < len(sent) and time.monotonic() < deadline:
                 time.sleep(0.01)
             poses = list(ctl.listener.poses)
@@ -54,11 +53,14 @@ def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, 
     finally:
         assert echo.stop() == 0
     pairs, unpaired = pair(plan.model, sent, poses, legs_of=lambda p: np.array(legs_of(p, 6)) / plan.mpu)
-    assert not unpaired and len(pairs) >= 30, (len(pairs), len(unpaired))      # a busy machine may drop a few
+    # every pose answers an input (how many came back is the bench's figure: a busy machine drops some)
+    assert not unpaired and pairs, (len(pairs), len(unpaired))
     index = [i for i, _, _ in pairs]
     to_node, in_node = split_at_stamp(sent, index, [p for _, p, _ in pairs])
     assert np.all(to_node >= 0) and np.all(in_node >= 0)
-    assert re.search(r"received \d+, echoed \d+, dropped \d+", echo.stopped_line())
+    counts = re.search(r"received (\d+), echoed (\d+), dropped (\d+)", echo.stopped_line())
+    received, echoed, dropped = map(int, counts.groups())
+    assert received == echoed + dropped and len(poses) <= echoed and received <= len(sent), counts.group(0)
 
 
 def _fake(key, label):

@@ -5,7 +5,6 @@
   then a runtime solver switch through a params-file reload (SIGHUP);
 * a minimal DDS participant written only against doc/interface.md sees the poses.
 """
-import itertools
 import json
 import math
 import os
@@ -33,23 +32,8 @@ from cyclonedds.util import duration  # noqa: E402
 
 from conftest import CONFIG, GENEROUS_BUDGET_MS, ROOT, RPR_YAML  # noqa: E402
 
-DDS_CONFIG = ROOT / "config" / "cyclonedds-localhost.xml"
-BASE_DOMAIN = 100 + os.getpid() % 100
-_domains = itertools.count()
 READY_TIMEOUT_S = 600.0        # a first run compiles the solvers (Numba): minutes on a busy machine
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
-
-
-@pytest.fixture
-def dds_env(monkeypatch):
-    """Environment of one test: loopback unicast discovery and a domain of its own."""
-    domain = BASE_DOMAIN + next(_domains)
-    assert domain <= 232
-    env = dict(os.environ, CYCLONEDDS_URI=DDS_CONFIG.as_uri(), ROS_DOMAIN_ID=str(domain),
-               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
-    for key in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID"):      # for participants inside this process
-        monkeypatch.setenv(key, env[key])
-    return env
 
 
 @dataclass

@@ -20,7 +20,7 @@ from glpma_ros.config import load_manipulator
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from test_dds_integration import (SEED_X, DiagnosticsWatcher, check_tracking, dds_env,  # noqa: E402,F401 - fixtures
+from test_dds_integration import (SEED_X, DiagnosticsWatcher, check_tracking,  # noqa: E402,F401 - fixture
                                   start_node)
 
 from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML  # noqa: E402

@@ -25,7 +25,7 @@ from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 
 from conftest import CONFIG  # noqa: E402
-from test_dds_integration import dds_env, start_node  # noqa: E402,F401 - fixtures
+from test_dds_integration import start_node  # noqa: E402,F401 - fixture
 # the independent client's types it shares with the contract participant there (no glpma_ros import)
 from test_dds_integration import Float64MultiArray, Header, Point, Pose, PoseStamped, Quaternion  # noqa: E402
 

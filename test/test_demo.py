@@ -2,7 +2,6 @@
 The demo judges correctness (every pose right, the node alive, its counters adding up), never
 how many inputs a busy machine let the node answer."""
 import json
-import os
 import subprocess
 import sys
 
@@ -14,11 +13,10 @@ pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not install
 
 
 @pytest.mark.timing
-def test_demo_tracks_and_writes_figure(tmp_path):
-    env = dict(os.environ, CYCLONEDDS_URI=(ROOT / "config" / "cyclonedds-localhost.xml").as_uri())
+def test_demo_tracks_and_writes_figure(tmp_path, dds_env, dds_domain):
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--duration", "2", "--out", str(tmp_path),
-                        "--domain-id", str(201 + os.getpid() % 30)],
-                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=400)
+                        "--domain-id", str(dds_domain)],
+                       cwd=ROOT, env=dds_env, capture_output=True, text=True, timeout=400)
     assert p.returncode == 0, p.stdout + p.stderr
     assert "every pose right" in p.stdout and "FAILED" not in p.stdout
     png = tmp_path / "demo_3rpr.png"

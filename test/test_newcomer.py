@@ -281,11 +281,10 @@ def test_precompile_reports_each_step():
 
 # -- glpma-fk modes against a running node -----------------------------------------------------------------
 
-def test_modes_asks_a_running_node(tmp_path):
+def test_modes_asks_a_running_node(tmp_path, dds_env):
     pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
-    from test_dds_integration import DDS_CONFIG, SEED_X
-    env = dict(os.environ, CYCLONEDDS_URI=DDS_CONFIG.as_uri(), ROS_DOMAIN_ID=str(50 + os.getpid() % 40),
-               PYTHONPATH=str(ROOT))
+    from test_dds_integration import SEED_X
+    env = dds_env
     out, err = tmp_path / "node.out", tmp_path / "node.err"
     params = tmp_path / "params.yaml"
     params.write_text(yaml.safe_dump({"glpma_fk": {"ros__parameters": {

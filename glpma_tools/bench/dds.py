@@ -2,13 +2,13 @@
 rate a robot controller would use, with and without assembly-mode requests while streaming."""
 from __future__ import annotations
 
-import os
 import tempfile
 import time
 from pathlib import Path
 
 from glpma_ros.config import config_dir, load_manipulator, resolve_config
 from glpma_tools import mock_controller
+from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 
 #: seconds between two assembly-modes requests in the second run
@@ -26,8 +26,8 @@ def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False,
     model = load_manipulator(resolve_config(config))
     rate, params = END_TO_END[model.kind]
     duration = QUICK_S if quick else (steps / rate if steps else duration_s)
-    domain = 233 - os.getpid() % 30
-    with tempfile.TemporaryDirectory(prefix="glpma_e2e_") as logs:
+    with claim_domain() as claim, tempfile.TemporaryDirectory(prefix="glpma_e2e_") as logs:
+        domain = claim.domain_id
         node = NodeProcess(["--params-file", str(config_dir() / params), "-p", f"manipulator_config:={config}"],
                            node_environment(domain), Path(logs))
         node.start()

@@ -32,7 +32,7 @@ and where the time between legs written and pose read goes over DDS.
 """
 from __future__ import annotations
 
-import os
+import contextlib
 import subprocess
 import sys
 import tempfile
@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_tools.sim.domains import claim_domain
 from glpma_tools.stats import distribution
 from glpma_tools.tables import fmt, table
 
@@ -78,8 +79,6 @@ TAIL_S = 1.0
 #: the micro-profile's pace (s between two writes or round trips) and repetitions of the pure-CPU steps
 PROFILE_PACE_S = 1e-3
 PROFILE_CPU_REPEATS = 5000
-#: first ROS domain of the section (each process gets its own)
-DOMAIN_BASE = 100
 
 
 def _us(values) -> dict:
@@ -378,9 +377,10 @@ RCLPY_VARIANTS = (
 )
 
 
-def rclpy_variants(sc, seconds: float, rate_hz: float, domain: int) -> list[dict]:
+def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
     """Part 4 (where rclpy imports): legs published by an rclpy client process -> pose received,
-    for the adapter as shipped and two alternatives (``sc``'s shipped params)."""
+    for the adapter as shipped and two alternatives (``sc``'s shipped params); ``domain()`` claims a
+    fresh ROS domain for each."""
     import rclpy
     from rclpy.callback_groups import ReentrantCallbackGroup
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
@@ -392,7 +392,7 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain: int) -> list[dict
     values = {**_params_file(sc.model.kind), "manipulator_config": sc.path}
     rows = []
     for k, (label, variant) in enumerate(RCLPY_VARIANTS):
-        env = node_environment(domain + k)
+        env = node_environment(domain())
         rclpy.init()
         node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
         if variant != "shipped":
@@ -430,20 +430,27 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
     """Every part for the bench: ``res["outputs"]``.  ``inputs``: per row of part 1 (0 = skip);
     ``seconds``: per run of part 2 (0 = skip); ``profile_samples``: writes and round trips of
     part 3 (0 = skip); ``rclpy_seconds``: per variant of part 4 (0 = skip; needs rclpy)."""
-    domain = DOMAIN_BASE + os.getpid() % 50
+    with contextlib.ExitStack() as claims:
+        def domain() -> int:
+            """A ROS domain no other process on the host uses, held until the section ends."""
+            return claims.enter_context(claim_domain()).domain_id
+        return _measure(scenarios, inputs, seconds, profile_samples, rclpy_seconds, say, domain)
+
+
+def _measure(scenarios, inputs, seconds, profile_samples, rclpy_seconds, say, domain) -> dict:
     res = {"keys": [sc.key for sc in scenarios], "pace_s": PACE_S, "costs": [], "paths": [], "profile": None,
            "rclpy": None, "rclpy_reason": None}
     if inputs > 0:
         say(f"extra outputs: {inputs} inputs per configuration")
-        res["costs"] = output_costs(scenarios, inputs, domain)
+        res["costs"] = output_costs(scenarios, inputs, domain())
     if seconds > 0:
         for k, sc in enumerate(scenarios):
             for j, target in enumerate(TARGETS):
                 say(f"{sc.label}: legs written -> pose read, {target}, {seconds:g} s")
-                res["paths"].append(path_latency(sc, target, seconds, domain + 1 + len(TARGETS) * k + j))
+                res["paths"].append(path_latency(sc, target, seconds, domain()))
     if profile_samples > 0:
         say(f"micro-profile: {profile_samples} writes and thread round trips")
-        res["profile"] = micro_profile(scenarios[0], profile_samples, domain + 10)
+        res["profile"] = micro_profile(scenarios[0], profile_samples, domain())
     if rclpy_seconds > 0:
         try:
             import rclpy  # noqa: F401 - only whether it imports
@@ -455,7 +462,7 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
             say(f"{sc.label}: the rclpy adapter's executors")
             rate = END_TO_END[sc.model.kind][0]
             res["rclpy_setup"] = {"manipulator": sc.label, "rate": rate, "seconds": rclpy_seconds}
-            res["rclpy"] = rclpy_variants(sc, rclpy_seconds, rate, domain + 20)
+            res["rclpy"] = rclpy_variants(sc, rclpy_seconds, rate, domain)
     return res
 
 

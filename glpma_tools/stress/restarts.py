@@ -35,6 +35,7 @@ def controller_restart(session: Session, phase_s: float) -> dict:
     n = int(phase_s * PHASE_RATE_HZ)
     before = session.settle()
     sent_a, _ = session.send(n, PHASE_RATE_HZ)
+    h0 = len(session.history)
     t_close = time.monotonic()
     session.controller.close()
     session.controller = Controller(session.model, session.domain_id, depth=session.params["qos_depth"])
@@ -46,11 +47,12 @@ def controller_restart(session: Session, phase_s: float) -> dict:
     mid = session.settle()
     sent_b, _ = session.send(n, PHASE_RATE_HZ)
     after = session.settle(sent_b[-1].send_ns)
-    a = analyse(session.model, sent_b, session.poses_since(k0))
+    a = analyse(session.model, sent_b, session.poses_since(k0), earlier=session.history[:h0])
     counts_b = diff(counters(after), counters(mid))
     st = diff(starts(after), starts(mid))
     res = {"inputs_before": len(sent_a), "inputs_after": len(sent_b), "gap_s": gap_s, "discovery_s": match_s,
            "after": counts_b, "starts_after": st, "poses_after": a["matched"], "unpaired": a["unpaired"],
+           "late_poses_of_the_previous_controller": a["late"],
            "first_pose_latency_ms": a["first_latency_ms"], "residual_max_m": a["residual_max_m"],
            "last_start": after.get("last start"), "totals": diff(counters(after), counters(before))}
     res["checks"] = {
@@ -73,11 +75,11 @@ def large_jump(session: Session, phase_s: float) -> dict:
     session.say(f"large jump: to the trajectory around known solution {other.solution}")
     n = int(phase_s * PHASE_RATE_HZ)
     ctl = session.controller
-    k0 = len(ctl.listener.poses)
+    k0, h0 = len(ctl.listener.poses), len(session.history)
     sent_a, _ = session.send(n, PHASE_RATE_HZ)
     before = session.settle()
-    a_before = analyse(session.model, sent_a, session.poses_since(k0))
-    k0 = len(ctl.listener.poses)
+    a_before = analyse(session.model, sent_a, session.poses_since(k0), earlier=session.history[:h0])
+    k0, h0 = len(ctl.listener.poses), len(session.history)
     # jump to the point of the other trajectory whose legs are farthest from the last ones sent
     last_legs = sent_a[-1].legs
     session.t = max(np.linspace(0.0, PERIOD_S, JUMP_CANDIDATES, endpoint=False),
@@ -85,7 +87,7 @@ def large_jump(session: Session, phase_s: float) -> dict:
     jump_legs = other.sample(session.t)[0]
     sent, _ = session.send(n, PHASE_RATE_HZ, plan=other)
     after = session.settle(sent[-1].send_ns)
-    a = analyse(session.model, sent, session.poses_since(k0))
+    a = analyse(session.model, sent, session.poses_since(k0), earlier=session.history[:h0])
     counts = diff(counters(after), counters(before))
     st = diff(starts(after), starts(before))
     jump = float(np.max(np.abs(jump_legs - last_legs)))
@@ -133,7 +135,7 @@ def node_restart(session: Session, phase_s: float) -> dict:
     def stream():
         out["sent"], _ = session.send(10**9, PHASE_RATE_HZ, stop=stop)
 
-    k0 = len(ctl.listener.poses)
+    k0, h0 = len(ctl.listener.poses), len(session.history)
     thread = threading.Thread(target=stream, name="stress-stream", daemon=True)
     thread.start()
     time.sleep(phase_s)
@@ -160,7 +162,7 @@ def node_restart(session: Session, phase_s: float) -> dict:
     poses = session.poses_since(k0)
     new_poses = [p for p in poses if p[1] > ready_ns]
     old_poses = [p for p in poses if p[1] <= kill_ns]
-    a = analyse(session.model, sent, new_poses)
+    a = analyse(session.model, sent, new_poses, earlier=session.history[:h0])
     first_pose_s = (min(p[0] for p in new_poses) - ready_ns) * 1e-9 if new_poses else None
     s_first = starts(first) if first else None
     s_end = starts(after)

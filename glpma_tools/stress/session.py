@@ -4,13 +4,13 @@ phase measures: the node's counters over the phase and each pose against its inp
 from __future__ import annotations
 
 import math
-import os
 import tempfile
 import time
 from pathlib import Path
 
 from glpma_tools.sim.controller import Controller, counters, diff, starts
 from glpma_tools.sim.matching import compare
+from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution
@@ -37,17 +37,23 @@ MATCH_TIMEOUT_S = 60.0
 SETTLE_TIMEOUT_S = 15.0
 
 
-def analyse(model, sent: list, poses: list) -> dict:
-    """Each pose paired with its input (:mod:`glpma_tools.sim.matching`): latency (write -> pose
-    received, ms), how many answer no input (wrong), how well they reproduce the legs (m), how
-    many are on the trajectory's assembly mode, and the first input answered."""
-    c = compare(model, sent, poses)
-    first = int(c.index[0]) if c.index.size else None
-    return {"poses": len(poses), "matched": len(c.poses), "unpaired": len(c.unpaired),
-            "latency_ms": distribution(c.latency_ms),
-            "residual_max_m": float(c.legs_residual_m.max()) if c.legs_residual_m.size else None,
-            "on_trajectory_mode": int((c.position_error_m <= ON_MODE_M).sum()),
-            "first_answered": first, "first_latency_ms": float(c.latency_ms[0]) if first is not None else None}
+def analyse(model, sent: list, poses: list, earlier: list = ()) -> dict:
+    """Each pose paired with its input (:mod:`glpma_tools.sim.matching`) among ``earlier + sent``:
+    latency (write -> pose received, ms), how many answer no input (wrong), how well they reproduce
+    the legs (m), how many are on the trajectory's assembly mode, and the first input of ``sent``
+    answered.  ``earlier``: the inputs sent before ``sent`` in the session (:attr:`Session.history`);
+    a pose that answers one of them (it came late, from a backlog) is counted as ``late``: it is
+    neither wrong nor an answer to ``sent``."""
+    c = compare(model, [*earlier, *sent], poses)
+    mine = c.index >= len(earlier)
+    index, latency = c.index[mine] - len(earlier), c.latency_ms[mine]
+    first = int(index[0]) if index.size else None
+    residual = c.legs_residual_m[mine]
+    return {"poses": len(poses), "matched": int(mine.sum()), "late": int((~mine).sum()),
+            "unpaired": len(c.unpaired), "latency_ms": distribution(latency),
+            "residual_max_m": float(residual.max()) if residual.size else None,
+            "on_trajectory_mode": int((c.position_error_m[mine] <= ON_MODE_M).sum()),
+            "first_answered": first, "first_latency_ms": float(latency[0]) if first is not None else None}
 
 
 def node_latency(values: dict) -> dict:
@@ -67,7 +73,9 @@ class Session:
     def __init__(self, params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None,
                  log_dir: Path | None = None, say=None):
         from glpma_ros.node.ros_args import node_values
-        self.domain_id = 150 + os.getpid() % 50 if domain_id is None else int(domain_id)
+        # a domain of its own unless one is given (held while this process runs)
+        self._claim = None if domain_id is not None else claim_domain()
+        self.domain_id = int(domain_id) if self._claim is None else self._claim.domain_id
         self.ros_args = ["--params-file", str(params_file), "-p", "initial_pose:=[]",
                          "-p", f"diagnostics_period_s:={DIAGNOSTICS_PERIOD_S}", *extra_args]
         values, _, _ = node_values(["--ros-args", *self.ros_args])
@@ -81,6 +89,7 @@ class Session:
         self.t = 0.0                    # trajectory time
         self.say = say or (lambda msg: None)
         self.startup_s: list[float] = []
+        self.history: list = []          # every input sent in the session, in order
 
     def start(self) -> "Session":
         self.say(f"starting the node (domain {self.domain_id}; it compiles or loads its solvers first)")
@@ -105,6 +114,7 @@ class Session:
         dt = dt or 1.0 / (rate_hz or RATE_HZ)
         sent, late = self.controller.send(plan or self.plan, self.t, n, rate_hz, dt, stop)
         self.t += len(sent) * dt
+        self.history.extend(sent)
         return sent, late
 
     def settle(self, after_ns: int | None = None) -> dict:
