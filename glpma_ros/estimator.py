@@ -145,11 +145,13 @@ class Estimator:
     ``tolerance``: fitness (config unit squared) at which the evolutionary search stops (the papers'
     1e-20 by default) and, with ``polish=False``, the convergence criterion; ``leg_rtol``: with the
     refinement, a pose has converged when its largest leg residual is at most ``leg_rtol`` times
-    ``max(scale, max leg)`` (see the module docstring)."""
+    ``max(scale, max leg)`` (see the module docstring); ``init_range``: ``(low, high)`` of the cold
+    stage's uniform initial population for every variable (config unit, radians), the papers'
+    protocol; default the papers' per-manipulator range (:func:`cold_range`)."""
 
     def __init__(self, model, solver="glpma", time_budget_s=0.002, tolerance=solvers.common.DEFAULT_TOLERANCE,
                  seed=0, polish=True, initial_pose=None, population=None, local_population=None,
-                 ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL):
+                 ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL, init_range=None):
         self.model = model
         self.time_budget_s = float(time_budget_s)
         self.tolerance = float(tolerance)
@@ -161,7 +163,8 @@ class Estimator:
         self._n = model.n_vars
         self._warm_settings = None          # the warm stage's kernel settings, built on first use
         self._near_floor = MIN_SPREAD * model.scale
-        self._cold_range = cold_range(model)
+        self._cold_range = cold_range(model) if init_range is None else \
+            tuple(np.full(model.n_vars, float(v)) for v in init_range)
         self._probe_starts = np.ascontiguousarray(
             np.random.default_rng(PROBE_SEED).uniform(*self._cold_range, size=(PROBE_STARTS, model.n_vars)))
         self._lm.prepare()        # compiled code loaded now, not on the first input that needs it

@@ -30,8 +30,10 @@ WARM_UP_LEG_STRETCH = 1.0 + 1e-3
 INFEASIBLE_SCALE = 0.05
 #: time budget of a warm-up solve (s): the evaluation cap, not the clock, ends it
 WARM_UP_BUDGET_S = 60.0
-#: solve_all runs of the warm-up of ``glpma-fk solve-all`` and of the node's assembly modes
+#: solve_all G3-PCX runs and multistart starts of the warm-up of ``glpma-fk solve-all`` and of the
+#: node's assembly modes (every code path of both methods runs once)
 SOLVE_ALL_RUNS = 2
+SOLVE_ALL_STARTS = 50
 #: a solver that took longer than this (s) was compiled rather than loaded from the cache
 COMPILED_S = 5.0
 
@@ -71,10 +73,12 @@ def exercise(model, solver: str) -> float:
 
 
 def exercise_solve_all(model) -> float:
-    """Load what :func:`~glpma_ros.solve_all.solve_all` uses; returns the seconds spent."""
+    """Load what :func:`~glpma_ros.solve_all.solve_all` uses (the multistart and the G3-PCX
+    runs); returns the seconds spent."""
     from .solve_all import solve_all
     t0 = time.perf_counter()
-    solve_all(model, warm_up_legs(model), runs=SOLVE_ALL_RUNS, seed=0)
+    solve_all(model, warm_up_legs(model), method="multistart", max_starts=SOLVE_ALL_STARTS, seed=0)
+    solve_all(model, warm_up_legs(model), method="g3pcx", runs=SOLVE_ALL_RUNS, seed=0)
     return time.perf_counter() - t0
 
 

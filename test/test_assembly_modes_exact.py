@@ -26,6 +26,13 @@ CASES = json.loads(DATA.read_text())["cases"]
 MODELS = {"planar_3rpr": Planar3RPR, "hexapod_66": Hexapod66}
 #: modes match when their platform joints are within this share of the scale (issue 13)
 MATCH_RELATIVE = 1e-6
+#: a regenerated geometry or leg length agrees with the stored one to this share of the scale: a few
+#: units of round-off of the generator's arithmetic, whose last bits differ from CPU to CPU (BLAS
+#: kernels, SIMD loops); a different draw of the generator differs by tens of per cent
+REGENERATED_RELATIVE = 1e-12
+#: a stored certified mode reproduces the stored legs to this share of the scale (they were polished
+#: to round-off before they were stored)
+STORED_MODE_LEGS_RELATIVE = 1e-9
 #: hexapod cases whose exact solve is repeated here (msolve takes seconds each): the richest ones
 EXACT_HEXAPOD_CASES = 3
 
@@ -65,9 +72,17 @@ def test_the_stored_cases_cover_what_issue_13_asks():
 
 @pytest.mark.parametrize("case", CASES, ids=case_id)
 def test_the_stored_cases_are_the_generator_s(case):
+    """A stored case is what its seed generates (to round-off) and its certified modes are real
+    assembly modes of its legs."""
     model, legs, _ = GENERATORS[case["kind"]](np.random.default_rng(case["seed"]))
-    assert np.array_equal(model.base, case["base"]) and np.array_equal(model.platform, case["platform"])
-    assert np.array_equal(legs, case["legs"])
+    tol = REGENERATED_RELATIVE * model.scale
+    np.testing.assert_allclose(model.base, case["base"], rtol=0, atol=tol)
+    np.testing.assert_allclose(model.platform, case["platform"], rtol=0, atol=tol)
+    np.testing.assert_allclose(legs, case["legs"], rtol=0, atol=tol)
+    stored = model_of(case)
+    for mode in case["modes"]:
+        np.testing.assert_allclose(stored.inverse_kinematics(np.asarray(mode)), case["legs"], rtol=0,
+                                   atol=STORED_MODE_LEGS_RELATIVE * stored.scale)
 
 
 @pytest.mark.parametrize("case", CASES, ids=case_id)
@@ -286,9 +301,10 @@ def test_worker_process_reports_its_starts():
     finally:
         worker.close()
     assert len(modes) == 2 and modes.starts >= SA.STALL_MIN and modes.stop_reason == SA.STALLED
-    here = solve_all(Planar3RPR(*(np.array(v) for v in _rpr_geometry())), [100.0, 120.0, 150.0], seed=0)
+    model = Planar3RPR(*(np.array(v) for v in _rpr_geometry()))
+    here = solve_all(model, [100.0, 120.0, 150.0], seed=0)
     assert modes.starts == here.starts
-    np.testing.assert_array_equal(np.array(modes), np.array([s.x for s in here.solutions]))
+    assert_same_modes(model, list(modes), [s.x for s in here.solutions])     # the same modes, to round-off
 
 
 def _rpr_geometry():

@@ -83,7 +83,10 @@ def test_same_map_on_local_processes_and_dask(serial_map, tmp_path, config_text)
     for out in (tmp_path / "local", tmp_path / "dask"):
         counts, cond, sign = _counts(out)
         assert counts.tobytes() == reference[0].tobytes()
-        assert np.array_equal(cond, reference[1], equal_nan=True) and np.array_equal(sign, reference[2])
+        # the same points solved in other processes: the same figures to round-off (conditioning is a
+        # ratio of singular values, relative round-off ~1e-15; NaN where no mode was found)
+        np.testing.assert_allclose(cond, reference[1], rtol=1e-9, equal_nan=True)
+        assert np.array_equal(sign, reference[2])
 
 
 def test_rerun_skips_finished_chunks(tmp_path, config_text):
