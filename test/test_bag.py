@@ -171,13 +171,14 @@ def test_bag_joint_states_keep_their_stamps(tmp_path, truth, rpr, capsys):
             a, b, c = legs_m[i]
             w.write(js, T0 + i * PERIOD_NS, _joint_state(stamp, names, [0.3, c, a, b]))
         w.write(js, T0 + 40 * PERIOD_NS, _joint_state(T0, ["leg_a", "leg_b"], [0.1, 0.1]))
-    assert run_bag(src, dst, "--no-progress", "--json", "--storage", "sqlite3", "--joint-states-topic",
-                   "/robot/joint_states", "--joint-names", "leg_a", "leg_b", "leg_c",
-                   "--ros-args", "--params-file", PARAMS) == 0
+    assert run_bag(src, dst, "--no-progress", "--json", "--storage", "sqlite3", "--input-type", "joint_state",
+                   "--joint-states-topic", "/robot/joint_states", "--joint-names", "leg_a", "leg_b", "leg_c",
+                   "--no-tf", "--log-level", "warn", "--ros-args", "--params-file", PARAMS) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["converged"] == 40 and summary["rejected_by_reason"] == {"joint_states has no joint 'leg_c'": 1}
     out, _ = read_bag(dst)
     assert list(dst.glob("*.db3"))
+    assert "/tf" not in out                                 # --no-tf
     poses = [TS.deserialize_cdr(raw, C.POSE_STAMPED) for _, raw in out["/pose_estimate"]]
     for msg, stamp, x in zip(poses, stamps, xs):
         assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == stamp

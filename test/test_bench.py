@@ -19,9 +19,25 @@ def report(tmp_path_factory):
                "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma", "--solve-all-runs", "20",
                "--dds-steps", "20", "--outputs-inputs", "5", "--outputs-seconds", "0.3", "--outputs-profile", "20",
                "--outputs-rclpy-seconds", "0", "--no-progress", "--out", str(out), "--markdown", str(md),
-               "--reliability", str(out / "none.json"), "--save-data", str(out / "res.pkl")])
+               "--reliability", str(out / "none.json"), "--save-data", str(out / "res.pkl"),
+               # the hexapod's counts (unused with --only 3rpr, but parsed and checked) and the small ones
+               "--hexapod-runs", "1", "--peer-hexapod-runs", "0", "--table2-runs", "2", "--track-budget-ms", "20"])
     assert rc == 0
     return out, md.read_text()
+
+
+def test_chosen_sections_only_without_figures(tmp_path):
+    """--sections runs only the sections named (here the all-modes comparison and the offline tools)
+    and --no-plots writes no figure."""
+    md = tmp_path / "BENCH.md"
+    rc = main(["--", "--quick", "--only", "3rpr", "--sections", "solve-all", "offline", "--solve-all-runs", "10",
+               "--solve-all-repeats", "1", "--modes-cases", "1", "--modes-g3pcx-hexapods", "0",
+               "--bag-messages", "40", "--map-resolution", "3", "--no-plots", "--no-progress", "--out", str(tmp_path),
+               "--markdown", str(md), "--reliability", str(tmp_path / "none.json")])
+    assert rc == 0
+    text = md.read_text()
+    assert "## All real assembly modes" in text and "## Warm tracking latency (solve only)" not in text
+    assert not list(tmp_path.glob("*.png"))
 
 
 def test_markdown_has_every_table(report):

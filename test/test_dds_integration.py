@@ -134,7 +134,8 @@ def test_3rpr_at_200hz_with_mock_controller(start_node, dds_env, capsys):
 
 @pytest.mark.timing
 def test_hexapod_at_100hz_with_mock_controller(start_node, dds_env, capsys):
-    node = start_node("--params-file", str(CONFIG / "params_hexapod.yaml"), "-p", "diagnostics_period_s:=0.2")
+    node = start_node("--params-file", str(CONFIG / "params_hexapod.yaml"), "-p", "diagnostics_period_s:=0.2",
+                      "--log-level", "info")
     summary = run_mock(dds_env, "hexapod_66_rolland", 100, 3)
     check_tracking(summary, capsys, "hexapod 100 Hz")
     assert node.proc.poll() is None

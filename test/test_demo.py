@@ -15,6 +15,7 @@ pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not install
 @pytest.mark.timing
 def test_demo_tracks_and_writes_figure(tmp_path, dds_env, dds_domain):
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--duration", "2", "--out", str(tmp_path),
+                        "--manipulator", "3rpr",
                         "--domain-id", str(dds_domain)],
                        cwd=ROOT, env=dds_env, capture_output=True, text=True, timeout=400)
     assert p.returncode == 0, p.stdout + p.stderr

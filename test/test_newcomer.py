@@ -299,7 +299,7 @@ def test_modes_asks_a_running_node(tmp_path, dds_env):
         while "ready" not in out.read_text():
             assert node.poll() is None and time.monotonic() < deadline, err.read_text()
             time.sleep(0.1)
-        modes = [sys.executable, "-m", "glpma_ros", "modes", "--json", "--timeout", "60"]
+        modes = [sys.executable, "-m", "glpma_ros", "modes", "--node", "glpma_fk", "--json", "--timeout", "60"]
         before = subprocess.run(modes, capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
         assert before.returncode == 1
         assert "no input received yet on leg_lengths" in one_line_error(before.stderr)

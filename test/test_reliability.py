@@ -127,3 +127,22 @@ def test_stress_usage_errors_are_status_2_and_one_line(argv, capsys):
     assert stress.main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "error" in err[0]
+
+
+def test_stress_command_runs_a_section_and_replays_its_figures(tmp_path, dds_env, dds_domain, capsys):
+    """``glpma-fk stress`` as a user runs it, with every option given a valid value: a short burst
+    section against a node on the test's own domain, figures written, then printed again from them."""
+    figures = tmp_path / "stress.json"
+    argv = ["--quick", "--sections", "burst", "--burst", "200", "--duration", "1", "--rate", "500", "--phase", "1",
+            "--deadline-solves", "10", "--budgets-ms", "2", "--params-file", str(CONFIG / "params_3rpr.yaml"),
+            "-p", "solver:=glpma", "--domain", str(dds_domain), "--log-dir", str(tmp_path / "logs"),
+            "--json-out", str(figures)]
+    assert stress.main(argv) == 0, capsys.readouterr()
+    res = json.loads(figures.read_text())
+    burst = res["sections"]["burst"]
+    assert burst["inputs"] == 200 and all(burst["checks"].values()), burst["checks"]
+    assert (tmp_path / "logs").is_dir()
+    capsys.readouterr()
+    assert stress.main(["--from-json", str(figures), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["sections"]["burst"]["inputs"] == 200
