@@ -60,12 +60,12 @@ def truth(rpr, rpr_solutions):
     return xs, legs_m
 
 
-def write_legs_bag(path: Path, storage: str, legs_m, corrupt_at=None) -> None:
-    """/leg_lengths at 1 kHz (a corrupt message between inputs ``corrupt_at - 1`` and
+def write_legs_bag(path: Path, storage: str, legs_m, corrupt_at=None, legs_topic="/leg_lengths") -> None:
+    """``legs_topic`` at 1 kHz (a corrupt message between inputs ``corrupt_at - 1`` and
     ``corrupt_at``), and /chatter (std_msgs/String) every 10 ms."""
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as w:
-        legs = w.add_connection("/leg_lengths", C.FLOAT64_MULTI_ARRAY, typestore=TS, offered_qos_profiles=[SENSOR_QOS])
+        legs = w.add_connection(legs_topic, C.FLOAT64_MULTI_ARRAY, typestore=TS, offered_qos_profiles=[SENSOR_QOS])
         chatter = w.add_connection("/chatter", "std_msgs/msg/String", typestore=TS)
         for i, row in enumerate(legs_m):
             t = T0 + i * PERIOD_NS
@@ -173,7 +173,7 @@ def test_bag_joint_states_keep_their_stamps(tmp_path, truth, rpr, capsys):
         w.write(js, T0 + 40 * PERIOD_NS, _joint_state(T0, ["leg_a", "leg_b"], [0.1, 0.1]))
     assert run_bag(src, dst, "--no-progress", "--json", "--storage", "sqlite3", "--input-type", "joint_state",
                    "--joint-states-topic", "/robot/joint_states", "--joint-names", "leg_a", "leg_b", "leg_c",
-                   "--no-tf", "--log-level", "warn", "--ros-args", "--params-file", PARAMS) == 0
+                   "--no-tf", "--ros-args", "--params-file", PARAMS, "--log-level", "warn") == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["converged"] == 40 and summary["rejected_by_reason"] == {"joint_states has no joint 'leg_c'": 1}
     out, _ = read_bag(dst)
@@ -262,3 +262,19 @@ def test_help_describes_every_option():
                    "--joint-names", "--pose-topic", "--tf-topic", "--status-topic", "--child-frame-id",
                    "--ros-args", "time_budget_ms"):
         assert option in p.stdout
+
+
+def test_topic_and_frame_names_are_chosen(tmp_path, truth, capsys):
+    """Every topic name and the child frame can be chosen; the poses are the same."""
+    xs, legs_m = truth
+    src, dst = tmp_path / "in", tmp_path / "out"
+    write_legs_bag(src, "mcap", legs_m[:10], legs_topic="/robot/legs")
+    assert run_bag(src, dst, "--no-progress", "--json", "--legs-topic", "/robot/legs", "--pose-topic", "/fk/pose",
+                   "--tf-topic", "/fk/tf", "--status-topic", "/fk/status", "--child-frame-id", "tool",
+                   "--ros-args", "--params-file", PARAMS) == 0
+    assert json.loads(capsys.readouterr().out)["converged"] == 10
+    out, conns = read_bag(dst)
+    assert {"/fk/pose", "/fk/tf", "/fk/status"} <= set(out) and "/pose_estimate" not in out
+    assert TS.deserialize_cdr(out["/fk/tf"][0][1], C.TF_MESSAGE).transforms[0].child_frame_id == "tool"
+    for (_, raw), x in zip(out["/fk/pose"], xs):
+        assert abs(TS.deserialize_cdr(raw, C.POSE_STAMPED).pose.position.x - x[0] * 1e-3) < 1e-9

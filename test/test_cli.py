@@ -127,3 +127,14 @@ def test_solve_papers_protocol_init_range(config, legs, rpr, hexapod):
     # the pose reproduces the legs (round-off relative to the scale)
     back = model.inverse_kinematics(polished["variables"])
     assert max(abs(b - l) for b, l in zip(back, legs)) <= 1e-9 * model.scale
+
+
+def test_solve_all_methods_and_limits():
+    """solve-all's options with valid values: the multistart under a start cap and a generous
+    wall-clock budget finds the seed's two modes; --method g3pcx with --runs does too."""
+    ms = run_json("solve-all", RPR_YAML, "--legs", 100, 120, 150, "--method", "multistart", "--max-starts", 5000,
+                  "--budget-s", 600, "--seed", 1, "--json")
+    assert ms["method"] == "multistart" and len(ms["solutions"]) == 2 and ms["starts"] <= 5000
+    assert ms["load_s"] >= 0 and ms["elapsed_s"] >= 0
+    g3 = run_json("solve-all", RPR_YAML, "--legs", 100, 120, 150, "--method", "g3pcx", "--runs", 20, "--json")
+    assert g3["method"] == "g3pcx" and g3["runs"] == 20 and len(g3["solutions"]) == 2
