@@ -60,6 +60,9 @@ STEP_RTOL = 1e-12
 STEP_SE_SHARE = 1e-6
 #: unit round-off of a double
 EPS = float(np.finfo(float).eps)
+#: units in the last place a leg residual may be off by (the norm of a sum of three products, less
+#: a length: a few roundings, each half an ulp of the leg's length; 8 bounds them with room)
+ROUNDOFF_ULPS = 8.0
 #: Gauss-Newton iterations at most (from millimetre errors on a metre-sized geometry it converges in
 #: 3-5: the residuals are nearly linear in the parameters)
 MAX_ITERATIONS = 50
@@ -233,6 +236,15 @@ def _step(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     return -np.einsum("nkj,nj->nk", V, inv2 * np.einsum("nkj,nk->nj", V, g))
 
 
+def _cost_roundoff(r: np.ndarray, meas: Measurements, scale: float) -> np.ndarray:
+    """How much each leg's sum of squares may rise by round-off alone, (n,): a residual is the
+    difference of two lengths of the order of the leg (|e_ij| and l_ij + o_i), exact to
+    ``d_ij = ROUNDOFF_ULPS eps (l_ij + scale)``, so its square moves by up to ``2 |r_ij| d_ij + d_ij^2``
+    (far above the sum's own rounding when the residuals are small beside the legs)."""
+    d = ROUNDOFF_ULPS * EPS * (meas.legs.T + scale)
+    return np.einsum("nm,nm->n", 2.0 * np.abs(r) + d, d)
+
+
 def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float | None = None) -> Identification:
     """Least-squares geometry from ``meas``, starting from ``nominal``; only ``groups`` (a subset of
     :data:`GROUPS`) are estimated, the others stay as in ``nominal``.  ``scale``: the geometry's size
@@ -254,8 +266,7 @@ def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float 
             converged = True
             break
         trial_theta = theta + step
-        # a sum of m squares is exact to m eps of itself at worst: a rise below that is round-off
-        allowed = cost * (1.0 + len(meas) * EPS)
+        allowed = cost + _cost_roundoff(r, meas, scale)
         for _ in range(MAX_HALVINGS):
             r_trial = leg_residuals(_with_vector(geometry, trial_theta, groups), meas).T
             worse = ~(np.einsum("nm,nm->n", r_trial, r_trial) <= allowed)
