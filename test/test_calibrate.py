@@ -17,7 +17,7 @@ import yaml
 from glpma_ros.cli import main
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
-from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 from glpma_tools.calibrate import identify as I
 from glpma_tools.calibrate import simulate as S
 from glpma_tools.calibrate.data import nearest_pairs
@@ -58,11 +58,11 @@ def simulated(key, seed, poses=S.POSES):
     return model, S.simulate(model, start_pose(model, doc), np.random.default_rng(seed), poses)
 
 
-def truth_of(sim, p):
-    """The true value of a reported parameter (a JSON entry or an identify.Parameter)."""
+def truth_of(truth, p):
+    """The true value (in geometry ``truth``) of a reported parameter (a JSON entry or an identify.Parameter)."""
     group, leg, axis = (p["group"], p["leg"], p["axis"]) if isinstance(p, dict) else (p.group, p.leg, p.axis)
     group = "offsets" if group == "leg_offsets" else group
-    value = getattr(sim.truth, group)[leg - 1]
+    value = getattr(truth, group)[leg - 1]
     return float(value if group == "offsets" else value["xyz".index(axis)])
 
 
@@ -116,7 +116,7 @@ def test_identified_within_three_standard_errors_and_forward_kinematics_within_b
     assert out["measurements"] == 200 and out["fitted"] == 160 and out["held_out"] == 40
     n, d = model.base.shape
     assert len(out["parameters"]) == n * (2 * d + 1) and out["unidentifiable"] == []
-    z = np.array([(p["value"] - truth_of(sim, p)) / p["se"] for p in out["parameters"]])
+    z = np.array([(p["value"] - truth_of(sim.truth, p)) / p["se"] for p in out["parameters"]])
     beyond = {p["name"]: float(v) for p, v in zip(out["parameters"], z) if abs(v) > 3.0}
     # within 3 standard errors; of 42 honest estimates 0.11 are expected beyond 3 (0.27 % each), so one
     # is allowed, and none beyond 4 (6e-5 each): a test of the estimates, not of one draw of the noise
@@ -154,7 +154,7 @@ def test_standard_errors_are_honest_over_many_seeds(key):
         model, sim = simulated(key, seed=100 + seed)
         res = I.identify(sim.nominal, sim.measured, scale=model.scale)
         assert res.converged and not res.unidentifiable
-        z += [(p.value - truth_of(sim, p)) / p.se for p in res.parameters]
+        z += [(p.value - truth_of(sim.truth, p)) / p.se for p in res.parameters]
     z = np.array(z)
     assert Z_STD_BOUNDS[0] <= z.std() <= Z_STD_BOUNDS[1], z.std()
     assert np.mean(np.abs(z) > 3.0) <= Z_BEYOND_3_SHARE
@@ -178,6 +178,34 @@ def test_identification_separates_by_leg_and_matches_a_generic_solver():
     se = np.array([[p.se for p in res.parameters if p.leg == i + 1] for i in range(n)])
     # the same optimum: far closer than the standard errors (1e-3 of them)
     assert np.all(np.abs(ours - ref) <= 1e-3 * se)
+
+
+@pytest.mark.parametrize("legs, dim", [(4, 2), (8, 3)])
+def test_any_number_of_legs(legs, dim):
+    """The identification knows legs, not manipulators: a redundant planar (4 legs) and a spatial
+    8-leg design are identified like the shipped ones (truth within 4 standard errors, residuals at
+    the noise)."""
+    rng = np.random.default_rng(legs)
+    scale = 500.0
+    base = rng.uniform(-scale, scale, (legs, dim)) * (np.array([1, 1, 0.05])[:dim] if dim == 3 else 1)
+    platform = rng.uniform(-scale / 3, scale / 3, (legs, dim))
+    nominal = I.Geometry(base, platform, np.zeros(legs))
+    truth = I.Geometry(base + rng.normal(0, 0.5, base.shape), platform + rng.normal(0, 0.5, platform.shape),
+                       rng.uniform(-0.5, 0.5, legs))
+    m = 300
+    if dim == 2:
+        position = rng.uniform(-100, 100, (m, 2))
+        rotation = S.rotation_2d(rng.uniform(-0.5, 0.5, m))
+    else:
+        position = rng.uniform(-100, 100, (m, 3)) + [0, 0, 800]
+        rotation = np.array([rotation_from_vector(w) for w in rng.uniform(-0.3, 0.3, (m, 3))])
+    noise = 0.01
+    legs_read = S.true_readings(truth, position, rotation) + rng.normal(0, noise, (m, legs))
+    res = I.identify(nominal, I.Measurements(legs_read, position, rotation), scale=2 * scale)
+    assert res.converged and not res.unidentifiable and len(res.parameters) == legs * (2 * dim + 1)
+    z = np.array([(p.value - truth_of(truth, p)) / p.se for p in res.parameters])
+    assert np.all(np.abs(z) <= 4.0)
+    assert np.all(np.abs(res.residual_std - noise) <= 0.2 * noise)      # the noise, to its sampling spread
 
 
 # -- identifiability ------------------------------------------------------------------------------
@@ -284,6 +312,22 @@ def test_bag_calibrates_as_the_csv(key, storage, joint_state, topics, tmp_path, 
     for a, b in zip(from_bag["parameters"], from_csv["parameters"]):
         assert a["name"] == b["name"] and abs(a["value"] - b["value"]) <= SAME_RTOL * model.scale
         assert abs(a["se"] - b["se"]) <= SAME_RTOL * model.scale
+
+
+def test_bag_problems_are_one_line(tmp_path, capsys):
+    pytest.importorskip("rosbags")
+    model, sim = simulated("3rpr", seed=5, poses=20)
+    bag = tmp_path / "bag"
+    _write_calibration_bag(bag, sim, model, "mcap", False)
+    for extra, words in ((("--pose-topic", "/nothing"), "has no topic /nothing"),
+                         (("--legs-topic", "/tracker/pose"), "expected std_msgs/msg/Float64MultiArray"),
+                         (("--max-dt", "0.0005"), "too few measurements: 0 to fit"),
+                         (("--max-dt", "-1"), "--max-dt must be")):
+        code, _, err = calibrate(RPR_YAML, bag, "--out", tmp_path / "n.yaml", *extra, capsys=capsys)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and words in err, err
+    (tmp_path / "empty").mkdir()
+    code, _, err = calibrate(RPR_YAML, tmp_path / "empty", "--out", tmp_path / "n.yaml", capsys=capsys)
+    assert code == 2 and "cannot read bag" in err
 
 
 def test_nearest_pairs_are_mutual_and_within_max_dt():

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.errors import InputError
+from glpma_tools.bag_codec import (FLOAT64_MULTI_ARRAY, JOINT_STATE, NS_PER_S, POSE_STAMPED,
+                                   decode_float64_multi_array, decode_joint_state)
 
 from .identify import Measurements
 from .simulate import pose_columns, rotations_from_values
@@ -33,10 +35,6 @@ QUATERNION_NORM_TOL = 1e-3
 #: default --max-dt (s): a pose and a leg reading more than 5 ms apart are no measurement (a
 #: calibration holds the platform still while the instrument measures; 5 ms is half a period at 100 Hz)
 MAX_DT_S = 0.005
-FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
-JOINT_STATE = "sensor_msgs/msg/JointState"
-POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
-NS_PER_S = 1_000_000_000
 
 
 def leg_columns(n_legs: int) -> list:
@@ -173,7 +171,12 @@ def read_bag(path: Path, n_legs: int, dim: int, metres_per_unit: float, legs_top
         conns = [c for c in reader.connections if c.topic in (legs_topic, pose_topic)]
         for c, t, raw in reader.messages(connections=conns):
             try:
-                msg = ts.deserialize_cdr(raw, c.msgtype)
+                if c.topic == pose_topic:
+                    msg = ts.deserialize_cdr(raw, POSE_STAMPED)
+                elif c.msgtype == JOINT_STATE:
+                    joints, positions, stamp_ns = decode_joint_state(raw, ts)
+                else:
+                    data = decode_float64_multi_array(raw, ts)
             except Exception as exc:  # noqa: BLE001 - a corrupt message: named, one line
                 raise InputError(f"{path}: cannot decode a {c.msgtype} on {c.topic} at log time {t} ns "
                                  f"({type(exc).__name__})") from None
@@ -183,21 +186,19 @@ def read_bag(path: Path, n_legs: int, dim: int, metres_per_unit: float, legs_top
                 pose_t.append(s.sec * NS_PER_S + s.nanosec)
                 pose_v.append((p.x, p.y, p.z, q.x, q.y, q.z, q.w))
             elif c.msgtype == JOINT_STATE:
-                pos = dict(zip(msg.name, np.asarray(msg.position, dtype=float)))
+                pos = dict(zip(joints, positions))
                 missing = [n for n in names if n not in pos]
                 if missing:
                     raise InputError(f"{path}: a JointState on {legs_topic} has no joint {missing[0]!r} (the legs "
                                      f"are the joints {' '.join(names)})")
-                s = msg.header.stamp
-                legs_t.append(s.sec * NS_PER_S + s.nanosec)
+                legs_t.append(stamp_ns)
                 legs_v.append([pos[n] for n in names])
             else:
-                data = np.asarray(msg.data, dtype=float)
                 if data.size != n_legs:
                     raise InputError(f"{path}: a Float64MultiArray on {legs_topic} at log time {t} ns has "
                                      f"{data.size} values, expected {n_legs} leg lengths")
                 legs_t.append(t)
-                legs_v.append(data)
+                legs_v.append(np.array(data, dtype=float))
     finally:
         reader.close()
     legs_t, pose_t = np.array(legs_t, dtype=np.int64), np.array(pose_t, dtype=np.int64)
