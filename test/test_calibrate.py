@@ -529,3 +529,18 @@ def test_leg_offsets_are_added_by_the_command_line_and_the_node(tmp_path, capsys
     model = load_manipulator(path)
     p = model.pose(x)
     assert np.allclose(legs_for(model, p.position, p.orientation), readings, atol=1e-12 * rpr.scale)
+
+
+def test_benchmark_section_measures_and_renders():
+    """The benchmark's calibration rows (``glpma-fk bench --sections offline``), small: every row has
+    its figures, the calibrated forward kinematics beats the nominal one, the table renders."""
+    from glpma_tools.bench.offline import calibration
+    from glpma_tools.bench.sections import calibration_section
+    rows = calibration(sizes=(120,), repeats=1, fk_poses=2)
+    assert [r["manipulator"] for r in rows] == ["planar_3rpr_seed", "hexapod_66_rolland"]
+    for r in rows:
+        assert r["measurements"] == 120 and r["fitted"] == 96
+        assert r["FK error calibrated mm (median / max)"][1] < r["FK error nominal mm (median / max)"][0]
+        assert r["held-out RMS after mm"] < r["held-out RMS before mm"]
+    text = "\n".join(calibration_section(rows))
+    assert "### Calibration" in text and text.count("| hexapod_66_rolland |") == 1
