@@ -544,3 +544,15 @@ def test_benchmark_section_measures_and_renders():
         assert r["held-out RMS after mm"] < r["held-out RMS before mm"]
     text = "\n".join(calibration_section(rows))
     assert "### Calibration" in text and text.count("| hexapod_66_rolland |") == 1
+
+
+def test_simulate_helper_writes_a_csv_the_command_reads(tmp_path, capsys):
+    """``python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]`` (the README's example)."""
+    out = tmp_path / "sim.csv"
+    assert S.main(["planar_3rpr_seed", str(out), "120", "3"]) == 0
+    assert "true offsets (mm)" in capsys.readouterr().err
+    lines = out.read_text().splitlines()
+    assert lines[0] == "leg_1,leg_2,leg_3,x,y,theta" and len(lines) == 121
+    code, report, err = calibrate("planar_3rpr_seed", out, "--out", tmp_path / "n.yaml", capsys=capsys)
+    assert code == 0 and report["measurements"] == 120, err
+    assert S.main(["planar_3rpr_seed"]) == 2 and "usage" in capsys.readouterr().err
