@@ -30,8 +30,8 @@ correlation between legs through the shared pose error (it couples the legs' est
 standard error of each parameter) and the errors-in-variables bias, of order sigma_pose^2 / leg
 length (1e-7 mm for 0.01 mm on a 1 m hexapod), far below the standard errors.
 
-**Identifiability** (Hollerbach & Wampler 1996, "The calibration index and taxonomy").  The SVD of
-each leg's block, ``J_i = U S V^T``, gives the directions in parameter space (columns of V) and how
+**Identifiability** (Hollerbach & Wampler 1996).  The SVD of each leg's block, ``J_i = U S V^T`` (S
+and V from the eigen-decomposition of ``J_i^T J_i``), gives the directions in parameter space (columns of V) and how
 well the data see them: the standard error along direction v_k is ``s_i / sigma_k``.  A direction is
 *unidentifiable* when sigma_k is at round-off relative to the largest singular value, or when its
 standard error exceeds :data:`UNIDENTIFIABLE_SE_SHARE` of the geometry's size -- the data then cannot
@@ -40,6 +40,14 @@ determine it to the order of the errors a calibration corrects; it is *weak* abo
 offset of a leg and the coordinate of its base joint along the leg move together when the leg never
 changes direction), with the kind of pose that would separate them.  The condition number of the
 identification is that of the whole (block-diagonal) Jacobian, ``max sigma / min sigma`` over all legs.
+
+References: H. Zhuang, J. Yan, O. Masory, *Calibration of Stewart platforms and other parallel
+manipulators by minimizing inverse kinematic residuals*, J. Robotic Systems 15(7), 1998; C. W. Wampler,
+J. M. Hollerbach, T. Arai, *An implicit loop method for kinematic calibration and its application to
+closed-chain mechanisms*, IEEE Trans. Robotics and Automation 11(5), 1995; J. M. Hollerbach,
+C. W. Wampler, *The calibration index and taxonomy for robot kinematic calibration methods*, IJRR 15(6),
+1996; G. A. F. Seber, C. J. Wild, *Nonlinear Regression*, Wiley 1989; A. Bjorck, *Numerical Methods for
+Least Squares Problems*, SIAM 1996.
 """
 from __future__ import annotations
 
