@@ -1,4 +1,4 @@
-"""``glpma-fk``: solve, solve-all, precompile, modes, node, bench, demo, stress, bag, map
+"""``glpma-fk``: solve, solve-all, precompile, modes, node, bench, demo, stress, bag, map, calibrate
 (the command line of record: doc/interface.md)."""
 from __future__ import annotations
 
@@ -76,11 +76,12 @@ def _pose_json(model, x):
 
 
 def _legs(model, legs):
-    """Validated leg lengths (config unit); legs off by a unit factor get a one-line hint."""
+    """Validated leg lengths (config unit) from the sensors' readings ``legs`` (the config's
+    ``leg_offsets`` added); legs off by a unit factor get a one-line hint."""
     from .config import check_units
     if np.asarray(legs).size == model.n_legs:
         check_units(model, legs)
-    return model.check_legs(legs)
+    return model.check_legs(model.legs_from_sensors(legs))
 
 
 def _finite(value):
@@ -220,7 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
                            ("demo", "node + mock controller over DDS, live progress, summary and figure"),
                            ("stress", "reliability: overload, burst, restarts, deadlines against a real node"),
                            ("bag", "poses for a recorded rosbag2, offline: pose_estimate, /tf and ~/status added"),
-                           ("map", "workspace map: real assembly modes and singularity curves over a 2-D grid")):
+                           ("map", "workspace map: real assembly modes and singularity curves over a 2-D grid"),
+                           ("calibrate", "the real geometry (joints, leg offsets) from measured poses")):
         q = sub.add_parser(name, help=helptext, add_help=False)
         q.add_argument("rest", nargs=argparse.REMAINDER)
     return p
@@ -307,6 +309,8 @@ def _delegated(command: str):
         from glpma_tools.bag import main
     elif command == "map":
         from glpma_tools.workspace_map import main
+    elif command == "calibrate":
+        from glpma_tools.calibrate import main
     else:
         return None
     return main

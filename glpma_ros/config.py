@@ -7,6 +7,7 @@ Schema (see ``config/*.yaml`` and ``doc/interface.md``)::
     base: [[...], ...]           # base joints A_i in the base frame
     platform: [[...], ...]       # platform joints B_i in the platform frame
     leg_limits: [min, max]       # optional, config unit: leg lengths outside are rejected
+    leg_offsets: [...]           # optional, config unit, one per leg: added to every measured length
     example_leg_lengths: [...]   # optional
     real_solutions: [...]        # optional (3-RPR): {x, y, theta_deg} of known assembly modes
     published_solutions: [...]   # optional (hexapod): [x1 y1 z1 x2 y2 z2 x3 y3 z3] of known modes
@@ -35,12 +36,15 @@ UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
 JOINT_DIMENSION = {"planar_3rpr": (3, 2), "hexapod_66": (6, 3)}
 #: keys a manipulator YAML may have (the first four are required)
 REQUIRED_KEYS = ("manipulator", "unit", "base", "platform")
-OPTIONAL_KEYS = ("leg_limits", "example_leg_lengths", "real_solutions", "published_solutions", "name",
+OPTIONAL_KEYS = ("leg_limits", "leg_offsets", "example_leg_lengths", "real_solutions", "published_solutions", "name",
                  "description")
 #: without ``leg_limits``, leg lengths are plausible between the geometry's scale (largest extent of
 #: the base or platform joints) divided and multiplied by this factor; all legs outside that band and
 #: inside it once read in another unit are taken for a unit mistake
 PLAUSIBLE_SCALE_FACTOR = 100.0
+#: a leg offset (a sensor's zero error) larger than this share of the geometry's scale is refused:
+#: it is no zero error but a wrong unit or a misplaced joint (calibrated offsets are a fraction of a mm)
+MAX_OFFSET_SHARE = 0.1
 
 
 def _matrix(doc: dict, key: str, shape: tuple[int, int], path: str) -> np.ndarray:
@@ -117,6 +121,7 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
             raise ConfigError(f"{path}: 'leg_limits' must satisfy 0 <= min < max, got [{lo}, {hi}]")
         limits = (lo, hi)
     model = MODELS[kind](base, platform, unit=unit, leg_limits=limits)
+    model.leg_offsets = _leg_offsets(doc, model, path)
     model.source = path
     model.metres_per_unit = UNIT_TO_METRES[unit]
     example = doc.get("example_leg_lengths")
@@ -127,6 +132,30 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
         except Exception as exc:  # noqa: BLE001 - reported as a config error
             raise ConfigError(f"{path}: 'example_leg_lengths': {exc}") from None
     return model
+
+
+def _leg_offsets(doc: dict, model, path: str):
+    """``leg_offsets``: one finite number per leg (config unit), or None when the key is absent.
+    An offset is a sensor's zero error, so it must be small beside the geometry: at most
+    :data:`MAX_OFFSET_SHARE` of the scale."""
+    if doc.get("leg_offsets") is None:
+        return None
+    n = model.n_legs
+    try:
+        arr = np.array(doc["leg_offsets"], dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{path}: 'leg_offsets' must be a list of {n} numbers (config unit)") from None
+    if arr.shape != (n,):
+        raise ConfigError(f"{path}: 'leg_offsets' must have one number per leg ({n}), got shape "
+                          f"{'x'.join(str(s) for s in arr.shape) or 'scalar'}")
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{path}: 'leg_offsets' has a non-finite value")
+    largest = float(np.abs(arr).max())
+    if largest > MAX_OFFSET_SHARE * model.scale:
+        raise ConfigError(f"{path}: 'leg_offsets' has an offset of {largest:g} {model.unit}, more than "
+                          f"{MAX_OFFSET_SHARE:.0%} of the geometry's size ({model.scale:g} {model.unit}); "
+                          f"offsets are in the config's unit")
+    return arr
 
 
 def _plausible_band(model) -> tuple[float, float]:

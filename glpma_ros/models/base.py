@@ -54,6 +54,10 @@ class Manipulator:
     base: np.ndarray
     platform: np.ndarray
     leg_limits: tuple | None = None
+    #: zero offsets of the leg sensors (config unit, one per leg; None = none): the model's leg length
+    #: |B_i - A_i| is the sensor's reading plus its offset (``leg_offsets`` in the YAML, identified by
+    #: ``glpma-fk calibrate``)
+    leg_offsets: np.ndarray | None = None
     scale: float = 1.0  # characteristic length of the geometry (config unit)
     pose_column_scale: np.ndarray  # makes the pose Jacobian's columns commensurate
     data: tuple = ()
@@ -83,6 +87,26 @@ class Manipulator:
     def fitness(self, X, legs) -> np.ndarray:
         X2 = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
         return population_fitness(X2, self.kind_id, self.data, np.asarray(legs, dtype=float), self.n_res)
+
+    # -- measured legs ---------------------------------------------------
+    def legs_from_sensors(self, measured) -> np.ndarray:
+        """The leg lengths the kinematics needs, |B_i - A_i|, from the sensors' readings (config unit):
+        ``measured + leg_offsets``.  Every measured input goes through here once, where it enters the
+        core (the node's :class:`~glpma_ros.node.service.FkService`, the command line); a reading of the
+        wrong size or type is returned as it is, for :meth:`check_legs` to name the problem."""
+        if self.leg_offsets is None:
+            return measured
+        try:
+            arr = np.asarray(measured, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            return measured
+        return arr + self.leg_offsets if arr.size == self.n_legs else measured
+
+    def sensors_from_legs(self, legs) -> np.ndarray:
+        """What the leg sensors read for leg lengths |B_i - A_i| ``legs`` (config unit): ``legs -
+        leg_offsets``; the inverse of :meth:`legs_from_sensors`, for simulated controllers."""
+        arr = np.asarray(legs, dtype=float)
+        return arr if self.leg_offsets is None else arr - self.leg_offsets
 
     # -- validation --------------------------------------------------------
     def check_legs(self, legs) -> np.ndarray:

@@ -283,7 +283,8 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         self._last_input = (legs_m, int(stamp_ns))
 
     def _config_unit(self, raw) -> np.ndarray:
-        """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit."""
+        """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit, with the
+        config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for."""
         try:
             legs_m = np.asarray(self._legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):
@@ -294,7 +295,7 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             raise InputError(f"leg lengths too large to express in {self.model.unit}")
         if legs.size == self.model.n_legs:   # e.g. millimetres sent on the topic: a reason naming units
             check_units(self.model, legs, "m", "topics are in metres (REP 103)")
-        return legs
+        return self.model.legs_from_sensors(legs)      # the config's leg_offsets added
 
     def handle(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
         """Solve one input.  ``legs_m``: leg lengths in metres, or a :class:`JointStateInput`;

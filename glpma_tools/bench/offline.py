@@ -1,5 +1,6 @@
-"""Offline tools: ``glpma-fk bag`` throughput on a recorded 3-RPR run and ``glpma-fk map`` speed-up
-with local processes, each through its command-line entry point as a user runs it."""
+"""Offline tools: ``glpma-fk bag`` throughput on a recorded 3-RPR run, ``glpma-fk map`` speed-up
+with local processes and ``glpma-fk calibrate``'s time and accuracy on simulated data, each through its
+command-line entry point as a user runs it."""
 from __future__ import annotations
 
 import json
@@ -95,3 +96,73 @@ def map_scaling(resolution: int = MAP_RESOLUTION, workers=MAP_WORKERS) -> dict:
     return {"grid": f"{resolution} x {resolution}",
             "runs": [{"processes": n, "wall s": w, "speed-up": base / w} for n, w in rows],
             "identical counts": all(c == counts[0] for c in counts)}
+
+
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each
+#: this many times (the median and the smallest are reported: a shared machine only adds time)
+CALIBRATION_SIZES = (200, 10_000)
+CALIBRATION_REPEATS = 5
+#: fresh true poses at which the forward kinematics with the nominal and with the calibrated config
+#: is compared with the truth
+CALIBRATION_FK_POSES = 20
+
+
+def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
+                fk_poses: int = CALIBRATION_FK_POSES) -> list:
+    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`)
+    for the 3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command
+    (CSV read, identification, NEW.yaml) and of the identification alone, the leg residual RMS on the
+    held-out measurements, and the forward kinematics' pose error (largest platform-joint displacement)
+    with the nominal and with the calibrated config at fresh poses."""
+    from glpma_ros.config import load_document, model_from_dict
+    from glpma_ros.estimator import Estimator
+    from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+    from glpma_tools.calibrate import main as calibrate_main
+    from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
+    from glpma_tools.sim.trajectories import start_pose
+    rows = []
+    for name in ("planar_3rpr_seed", "hexapod_66_rolland"):
+        path = config_dir() / f"{name}.yaml"
+        doc = load_document(path)
+        model = model_from_dict(doc, str(path))
+        center = start_pose(model, doc)
+        for size in sizes:
+            sim = simulate(model, center, np.random.default_rng(0), size)
+            with tempfile.TemporaryDirectory(prefix="glpma_bench_calibrate_") as tmp:
+                data, new = Path(tmp) / "data.csv", Path(tmp) / "new.yaml"
+                write_csv(data, sim.measured)
+                walls, cpus, ident = [], [], []
+                for _ in range(repeats):
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    out = _quiet_json(calibrate_main, [str(path), str(data), "--out", str(new), "--json"])
+                    walls.append(time.perf_counter() - t0)
+                    cpus.append(time.process_time() - c0)
+                    ident.append(out["identify_s"])
+                calibrated = model_from_dict(load_document(new), str(new))
+            fresh = simulate(model, center, np.random.default_rng(1), fk_poses).true_poses
+            readings = true_readings(sim.truth, fresh.position, fresh.rotation)
+            errors = {"nominal": [], "calibrated": []}
+            for legs, p, R in zip(readings, fresh.position, fresh.rotation):
+                for label, m in (("nominal", model), ("calibrated", calibrated)):
+                    p3 = np.append(p, 0.0) if len(p) == 2 else p
+                    R3 = np.eye(3)
+                    R3[:len(p), :len(p)] = R
+                    x = m.variables_from_pose(p3, quaternion_from_matrix(R3))
+                    e = Estimator(m, time_budget_s=60.0, initial_pose=x).estimate(m.legs_from_sensors(legs))
+                    d = len(p)
+                    R_hat = matrix_from_quaternion(e.pose.orientation)[:d, :d]
+                    at = np.asarray(e.pose.position)[:d] + sim.truth.platform @ R_hat.T
+                    errors[label].append(float(np.linalg.norm(at - (p + sim.truth.platform @ R.T), axis=1).max()))
+            mm = model.metres_per_unit * 1e3
+            rows.append({"manipulator": name, "measurements": size, "fitted": out["fitted"],
+                         "wall s median": float(np.median(walls)), "wall s min": float(min(walls)),
+                         "cpu s median": float(np.median(cpus)), "identify s median": float(np.median(ident)),
+                         "iterations": out["iterations"],
+                         "held-out RMS before mm": out["holdout_rms_before"] * mm,
+                         "held-out RMS after mm": out["holdout_rms_after"] * mm,
+                         "FK error nominal mm (median / max)": (float(np.median(errors["nominal"])) * mm,
+                                                                max(errors["nominal"]) * mm),
+                         "FK error calibrated mm (median / max)": (float(np.median(errors["calibrated"])) * mm,
+                                                                   max(errors["calibrated"]) * mm),
+                         "weak directions": len(out["weak"])})
+    return rows

@@ -224,9 +224,10 @@ def main(argv=None) -> int:
 
     if "offline" in sections:
         from . import offline
-        say("offline: glpma-fk bag throughput, glpma-fk map speed-up", "offline")
+        say("offline: glpma-fk bag throughput, glpma-fk map speed-up, glpma-fk calibrate", "offline")
         res["offline"] = {"bag": offline.bag_throughput(counts["bag_messages"]),
-                          "map": offline.map_scaling(counts["map_resolution"])}
+                          "map": offline.map_scaling(counts["map_resolution"]),
+                          "calibration": offline.calibration()}
 
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:

@@ -348,4 +348,22 @@ def offline_section(res) -> list[str]:
                   [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag.items()]), "",
             table([f"glpma-fk map ({mp['grid']}, seed 3-RPR)", "wall s", "speed-up"],
                   [[f"{r['processes']} process(es)", fmt(r["wall s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
-            "", f"Mode counts identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.", ""]
+            "", f"Mode counts identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.", ""] \
+        + (calibration_section(o["calibration"]) if o.get("calibration") else [])
+
+
+def calibration_section(rows) -> list[str]:
+    """``glpma-fk calibrate``: time for 200 and 10,000 measurements, accuracy before and after."""
+    from .offline import CALIBRATION_FK_POSES, CALIBRATION_REPEATS
+    body = [[r["manipulator"], f"{r['measurements']:,} ({r['fitted']:,} fitted)", fmt(r["wall s median"]),
+             fmt(r["cpu s median"]), fmt(r["identify s median"] * 1e3), r["iterations"],
+             f"{fmt(r['held-out RMS before mm'])} -> {fmt(r['held-out RMS after mm'])}",
+             " / ".join(fmt(v) for v in r["FK error nominal mm (median / max)"]),
+             " / ".join(fmt(v) for v in r["FK error calibrated mm (median / max)"]), r["weak directions"]]
+            for r in rows]
+    return ["### Calibration", "", prose("offline", "calibration", repeats=CALIBRATION_REPEATS,
+                                           fk_poses=CALIBRATION_FK_POSES), "",
+            table(["config", "measurements", "command wall s", "command CPU s", "identification ms",
+                   "Gauss-Newton iterations", "held-out leg RMS mm, before -> after",
+                   "FK error nominal mm (median / max)", "FK error calibrated mm (median / max)",
+                   "weak directions"], body), ""]

@@ -107,8 +107,9 @@ def variables_along(model, x0, n: int, amplitude: float = 1.0) -> np.ndarray:
 
 
 def legs_for(model, position, quaternion) -> np.ndarray:
-    """Leg lengths (config unit) of a pose (config unit, quaternion [x, y, z, w]), by inverse kinematics."""
-    return model.inverse_kinematics(model.variables_from_pose(position, quaternion))
+    """What the leg sensors read (config unit) at a pose (config unit, quaternion [x, y, z, w]): the
+    inverse kinematics less the config's ``leg_offsets``, which the node adds back."""
+    return model.sensors_from_legs(model.inverse_kinematics(model.variables_from_pose(position, quaternion)))
 
 
 class Plan:

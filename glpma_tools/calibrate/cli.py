@@ -1,0 +1,245 @@
+"""Command line of ``glpma-fk calibrate`` (:func:`main`): read CONFIG and DATA, hold out a share of
+the measurements, identify (:func:`.identify.identify`), report, write NEW.yaml (:mod:`.yaml_edit`)."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+from glpma_ros.cli import OneLineParser, seed_type
+from glpma_ros.config import load_document, model_from_dict, resolve_config
+from glpma_ros.errors import GlpmaError, InputError
+
+from ..extras import require
+from . import data as D
+from .identify import GROUPS, UNIDENTIFIABLE_SE_SHARE, WEAK_SE_SHARE, Geometry, identify, leg_residuals
+from .yaml_edit import check_edit, edit_config
+
+PROG = "glpma-fk calibrate"
+#: default share of the measurements held out of the fit to check it
+HOLDOUT = 0.2
+#: the fit needs at least this many measurements per parameter of a leg, so that the residual
+#: variance behind the standard errors has as many degrees of freedom as there are parameters
+MIN_MEASUREMENTS_PER_PARAMETER = 2
+#: a leg residual RMS of the nominal geometry above this share of its size means the poses do not
+#: belong to the legs (another unit, columns swapped, a pose base -> platform): 5 % is fifty times
+#: the joint errors a calibration corrects
+MISMATCH_SHARE = 0.05
+#: YAML key of each identified group
+KEYS = {"base": "base", "platform": "platform", "offsets": "leg_offsets"}
+#: width of the --help texts
+HELP_WIDTH = 100
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = OneLineParser(
+        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        usage=f"{PROG} CONFIG DATA --out NEW.yaml [--identify base platform offsets] [--holdout SHARE] "
+              f"[--legs-topic T --pose-topic T --max-dt S] [--seed N] [--json]",
+        description=textwrap.fill(
+            "Identify the manipulator's real geometry -- base joints, platform joints and the zero offsets of "
+            "the leg sensors -- from leg readings paired with externally measured platform poses (laser tracker, "
+            "motion capture), by least squares on the legs' inverse-kinematic residuals "
+            "measured_i + offset_i = |p + R B_i - A_i|, and write NEW.yaml: CONFIG with the identified base, "
+            "platform and leg_offsets (CONFIG is never modified). Reports the leg residual RMS before and after, "
+            "on the fitted and on held-out measurements, each parameter with its standard error, the condition "
+            "number and the parameter directions the data cannot identify. Exit 2 with one line for too few "
+            "measurements, a rank-deficient identification or a malformed file.", HELP_WIDTH,
+            break_on_hyphens=False))
+    p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
+    p.add_argument("data", metavar="DATA",
+                   help="CSV with a header row: leg_1 .. leg_n (sensor readings, config unit), then the measured "
+                        "pose in the base frame, planar x y theta (radians), hexapod x y z qx qy qz qw (unit "
+                        "quaternion platform -> base); or a rosbag2 (directory, .mcap or .db3) in metres")
+    p.add_argument("--out", required=True, metavar="NEW.yaml", help="the calibrated config to write")
+    p.add_argument("--identify", nargs="+", choices=GROUPS, default=list(GROUPS), metavar="GROUP",
+                   help="what to estimate, among base platform offsets (default all); the rest stays as in CONFIG")
+    p.add_argument("--holdout", type=float, default=HOLDOUT, metavar="SHARE",
+                   help=f"share of the measurements left out of the fit to check it, 0 <= SHARE < 1 "
+                        f"(default {HOLDOUT:g})")
+    p.add_argument("--legs-topic", default=None, metavar="T",
+                   help="rosbag2: the leg readings (std_msgs/msg/Float64MultiArray or sensor_msgs/msg/JointState "
+                        "with joints leg_1 .. leg_n, metres; default: the bag's only topic of these types)")
+    p.add_argument("--pose-topic", default=None, metavar="T",
+                   help="rosbag2: the reference geometry_msgs/msg/PoseStamped (metres; default: the bag's only one)")
+    p.add_argument("--max-dt", type=float, default=None, metavar="S",
+                   help=f"rosbag2: largest time between a pose and its leg reading, seconds (default {D.MAX_DT_S:g})")
+    p.add_argument("--seed", type=seed_type, default=0, help="seed of the held-out choice (default 0)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    return p
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = build_parser().parse_args(argv)
+        report = run(args)
+    except GlpmaError as exc:
+        print(f"error: {PROG}: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    print(json.dumps(report) if args.json else text(report))
+    return 0
+
+
+def _read(args, model) -> tuple:
+    """The measurements of DATA and, for a bag, what it held."""
+    path = Path(args.data)
+    bag_options = [o for o, v in (("--legs-topic", args.legs_topic), ("--pose-topic", args.pose_topic),
+                                  ("--max-dt", args.max_dt)) if v is not None]
+    if not path.exists():
+        raise InputError(f"DATA {path} does not exist")
+    n, dim = model.base.shape
+    if D.is_bag(path):
+        require("bag", PROG, modules=("rosbags",))
+        max_dt = D.MAX_DT_S if args.max_dt is None else args.max_dt
+        if not (math.isfinite(max_dt) and max_dt >= 0.0):
+            raise InputError(f"--max-dt must be a non-negative number of seconds, got {max_dt:g}")
+        return D.read_bag(path, n, dim, model.metres_per_unit, args.legs_topic, args.pose_topic, max_dt)
+    if bag_options:
+        raise InputError(f"{bag_options[0]} applies to a rosbag2; {path} is read as a CSV file")
+    return D.read_csv(path, n, dim, model.unit), None
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _rms(r) -> float | None:
+    return float(np.sqrt(np.mean(np.square(r)))) if np.size(r) else None
+
+
+def run(args) -> dict:
+    t_start = time.perf_counter()
+    if not (math.isfinite(args.holdout) and 0.0 <= args.holdout < 1.0):
+        raise InputError(f"--holdout must be a share 0 <= SHARE < 1, got {args.holdout:g}")
+    config_path = resolve_config(args.config)
+    doc = load_document(config_path)
+    model = model_from_dict(doc, str(config_path))
+    out = Path(args.out)
+    for what, other in (("CONFIG", config_path), ("DATA", Path(args.data))):
+        if _same_file(out, other) or out.resolve() == other.resolve():
+            raise InputError(f"--out {out} is {what}; write the calibrated config to another file "
+                             f"({what} is never modified)")
+    meas, bag = _read(args, model)
+    groups = tuple(g for g in GROUPS if g in args.identify)
+    n, dim = model.base.shape
+    k = sum(1 if g == "offsets" else dim for g in groups)
+    m = len(meas)
+    held = int(round(args.holdout * m))
+    order = np.random.default_rng(args.seed).permutation(m)
+    fit_index, hold_index = np.sort(order[held:]), np.sort(order[:held])
+    need = MIN_MEASUREMENTS_PER_PARAMETER * k
+    if len(fit_index) < need:
+        raise InputError(f"too few measurements: {len(fit_index)} to fit ({m} in {args.data}, {held} held out) for "
+                         f"{k} parameters per leg; need at least {need}")
+    fit, hold = meas.subset(fit_index), meas.subset(hold_index)
+    nominal = Geometry(model.base.copy(), model.platform.copy(),
+                       np.zeros(n) if model.leg_offsets is None else model.leg_offsets.copy())
+    before = leg_residuals(nominal, fit)
+    rms_before = _rms(before)
+    if rms_before > MISMATCH_SHARE * model.scale:
+        raise InputError(f"the poses do not fit the legs: leg residual RMS {rms_before:.4g} {model.unit} with CONFIG's "
+                         f"geometry ({rms_before / model.scale:.1%} of its size); check the unit (legs and positions "
+                         f"in {model.unit}), the column order and that poses are platform -> base")
+    t0 = time.perf_counter()
+    result = identify(nominal, fit, groups, scale=model.scale)
+    identify_s = time.perf_counter() - t0
+    if result.unidentifiable:
+        texts = "; ".join(d.text for d in result.unidentifiable)
+        raise InputError(f"rank-deficient identification: {len(result.unidentifiable)} parameter direction(s) the "
+                         f"data cannot identify (standard error above {UNIDENTIFIABLE_SE_SHARE * model.scale:.3g} "
+                         f"{model.unit}): {texts}")
+    if not result.converged:
+        raise InputError(f"the identification did not converge in {result.iterations} Gauss-Newton iterations")
+    values = {KEYS[g]: getattr(result.geometry, g) for g in groups}
+    header = [f"# Calibrated by glpma-fk calibrate from {Path(args.data).name} ({len(fit_index)} measurements "
+              f"fitted, {held} held out): {', '.join(KEYS[g] for g in groups)} identified; leg residual RMS "
+              f"{rms_before:.4g} -> {_rms(leg_residuals(result.geometry, fit)):.4g} {model.unit}.",
+              f"# Everything else as in {config_path.name}, whose comments describe the nominal geometry.", "#"]
+    offsets_comment = [f"# Zero offsets of the leg sensors ({model.unit}), identified by glpma-fk calibrate: added to "
+                       f"every", "# measured leg length before the forward kinematics."]
+    new_text = edit_config(config_path.read_text(), values, header, offsets_comment)
+    new_doc = check_edit(new_text, values, doc, model.scale)
+    model_from_dict(new_doc, str(out))             # NEW.yaml loads as a config (raises otherwise)
+    _write(out, new_text)
+    return _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, identify_s,
+                   time.perf_counter() - t_start)
+
+
+def _write(path: Path, text_: str) -> None:
+    """Write atomically: a file next to ``path``, then renamed over it."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent if str(path.parent) else ".")
+        with os.fdopen(fd, "w") as f:
+            f.write(text_)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def _direction(d) -> dict:
+    return {"leg": d.leg, "text": d.text, "se": d.se, "components": d.components}
+
+
+def _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, identify_s, total_s) -> dict:
+    def finite(v):
+        return float(v) if v is not None and math.isfinite(v) else None
+    return {
+        "config": str(config_path), "data": str(args.data), "out": str(args.out), "kind": model.kind,
+        "unit": model.unit, "identify": [KEYS[g] for g in groups],
+        "measurements": len(meas), "fitted": len(fit), "held_out": len(hold), "seed": args.seed,
+        "rms_before": _rms(leg_residuals(nominal, fit)), "rms_after": _rms(leg_residuals(result.geometry, fit)),
+        "holdout_rms_before": _rms(leg_residuals(nominal, hold)) if len(hold) else None,
+        "holdout_rms_after": _rms(leg_residuals(result.geometry, hold)) if len(hold) else None,
+        "condition_number": finite(result.condition_number),
+        "parameters": [{"name": p.name, "leg": p.leg, "group": KEYS[p.group], "axis": p.axis, "nominal": p.nominal,
+                        "value": p.value, "se": p.se} for p in result.parameters],
+        "residual_std": [float(s) for s in result.residual_std],
+        "unidentifiable": [_direction(d) for d in result.unidentifiable],
+        "weak": [_direction(d) for d in result.weak],
+        "weak_se_threshold": WEAK_SE_SHARE * model.scale,
+        "iterations": result.iterations, "identify_s": identify_s, "elapsed_s": total_s,
+        "bag": None if bag is None else bag.as_dict()}
+
+
+def text(r: dict) -> str:
+    u = r["unit"]
+    lines = [f"{PROG}: {r['kind']} ({Path(r['config']).name}, {u}) from {r['data']}: {r['measurements']} measurements, "
+             f"{r['fitted']} fitted, {r['held_out']} held out (seed {r['seed']})"]
+    if r["bag"]:
+        b = r["bag"]
+        lines.append(f"  bag: {b['paired']} pairs of {b['legs_messages']} leg readings on {b['legs_topic']} and "
+                     f"{b['pose_messages']} poses on {b['pose_topic']}")
+    per_leg = sum(1 for p in r["parameters"] if p["leg"] == 1)
+    lines += [f"identified {' '.join(r['identify'])}: {per_leg} parameters per leg, {len(r['parameters'])} in all, "
+              f"{r['iterations']} Gauss-Newton iterations, {r['identify_s'] * 1e3:.1f} ms",
+              f"leg residual RMS ({u}):        before       after",
+              f"  fitted measurements  {r['rms_before']:11.5f} {r['rms_after']:11.5f}"]
+    if r["held_out"]:
+        lines.append(f"  held out             {r['holdout_rms_before']:11.5f} {r['holdout_rms_after']:11.5f}")
+    lines += [f"condition number of the identification: {r['condition_number']:.4g}",
+              f"parameters ({u}): nominal -> identified +- standard error"]
+    width = max(len(p["name"]) for p in r["parameters"])
+    for p in r["parameters"]:
+        lines.append(f"  {p['name']:<{width}} {p['nominal']:14.6f} -> {p['value']:14.6f} +- {p['se']:.4f}")
+    if r["weak"]:
+        lines.append(f"weakly identified directions (standard error above {r['weak_se_threshold']:.3g} {u}):")
+        lines += [f"  +- {d['se']:.3g} {u}: {d['text']}" for d in r["weak"]]
+    else:
+        lines.append("every parameter direction identified (no standard error above "
+                     f"{r['weak_se_threshold']:.3g} {u})")
+    lines.append(f"wrote {r['out']}")
+    return "\n".join(lines)

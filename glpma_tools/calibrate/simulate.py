@@ -1,0 +1,156 @@
+"""Simulated calibration data: a shipped geometry with every joint moved and every leg sensor
+offset, poses spread over the workspace around one of the config's known solutions, and the
+measurements an external instrument and the leg sensors would give, with noise on both.
+
+The protocol of issue 22 (in metres, converted to the config's unit): every joint moved by up to
+:data:`JOINT_ERROR_M` in a random direction, offsets uniform within :data:`OFFSET_ERROR_M`, Gaussian
+noise :data:`NOISE_M` on each leg reading and on each coordinate of the measured position; the
+measured orientation is off by a rotation whose components have the standard deviation that moves
+the platform joints by :data:`NOISE_M` (noise over the platform's radius, in radians).
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+
+from .identify import Geometry, Measurements
+
+#: joints moved by up to this much (m), each in a random direction
+JOINT_ERROR_M = 1e-3
+#: sensor offsets uniform in [-OFFSET, OFFSET] (m)
+OFFSET_ERROR_M = 0.5e-3
+#: standard deviation of the leg readings and of each coordinate of the measured position (m)
+NOISE_M = 1e-5
+#: measurements of the issue's protocol
+POSES = 200
+#: 3-RPR poses: position uniform within this share of the scale around the known solution, angle
+#: uniform within +- PLANAR_ANGLE_RAD (a calibration run moves the platform over its workspace)
+PLANAR_POSITION_SHARE = 0.2
+PLANAR_ANGLE_RAD = 0.5
+#: hexapod poses: position uniform within this share of the scale around the known solution in x, y
+#: and z, rotation vector components uniform within +- SPATIAL_ANGLE_RAD (about 11 degrees of tilt
+#: and twist)
+SPATIAL_POSITION_SHARE = 0.1
+SPATIAL_ANGLE_RAD = 0.2
+
+
+@dataclass
+class Simulated:
+    nominal: Geometry          # the config's geometry (what the user believes)
+    truth: Geometry            # the manipulator's real geometry
+    measured: Measurements     # noisy leg readings and noisy measured poses
+    true_poses: Measurements   # the true poses and their noise-free readings
+
+
+def rotation_2d(theta) -> np.ndarray:
+    """(m, 2, 2) rotations of angles ``theta`` (m,)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack((np.stack((c, -s), -1), np.stack((s, c), -1)), -2)
+
+
+def _rotations_3d(vectors) -> np.ndarray:
+    return np.array([rotation_from_vector(w) for w in vectors])
+
+
+def true_readings(truth: Geometry, position, rotation) -> np.ndarray:
+    """What the sensors of geometry ``truth`` read at the poses: |p + R B - A| - offset, (m, n)."""
+    w = np.einsum("mde,ne->mnd", rotation, truth.platform)
+    e = position[:, None, :] + w - truth.base[None]
+    return np.sqrt((e * e).sum(axis=2)) - truth.offsets
+
+
+def simulate(model, center, rng: np.random.Generator, poses: int = POSES, joint_error_m: float = JOINT_ERROR_M,
+             offset_error_m: float = OFFSET_ERROR_M, noise_m: float = NOISE_M) -> Simulated:
+    """Calibration data for ``model`` (the nominal geometry, config unit) around ``center`` =
+    (position (3,), rotation (3, 3)), e.g. :func:`glpma_tools.sim.trajectories.start_pose`."""
+    mpu = float(model.metres_per_unit)
+    d = model.base.shape[1]
+    n = model.base.shape[0]
+    nominal = Geometry(model.base.copy(), model.platform.copy(),
+                       np.zeros(n) if model.leg_offsets is None else model.leg_offsets.copy())
+
+    def moved(joints):
+        direction = rng.normal(size=joints.shape)
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        return joints + direction * rng.uniform(0.0, joint_error_m / mpu, size=(len(joints), 1))
+    truth = Geometry(moved(nominal.base), moved(nominal.platform),
+                     nominal.offsets + rng.uniform(-offset_error_m / mpu, offset_error_m / mpu, size=n))
+    p0, R0 = (np.asarray(c, dtype=float) for c in center)
+    noise = noise_m / mpu
+    radius = float(np.linalg.norm(model.platform, axis=1).max())
+    angle_noise = noise / radius
+    if d == 2:
+        theta0 = math.atan2(R0[1, 0], R0[0, 0])
+        position = p0[:2] + rng.uniform(-1, 1, size=(poses, 2)) * PLANAR_POSITION_SHARE * model.scale
+        theta = theta0 + rng.uniform(-PLANAR_ANGLE_RAD, PLANAR_ANGLE_RAD, size=poses)
+        rotation = rotation_2d(theta)
+        m_position = position + rng.normal(0.0, noise, size=position.shape)
+        m_rotation = rotation_2d(theta + rng.normal(0.0, angle_noise, size=poses))
+    else:
+        position = p0 + rng.uniform(-1, 1, size=(poses, 3)) * SPATIAL_POSITION_SHARE * model.scale
+        rotation = _rotations_3d(rng.uniform(-SPATIAL_ANGLE_RAD, SPATIAL_ANGLE_RAD, size=(poses, 3))) @ R0
+        m_position = position + rng.normal(0.0, noise, size=position.shape)
+        m_rotation = _rotations_3d(rng.normal(0.0, angle_noise, size=(poses, 3))) @ rotation
+    readings = true_readings(truth, position, rotation)
+    measured = Measurements(readings + rng.normal(0.0, noise, size=readings.shape), m_position, m_rotation)
+    return Simulated(nominal, truth, measured, Measurements(readings, position, rotation))
+
+
+def pose_columns(dim: int) -> tuple:
+    """The pose columns of a calibration CSV: planar ``x y theta``, spatial ``x y z qx qy qz qw``."""
+    return ("x", "y", "theta") if dim == 2 else ("x", "y", "z", "qx", "qy", "qz", "qw")
+
+
+def pose_values(position, rotation) -> np.ndarray:
+    """Rows of the pose columns for poses (m, d) / (m, d, d)."""
+    if position.shape[1] == 2:
+        return np.column_stack((position, np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])))
+    return np.column_stack((position, np.array([quaternion_from_matrix(R) for R in rotation])))
+
+
+def rotations_from_values(values) -> np.ndarray:
+    """Rotations (m, d, d) from the orientation columns: planar theta (m,), spatial quaternions (m, 4)."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 1:
+        return rotation_2d(values)
+    return np.array([matrix_from_quaternion(q) for q in values])
+
+
+def write_csv(path, meas: Measurements) -> None:
+    """A calibration CSV (header row, then one measurement per row) of ``meas``."""
+    n, d = meas.legs.shape[1], meas.position.shape[1]
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow([f"leg_{i + 1}" for i in range(n)] + list(pose_columns(d)))
+        for legs, pose in zip(meas.legs, pose_values(meas.position, meas.rotation)):
+            w.writerow([repr(float(v)) for v in (*legs, *pose)])
+
+
+def main(argv=None) -> int:
+    """``python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]``: simulated data for
+    the README's example (the true geometry printed on stderr)."""
+    import sys
+    from glpma_ros.config import load_document, model_from_dict, resolve_config
+    from glpma_tools.sim.trajectories import start_pose
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) not in (2, 3, 4):
+        print("usage: python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]", file=sys.stderr)
+        return 2
+    path = resolve_config(args[0])
+    doc = load_document(path)
+    model = model_from_dict(doc, str(path))
+    sim = simulate(model, start_pose(model, doc), np.random.default_rng(int(args[3]) if len(args) > 3 else 0),
+                   int(args[2]) if len(args) > 2 else POSES)
+    write_csv(Path(args[1]), sim.measured)
+    print(f"true offsets ({model.unit}): {np.round(sim.truth.offsets, 4).tolist()}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
