@@ -180,6 +180,8 @@ class Estimator:
         self.exclude_faulty_leg = bool(exclude_faulty_leg)
         self._isolator = redundancy.FaultIsolator(model) if model.redundancy > 0 else None
         self.consistency_limit = redundancy.chi2_limit(model.redundancy)
+        #: the largest sum of squared leg residuals (config unit squared) of a consistent pose
+        self._consistent_fitness = self.consistency_limit * self.leg_noise_std ** 2 if model.redundancy else math.inf
         self.time_budget_s = float(time_budget_s)
         self.tolerance = float(tolerance)
         self.leg_rtol = float(leg_rtol)
@@ -261,6 +263,10 @@ class Estimator:
         return self._search(arr, t0, solver.result(out))
 
     # -- redundant legs ---------------------------------------------------------------
+    def _consistent(self, point) -> bool:
+        """A converged point passes the consistency test (always without redundant legs)."""
+        return point.leg_fitness <= self._consistent_fitness
+
     def _advance(self, x, legs):
         """``x`` (for ``legs``) becomes the warm start of the next input."""
         self.prev_x, self.last_x, self.last_legs = self.last_x, x, legs
@@ -352,6 +358,7 @@ class Estimator:
         model = self.model
         deadline = t0 + self.time_budget_s
         candidates = []           # (distance to previous, point, stage)
+        inconsistent = []         # redundant legs: least-squares poses that failed the consistency test
         tried = []                # (status point, stage)
         evaluations = 0
         out_of_time = False
@@ -362,7 +369,7 @@ class Estimator:
             evaluations += warm.nfev
             tried.append((warm, "warm"))
             if warm.converged:    # but far from the previous pose: look for a nearer branch
-                candidates.append((warm.distance, warm, "warm"))
+                (candidates if self._consistent(warm) else inconsistent).append((warm.distance, warm, "warm"))
         if self.last_x is not None:
             movement = float(np.max(np.abs(legs - self.last_legs)))
             near = max(CONTINUITY_FACTOR * movement, near)
@@ -384,7 +391,9 @@ class Estimator:
             evaluations += result.nfev + nfev
             out_of_time = out_of_time or result.status == solvers.BUDGET_EXHAUSTED
             tried.append((status_point, stage))
-            if point.converged:
+            if point.converged and not self._consistent(point):
+                inconsistent.append((point.distance, point, stage))
+            elif point.converged:
                 candidates.append((point.distance, point, stage))
                 if self.last_x is None or point.distance <= near:
                     break
@@ -392,12 +401,14 @@ class Estimator:
         if not candidates:
             # the probe: the same fixed work on every machine, whatever fitted in the budget
             probe = self._lm.multistart(self._probe_starts, legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol,
-                                        x_ref=self.last_x, stall=STALLED)
+                                        x_ref=self.last_x, stall=STALLED, ftol=self._consistent_fitness)
             evaluations += probe.nfev
             tried.append((probe, "cold"))
             if probe.converged and self.polish:
                 candidates.append((probe.distance, probe, "cold"))
         elapsed = time.perf_counter() - t0
+        if not candidates and inconsistent:     # no pose explains the legs: which one is at fault
+            candidates = inconsistent
         if candidates:
             _, p, stage = min(candidates, key=lambda c: c[0])
             note = f", near a singularity (conditioning {p.conditioning:.2g})" if p.conditioning < NEAR_SINGULAR else ""

@@ -26,7 +26,8 @@ Convergence is judged on the leg residuals, relative to the geometry::
 
 or, with redundant legs (more than the degrees of freedom; ``S_GTOL`` > 0), at the least-squares pose
 (``LSQ_GTOL``: the gradient ``J^T r`` at round-off relative to ``|J| |r|``) -- whether those residuals
-are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.redundancy`)
+are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.redundancy`), which
+it may hand in as ``ftol``
 
 (``scale``: the model's characteristic length; the legs enter ``L`` because a computed leg length is
 exact only to a few units in the last place *of the leg*), and optionally ``sum r_i^2 < ftol`` too (the
@@ -286,7 +287,7 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
             rmax = 0.0
             for i in range(n_legs):
                 rmax = max(rmax, abs(r[i]))
-            done = (rmax <= rtol * ref and f < ftol) or _least_squares_reached(A, g, f, col_scale, ref, gtol)
+            done = (rmax <= rtol * ref or _least_squares_reached(A, g, f, col_scale, ref, gtol)) and f < ftol
             polish_left = POLISH_STEPS
             f_mark = f                       # the fitness PROGRESS_WINDOW and 2 PROGRESS_WINDOW iterations ago
             f_mark_before = math.inf
@@ -322,8 +323,8 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
                         rmax = 0.0
                         for i in range(n_legs):
                             rmax = max(rmax, abs(r[i]))
-                        done = (rmax <= rtol * ref and f < ftol) or \
-                            _least_squares_reached(A, g, f, col_scale, ref, gtol)
+                        done = (rmax <= rtol * ref or _least_squares_reached(A, g, f, col_scale, ref, gtol)) \
+                            and f < ftol
                 else:
                     lam *= nu
                     nu *= 2.0
@@ -422,4 +423,4 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
     if gtol > 0.0 and f < math.inf:
         normal_equations(J, r, A, g)
         lsq = _least_squares_reached(A, g, f, col_scale, ref, gtol)
-    info[I_CONVERGED] = 1.0 if ((rmax <= rtol * ref and f < ftol) or lsq) else 0.0
+    info[I_CONVERGED] = 1.0 if ((rmax <= rtol * ref or lsq) and f < ftol) else 0.0

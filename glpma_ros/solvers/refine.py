@@ -94,7 +94,8 @@ def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None)
         max_iter = 0
     x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
     legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
-    r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance)
+    # redundant legs: measured legs leave a residual, the least-squares pose is the goal
+    r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance if model.redundancy == 0 else math.inf)
     if r is None:                       # legs outside the model's limits: evaluated, not refined
         return Polished(x0.copy(), float(model.fitness(x0, legs)[0]), 1, False)
     x, f, nfev = r.x.copy(), r.fitness, r.nfev
