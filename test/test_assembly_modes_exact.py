@@ -67,7 +67,9 @@ def test_the_stored_cases_cover_what_issue_13_asks():
 def test_the_stored_cases_are_the_generator_s(case):
     model, legs, _ = GENERATORS[case["kind"]](np.random.default_rng(case["seed"]))
     assert np.array_equal(model.base, case["base"]) and np.array_equal(model.platform, case["platform"])
-    assert np.array_equal(legs, case["legs"])
+    # the legs are computed (inverse kinematics of the generator's pose): equal to a few units in the
+    # last place of the longest leg, not bit for bit (the stored cases are the inputs of the other tests)
+    np.testing.assert_allclose(legs, case["legs"], rtol=0, atol=1e-14 * np.max(legs))
 
 
 @pytest.mark.parametrize("case", CASES, ids=case_id)
