@@ -294,8 +294,8 @@ class Estimator:
         if self.last_x is not None:
             predicted = self.last_x if self.prev_x is None else 2.0 * self.last_x - self.prev_x
             near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
-        start = e.x if self.last_x is None else self.last_x
-        iso = self._isolator.isolate(legs, start, self.leg_noise_std, predicted, near, first=self.excluded)
+        iso = self._isolator.isolate(legs, self.last_x, self.leg_noise_std, predicted, near, first=self.excluded,
+                                     starts=self._probe_starts)
         e.status, e.suspect_leg = STATUS_INCONSISTENT, iso.leg
         e.evaluations += iso.evaluations
         head = f"legs inconsistent (chi-square {e.consistency:.3g} > {e.consistency_limit:.3g})"
@@ -408,7 +408,8 @@ class Estimator:
                 candidates.append((probe.distance, probe, "cold"))
         elapsed = time.perf_counter() - t0
         if not candidates and inconsistent:     # no pose explains the legs: which one is at fault
-            candidates = inconsistent
+            candidates = inconsistent if self.last_x is not None else \
+                [min(inconsistent, key=lambda c: c[1].leg_fitness)]
         if candidates:
             _, p, stage = min(candidates, key=lambda c: c[0])
             note = f", near a singularity (conditioning {p.conditioning:.2g})" if p.conditioning < NEAR_SINGULAR else ""

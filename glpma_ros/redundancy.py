@@ -85,32 +85,43 @@ class FaultIsolator:
                 self._subs[leg] = None
         return self._subs[leg]
 
-    def solve_without(self, leg: int, legs, start_x):
+    def solve_without(self, leg: int, legs, start_x, starts=None, ftol=math.inf):
         """``(LocalResult in the full model's variables, T * sigma^2)`` of the legs without ``leg``
-        from the full model's variables ``start_x``; None when that sub-model is undetermined."""
+        from the full model's variables ``start_x`` -- or, without a start (no history), from the rows of
+        ``starts`` until one converges with a leg fitness below ``ftol``; None when that sub-model is
+        undetermined."""
         entry = self._sub(leg)
         if entry is None:
             return None
         keep, sub, solver = entry
         m = self.model
-        pose = m.pose(start_x)
-        x0 = np.ascontiguousarray(sub.variables_from_pose(pose.position, pose.orientation))
-        r = solver.solve(x0, np.ascontiguousarray(legs[keep]), max_iter=LEAVE_ONE_OUT_MAX_ITER)
+        mine = np.ascontiguousarray(legs[keep])
+        if start_x is None:
+            r = solver.multistart(starts, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER, ftol=ftol)
+        else:
+            pose = m.pose(start_x)
+            x0 = np.ascontiguousarray(sub.variables_from_pose(pose.position, pose.orientation))
+            r = solver.solve(x0, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER)
         if r is None:
             return None
         x = m.variables_from_pose(r.position, r.orientation)
         return r._replace(x=x), r.leg_fitness
 
     def isolate(self, legs, start_x, sigma: float, predicted=None, near: float = math.inf,
-                first: int | None = None) -> Isolation:
+                first: int | None = None, starts=None) -> Isolation:
         """The most likely faulty leg of ``legs`` (config unit) whose least-squares pose failed the
-        consistency test.  ``start_x``: where the leave-one-out solves start (the previous pose, or
-        the least-squares one); ``predicted``: the pose expected from the history (full model's
-        variables) or None; ``near``: the largest distance from it a continuing pose may have;
-        ``first``: the leg left out last time, tried first (a leg that stays faulty is left out
-        again without solving for the others)."""
+        consistency test.  ``start_x``: where the leave-one-out solves start (the previous pose), or
+        None without history: then each solve tries the rows of ``starts`` (fixed starts over the
+        pose space) until it finds a pose consistent with its legs; ``predicted``: the pose expected
+        from the history (full model's variables) or None; ``near``: the largest distance from it a
+        continuing pose may have; ``first``: the leg left out last time, tried first (a leg that stays
+        faulty is left out again without solving for the others)."""
         m = self.model
         s2 = sigma * sigma
+        if start_x is None and self.dof_left <= 0:
+            return Isolation(None, False, None, math.nan, 0,
+                             "one redundant leg and no previous pose: the faulty leg cannot be told")
+        ftol = self.limit_left * s2
         order = list(range(m.n_legs))
         if first is not None:
             order.remove(first)
@@ -118,7 +129,7 @@ class FaultIsolator:
         tried = []                  # (leg, result, T)
         nfev = 0
         for leg in order:
-            out = self.solve_without(leg, legs, start_x)
+            out = self.solve_without(leg, legs, start_x, starts, ftol)
             if out is None:
                 continue
             r, fit = out
