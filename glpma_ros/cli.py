@@ -106,7 +106,7 @@ def cmd_solve(args) -> int:
     load_s = precompile.exercise(model, args.solver)
     est = Estimator(model, solver=args.solver, time_budget_s=budget_s, tolerance=args.tolerance, seed=args.seed,
                     polish=not args.no_polish, initial_pose=near, max_evals=args.max_evals,
-                    init_range=args.init_range)
+                    init_range=args.init_range, leg_noise_std=args.leg_noise_std)
     e = est.estimate(legs)
     status = e.status
     if status == STATUS_BUDGET and e.elapsed_s < budget_s:
@@ -116,19 +116,24 @@ def cmd_solve(args) -> int:
            "elapsed_s": e.elapsed_s, "variables": [] if x is None else [float(v) for v in x],
            "pose": None if x is None else _pose_json(model, x),
            "load_s": load_s, "start": e.start, "conditioning": _finite(e.conditioning), "message": e.message}
+    if model.redundancy:            # legs numbered from 1, as in the messages
+        out.update(consistency=_finite(e.consistency), consistency_limit=_finite(e.consistency_limit),
+                   suspect_leg=None if e.suspect_leg is None else e.suspect_leg + 1,
+                   excluded_leg=None if e.excluded_leg is None else e.excluded_leg + 1,
+                   leg_noise_std=est.leg_noise_std)
     if args.json:
         print(json.dumps(out))
     else:
         print(f"{e.solver}: {status} ({e.start} start) after {e.evaluations} evaluations in "
               f"{e.elapsed_s * 1e3:.2f} ms, fitness {e.fitness:.3e}")
-        if not e.converged:
+        if not e.converged or model.redundancy:
             print(f"  {e.message}")
         if x is not None:
             print("  variables: " + ", ".join(f"{n}={v:.9f}" for n, v in zip(model.variable_names, x)))
             p = out["pose"]
             print(f"  position [{model.unit}]: {p['position']}\n  orientation [qx qy qz qw]: {p['orientation']}")
         print(f"  one-time load of the compiled solvers: {load_s:.2f} s (not part of the solve time)")
-    return 0 if e.converged else 1
+    return 0 if e.publishable else 1
 
 
 def cmd_solve_all(args) -> int:
@@ -253,6 +258,9 @@ def _add_solve(sub) -> None:
                    help="warm start around these solver variables (3-RPR: x y theta; hexapod: x1 y1 z1 .. z3)")
     s.add_argument("--no-polish", action="store_true",
                    help="the evolutionary solver alone, no Levenberg-Marquardt refinement (the papers' setting)")
+    s.add_argument("--leg-noise-std", type=positive_float, default=None,
+                   help="redundant legs: standard deviation of the leg measurements in the config's unit, for the "
+                        "chi-square consistency test (default: 1e-5 m, the node's leg_noise_std)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     s.set_defaults(func=cmd_solve)
 

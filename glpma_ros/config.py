@@ -4,8 +4,10 @@ Schema (see ``config/*.yaml`` and ``doc/interface.md``)::
 
     manipulator: planar_3rpr | hexapod_66
     unit: mm | cm | m            # required: unit of every length in the file and on the CLI
-    base: [[...], ...]           # base joints A_i in the base frame
-    platform: [[...], ...]       # platform joints B_i in the platform frame
+    base: [[...], ...]           # base joints A_i in the base frame, one per leg (3-RPR: 3 to 12
+                                 # legs, hexapod: 6 to 12; more than 3 / 6 are redundant legs)
+    platform: [[...], ...]       # platform joints B_i in the platform frame (hexapod: joints may
+                                 # coincide, two legs sharing one: 6-3, 3-6, 3-3)
     leg_limits: [min, max]       # optional, config unit: leg lengths outside are rejected
     leg_offsets: [...]           # optional, config unit, one per leg: added to every measured length
     example_leg_lengths: [...]   # optional
@@ -30,10 +32,15 @@ import yaml
 
 from .errors import ConfigError, InputError
 from .models import MODELS, Manipulator
+from .models.hexapod_66 import COINCIDENT_RELATIVE, frame_joints
 
 UNIT_TO_METRES = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
-JOINT_DIMENSION = {"planar_3rpr": (3, 2), "hexapod_66": (6, 3)}
+#: coordinates of a joint, per kind
+JOINT_DIMENSION = {"planar_3rpr": 2, "hexapod_66": 3}
+#: legs a config may list, per kind: the degrees of freedom up to redundant legs (more squared
+#: residuals; beyond a dozen a sensor is better fused elsewhere)
+LEG_COUNT = {"planar_3rpr": (3, 12), "hexapod_66": (6, 12)}
 #: keys a manipulator YAML may have (the first four are required)
 REQUIRED_KEYS = ("manipulator", "unit", "base", "platform")
 OPTIONAL_KEYS = ("leg_limits", "leg_offsets", "example_leg_lengths", "real_solutions", "published_solutions", "name",
@@ -47,19 +54,47 @@ PLAUSIBLE_SCALE_FACTOR = 100.0
 MAX_OFFSET_SHARE = 0.1
 
 
-def _matrix(doc: dict, key: str, shape: tuple[int, int], path: str) -> np.ndarray:
+def _matrix(doc: dict, key: str, kind: str, path: str, count: int | None = None) -> np.ndarray:
+    """``doc[key]`` as an (n, dim) array: ``count`` points (default: the kind's range of leg counts)."""
+    dim = JOINT_DIMENSION[kind]
+    lo, hi = LEG_COUNT[kind]
+    points = f"{count}" if count is not None else (f"{lo}" if lo == hi else f"{lo} to {hi}")
     if key not in doc:
         raise ConfigError(f"{path}: missing key '{key}'")
     try:
         arr = np.array(doc[key], dtype=float)
     except (TypeError, ValueError):
-        raise ConfigError(f"{path}: '{key}' must be a list of {shape[0]} points of {shape[1]} numbers") from None
-    if arr.shape != shape:
-        raise ConfigError(f"{path}: '{key}' must have {shape[0]} points of {shape[1]} coordinates, got shape "
+        raise ConfigError(f"{path}: '{key}' must be a list of {points} points of {dim} numbers") from None
+    n = arr.shape[0] if arr.ndim == 2 else -1
+    if arr.ndim != 2 or arr.shape[1] != dim or not (n == count if count is not None else lo <= n <= hi):
+        raise ConfigError(f"{path}: '{key}' must have {points} points of {dim} coordinates, got shape "
                           f"{'x'.join(str(s) for s in arr.shape) or 'scalar'}")
     if not np.all(np.isfinite(arr)):
         raise ConfigError(f"{path}: '{key}' has a non-finite coordinate")
     return arr
+
+
+def _check_shared_joints(base: np.ndarray, platform: np.ndarray, path: str) -> None:
+    """A hexapod's joints may coincide (two legs sharing a joint: the 6-3, 3-6 and 3-3 designs),
+    as long as the pose stays determined: three distinct joints off one line on either side (the
+    platform's give the solver variables, :func:`~glpma_ros.models.hexapod_66.frame_joints`), and
+    at least six distinct legs (two legs joining the same two joints measure the same length)."""
+    for key, arr in (("base", base), ("platform", platform)):
+        if float(np.ptp(arr, axis=0).max()) <= 0.0:
+            raise ConfigError(f"{path}: all '{key}' joints coincide")
+        if frame_joints(arr) is None:
+            raise ConfigError(f"{path}: the '{key}' joints leave the pose undetermined (fewer than three "
+                              f"distinct joints, or all on one line)")
+    size = max(float(np.ptp(base, axis=0).max()), float(np.ptp(platform, axis=0).max()))
+    distinct = []
+    for i in range(len(base)):
+        same = next((j for j in distinct if np.linalg.norm(base[i] - base[j]) <= COINCIDENT_RELATIVE * size
+                     and np.linalg.norm(platform[i] - platform[j]) <= COINCIDENT_RELATIVE * size), None)
+        if same is None:
+            distinct.append(i)
+        elif len(base) == LEG_COUNT["hexapod_66"][0]:
+            raise ConfigError(f"{path}: legs {same + 1} and {i + 1} join the same two joints (the pose is "
+                              f"undetermined with six legs)")
 
 
 def _check_joints(arr: np.ndarray, key: str, path: str, need_triangle: bool) -> None:
@@ -67,7 +102,7 @@ def _check_joints(arr: np.ndarray, key: str, path: str, need_triangle: bool) -> 
     size = float(np.ptp(arr, axis=0).max())
     if size <= 0.0:
         raise ConfigError(f"{path}: all '{key}' joints coincide")
-    tol = 1e-9 * size
+    tol = COINCIDENT_RELATIVE * size
     for i in range(len(arr)):
         for j in range(i + 1, len(arr)):
             if np.linalg.norm(arr[i] - arr[j]) <= tol:
@@ -78,7 +113,7 @@ def _check_joints(arr: np.ndarray, key: str, path: str, need_triangle: bool) -> 
             area = abs(e1[0] * e2[1] - e1[1] * e2[0])
         else:
             area = float(np.linalg.norm(np.cross(e1, e2)))
-        if area <= 1e-9 * size * size:
+        if area <= COINCIDENT_RELATIVE * size * size:
             raise ConfigError(f"{path}: '{key}' joints 1, 2 and 3 are collinear")
 
 
@@ -106,11 +141,13 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
     unit = doc["unit"]
     if unit not in UNIT_TO_METRES:
         raise ConfigError(f"{path}: 'unit' must be one of {', '.join(UNIT_TO_METRES)}, got {unit!r}")
-    shape = JOINT_DIMENSION[kind]
-    base = _matrix(doc, "base", shape, path)
-    platform = _matrix(doc, "platform", shape, path)
-    _check_joints(base, "base", path, need_triangle=False)
-    _check_joints(platform, "platform", path, need_triangle=True)
+    base = _matrix(doc, "base", kind, path)
+    platform = _matrix(doc, "platform", kind, path, count=base.shape[0])
+    if kind == "hexapod_66":
+        _check_shared_joints(base, platform, path)
+    else:
+        _check_joints(base, "base", path, need_triangle=False)
+        _check_joints(platform, "platform", path, need_triangle=True)
     limits = doc.get("leg_limits")
     if limits is not None:
         try:

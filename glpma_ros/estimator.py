@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import solvers
+from . import redundancy, solvers
 from .config import UNIT_TO_METRES
 from .errors import InputError
 from .models.base import Pose
@@ -104,6 +104,11 @@ STATUS_NO_SOLUTION = "no_solution"
 STATUS_BUDGET = "budget_exhausted"
 STATUS_NEAR_SINGULAR = "near_singular"
 STATUS_MAX_EVALS = "max_evals"
+#: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.redundancy`)
+STATUS_INCONSISTENT = "inconsistent_legs"
+#: standard deviation of the leg measurements (m) when none is given: the node's ``leg_noise_std``
+#: default (a good linear encoder or string pot)
+DEFAULT_LEG_NOISE_M = 1e-5
 
 
 @dataclass
@@ -119,10 +124,20 @@ class Estimate:
     solver: str
     message: str = ""
     max_residual: float = math.nan   # max |IK(x) - legs| over the legs (config unit)
+    # redundant legs (glpma_ros.redundancy); legs are numbered from 0 here
+    consistency: float = math.nan    # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
+    consistency_limit: float = math.nan   # its limit (inconsistent above)
+    suspect_leg: int | None = None   # inconsistent_legs: the leg most likely at fault
+    excluded_leg: int | None = None  # the leg left out of the pose (the pose is then from the others)
 
     @property
     def converged(self) -> bool:
         return self.status == STATUS_CONVERGED
+
+    @property
+    def publishable(self) -> bool:
+        """A pose to publish: converged, or inconsistent legs with the faulty one left out."""
+        return self.pose is not None and (self.converged or self.excluded_leg is not None)
 
     @property
     def near_singular(self) -> bool:
@@ -147,12 +162,28 @@ class Estimator:
     refinement, a pose has converged when its largest leg residual is at most ``leg_rtol`` times
     ``max(scale, max leg)`` (see the module docstring); ``init_range``: ``(low, high)`` of the cold
     stage's uniform initial population for every variable (config unit, radians), the papers'
-    protocol; default the papers' per-manipulator range (:func:`cold_range`)."""
+    protocol; default the papers' per-manipulator range (:func:`cold_range`).
+
+    Redundant legs (more than the degrees of freedom): the pose is the least-squares one, converged
+    when its residuals pass the chi-square test against ``leg_noise_std`` (config unit; default
+    :data:`DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is ``inconsistent_legs``
+    with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other legs determine
+    the pose consistently, the pose without it (:mod:`glpma_ros.redundancy`)."""
 
     def __init__(self, model, solver="glpma", time_budget_s=0.002, tolerance=solvers.common.DEFAULT_TOLERANCE,
                  seed=0, polish=True, initial_pose=None, population=None, local_population=None,
-                 ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL, init_range=None):
+                 ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL, init_range=None,
+                 leg_noise_std=None, exclude_faulty_leg=True):
         self.model = model
+        mpu = getattr(model, "metres_per_unit", UNIT_TO_METRES.get(model.unit, 1.0))
+        self.leg_noise_std = float(DEFAULT_LEG_NOISE_M / mpu if leg_noise_std is None else leg_noise_std)
+        if not (math.isfinite(self.leg_noise_std) and self.leg_noise_std > 0.0):
+            raise InputError(f"leg_noise_std must be positive, got {leg_noise_std!r}")
+        self.exclude_faulty_leg = bool(exclude_faulty_leg)
+        self._isolator = redundancy.FaultIsolator(model) if model.redundancy > 0 else None
+        self.consistency_limit = redundancy.chi2_limit(model.redundancy)
+        #: the largest sum of squared leg residuals (config unit squared) of a consistent pose
+        self._consistent_fitness = self.consistency_limit * self.leg_noise_std ** 2 if model.redundancy else math.inf
         self.time_budget_s = float(time_budget_s)
         self.tolerance = float(tolerance)
         self.leg_rtol = float(leg_rtol)
@@ -183,6 +214,8 @@ class Estimator:
     def reset(self, initial_pose=None):
         """Forget the warm-start state; ``initial_pose`` (solver variables) selects
         the assembly mode to start from."""
+        self.prev_x = None                  # the estimate before last_x (redundant legs: the prediction)
+        self.excluded = None                # the leg left out of the last pose (redundant legs)
         if initial_pose is None or len(initial_pose) == 0:
             self.last_x = self.last_legs = None
         else:
@@ -214,8 +247,8 @@ class Estimator:
             self._warm_key = (model.leg_limits, self.leg_rtol)
         solver = self._lm
         out = np.empty(solver.n_out)
-        lm.lm_kernel(solver.kind, solver.data, solver.platform, arr, self.last_x, self.last_x, self.last_legs,
-                     settings, out, solver.work)
+        lm.lm_kernel(solver.kind, solver.data, solver.platform, solver.frame, arr, self.last_x, self.last_x,
+                     self.last_legs, settings, out, solver.work)
         n = self._n
         info = out[n + 7:].tolist()
         if info[lm.I_INPUT_OK] == 0.0:
@@ -223,13 +256,74 @@ class Estimator:
         if info[lm.I_CONVERGED] == 1.0 and \
                 info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
             x = out[:n]
-            self.last_x, self.last_legs = x, arr
             cond = info[lm.I_CONDITIONING]
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
-            return Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]),
-                            info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
-                            self.solver, "warm start, leg residuals at round-off" + note, info[lm.I_MAX_RESIDUAL])
+            how = "leg residuals at round-off" if self._isolator is None else "least-squares pose"
+            return self._accept(Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]),
+                                         info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
+                                         self.solver, f"warm start, {how}{note}", info[lm.I_MAX_RESIDUAL]),
+                                arr, info[lm.I_LEG_FITNESS], t0)
         return self._search(arr, t0, solver.result(out))
+
+    # -- redundant legs ---------------------------------------------------------------
+    def _consistent(self, point) -> bool:
+        """A converged point passes the consistency test (always without redundant legs)."""
+        return point.leg_fitness <= self._consistent_fitness
+
+    def _advance(self, x, legs):
+        """``x`` (for ``legs``) becomes the warm start of the next input."""
+        self.prev_x, self.last_x, self.last_legs = self.last_x, x, legs
+
+    def _accept(self, e: Estimate, legs, leg_fitness: float, t0: float) -> Estimate:
+        """A converged estimate: the next warm start; with redundant legs, after the consistency test
+        (:mod:`glpma_ros.redundancy`), which may turn it into ``inconsistent_legs``."""
+        if self._isolator is None:
+            self._advance(e.x, legs)
+            return e
+        T = leg_fitness / self.leg_noise_std ** 2
+        e.consistency, e.consistency_limit = T, self.consistency_limit
+        if T <= self.consistency_limit:
+            self.excluded = None
+            self._advance(e.x, legs)
+            e.message += f", legs consistent (chi-square {T:.3g} <= {self.consistency_limit:.3g})"
+            return e
+        return self._inconsistent(e, legs, t0)
+
+    def _inconsistent(self, e: Estimate, legs, t0: float) -> Estimate:
+        """The least-squares pose failed the consistency test: name the leg most likely at fault and,
+        when the other legs determine the pose consistently, give that pose (left-out leg named)."""
+        model = self.model
+        predicted, near = None, math.inf
+        if self.last_x is not None:
+            predicted = self.last_x if self.prev_x is None else 2.0 * self.last_x - self.prev_x
+            near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
+        iso = self._isolator.isolate(legs, self.last_x, self.leg_noise_std, predicted, near, first=self.excluded,
+                                     starts=self._probe_starts)
+        e.status, e.suspect_leg = STATUS_INCONSISTENT, iso.leg
+        e.evaluations += iso.evaluations
+        head = f"legs inconsistent (chi-square {e.consistency:.3g} > {e.consistency_limit:.3g})"
+        x_ls = e.x
+        e.pose = None
+        if iso.leg is None:
+            e.message = f"{head}; {iso.reason}"
+        elif not iso.isolated:
+            e.message = f"{head}; leg {iso.leg + 1} most likely at fault ({iso.reason})"
+        else:
+            r = iso.result
+            self.excluded = iso.leg
+            self._advance(r.x, legs)
+            if self.exclude_faulty_leg:
+                e.x, e.pose, e.excluded_leg = r.x, Pose(r.position, r.orientation), iso.leg
+                e.conditioning, e.max_residual = r.conditioning, r.max_residual
+                e.fitness = float(model.fitness(r.x, legs)[0])
+                e.message = (f"{head}; leg {iso.leg + 1} most likely at fault, left out: pose from the other "
+                             f"{model.n_legs - 1} legs")
+            else:
+                e.message = f"{head}; leg {iso.leg + 1} most likely at fault (exclude_faulty_leg off: no pose)"
+        if e.pose is None:
+            e.x = x_ls
+        e.elapsed_s = time.perf_counter() - t0
+        return e
 
     def _run(self, legs, deadline, **init):
         budget = max(deadline - time.perf_counter(), 0.0)
@@ -267,6 +361,7 @@ class Estimator:
         model = self.model
         deadline = t0 + self.time_budget_s
         candidates = []           # (distance to previous, point, stage)
+        inconsistent = []         # redundant legs: least-squares poses that failed the consistency test
         tried = []                # (status point, stage)
         evaluations = 0
         out_of_time = False
@@ -277,7 +372,7 @@ class Estimator:
             evaluations += warm.nfev
             tried.append((warm, "warm"))
             if warm.converged:    # but far from the previous pose: look for a nearer branch
-                candidates.append((warm.distance, warm, "warm"))
+                (candidates if self._consistent(warm) else inconsistent).append((warm.distance, warm, "warm"))
         if self.last_x is not None:
             movement = float(np.max(np.abs(legs - self.last_legs)))
             near = max(CONTINUITY_FACTOR * movement, near)
@@ -299,7 +394,9 @@ class Estimator:
             evaluations += result.nfev + nfev
             out_of_time = out_of_time or result.status == solvers.BUDGET_EXHAUSTED
             tried.append((status_point, stage))
-            if point.converged:
+            if point.converged and not self._consistent(point):
+                inconsistent.append((point.distance, point, stage))
+            elif point.converged:
                 candidates.append((point.distance, point, stage))
                 if self.last_x is None or point.distance <= near:
                     break
@@ -307,19 +404,23 @@ class Estimator:
         if not candidates:
             # the probe: the same fixed work on every machine, whatever fitted in the budget
             probe = self._lm.multistart(self._probe_starts, legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol,
-                                        x_ref=self.last_x, stall=STALLED)
+                                        x_ref=self.last_x, stall=STALLED, ftol=self._consistent_fitness)
             evaluations += probe.nfev
             tried.append((probe, "cold"))
             if probe.converged and self.polish:
                 candidates.append((probe.distance, probe, "cold"))
         elapsed = time.perf_counter() - t0
+        if not candidates and inconsistent:     # no pose explains the legs: which one is at fault
+            candidates = inconsistent if self.last_x is not None else \
+                [min(inconsistent, key=lambda c: c[1].leg_fitness)]
         if candidates:
             _, p, stage = min(candidates, key=lambda c: c[0])
-            self.last_x, self.last_legs = p.x, legs
             note = f", near a singularity (conditioning {p.conditioning:.2g})" if p.conditioning < NEAR_SINGULAR else ""
-            how = "leg residuals at round-off" if self.polish else "fitness below tolerance"
-            return Estimate(STATUS_CONVERGED, stage, p.x, Pose(p.position, p.orientation), p.fitness, evaluations,
-                            elapsed, p.conditioning, self.solver, f"{stage} start, {how}{note}", p.max_residual)
+            how = "fitness below tolerance" if not self.polish else \
+                "leg residuals at round-off" if self._isolator is None else "least-squares pose"
+            return self._accept(Estimate(STATUS_CONVERGED, stage, p.x, Pose(p.position, p.orientation), p.fitness,
+                                         evaluations, elapsed, p.conditioning, self.solver,
+                                         f"{stage} start, {how}{note}", p.max_residual), legs, p.leg_fitness, t0)
         p, stage = min(tried, key=lambda t: t[0].leg_fitness)
         rms = math.sqrt(p.leg_fitness / model.n_legs)
         cond = p.conditioning

@@ -56,6 +56,14 @@ What is certified and what is not
   within ``POLISH_SHIFT_RELATIVE`` of the box centre), and solutions on the chart's hyperplane
   ``CHART . e = 0`` (a measure-zero set of rotations) are not seen.
 
+Coincident joints (a hexapod whose legs share joints: 6-3, 3-6, 3-3) have the same sphere conditions,
+with equal ``a_i`` or ``b_i``, but their system has a positive-dimensional component of complex points
+with ``D = e.e = 0`` (not poses).  For them the points with ``D = 0`` are excluded explicitly, with one more
+variable ``w`` and the equation ``w D = 1`` (the Rabinowitsch trick); what remains is finite, and its count
+of complex solutions is what msolve finds (fewer than 40; 16 for the 6-3 and 3-3 of Husty's and Faugere &
+Lazard's counts).  Redundant legs (more than the degrees of freedom) are refused: their rounded lengths fit
+no pose exactly.
+
 Degenerate geometry (e.g. a 3-RPR with congruent base and platform and equal legs, which
 translates on a circle; architecture-singular hexapods) makes the system positive-dimensional:
 refused with
@@ -211,6 +219,7 @@ def _qdot(p, q):
 # -- formulations ---------------------------------------------------------------------------------
 PLANAR_NAMES = ("x", "y", "c", "s")
 HEXAPOD_NAMES = ("e0", "e1", "e2", "e3", "f0", "f1", "f2", "f3")
+HEXAPOD_NAMES_EXCLUDING_NULL = HEXAPOD_NAMES + ("w",)
 
 
 def planar_system(model, legs) -> list:
@@ -227,12 +236,18 @@ def planar_system(model, legs) -> list:
     return polys
 
 
-def hexapod_system(model, legs) -> list:
+def has_coincident_joints(model) -> bool:
+    """Two legs share a base or a platform joint (exactly: the rational system sees equal points)."""
+    return any(len({tuple(p) for p in pts.tolist()}) < len(pts) for pts in (model.base, model.platform))
+
+
+def hexapod_system(model, legs, exclude_null=False) -> list:
     """The hexapod's eight polynomials in the Study parameters ``e0..e3, f0..f3`` of the pose
     between the frames moved to ``A_1`` (base) and ``B_1`` (platform): ``a_1 = b_1 = 0`` drops
     terms and shortens the coefficients (msolve runs about twice as fast); :func:`hexapod_pose`
-    moves the solution back."""
-    n = len(HEXAPOD_NAMES)
+    moves the solution back.  ``exclude_null``: a ninth variable ``w`` and ``w D - 1`` (variables
+    :data:`HEXAPOD_NAMES_EXCLUDING_NULL`)."""
+    n = len(HEXAPOD_NAMES) + (1 if exclude_null else 0)
     v = [Poly.var(n, i) for i in range(n)]
     e, f = tuple(v[0:4]), tuple(v[4:8])
     ec = _qconj(e)
@@ -252,6 +267,8 @@ def hexapod_system(model, legs) -> list:
                      - 2 * _qdot(a, ebe) - 4 * _qdot(a, f_ec))
     polys.append(_qdot(e, f))                                     # Study's quadric
     polys.append(sum(k * t for k, t in zip(CHART, e)) - 1)        # affine chart
+    if exclude_null:
+        polys.append(v[8] * D - 1)                                # D != 0
     return polys
 
 
@@ -381,11 +398,16 @@ def solve_exact(model, legs) -> ExactSolutions:
     """Real solutions (unpolished solver variables) and the complex count of ``model`` at ``legs``."""
     t0 = time.perf_counter()
     legs = model.check_legs(legs)
+    if model.redundancy:
+        raise GlpmaError(f"the exact mode needs as many legs as degrees of freedom ({model.n_pose}); this config "
+                         f"has {model.n_legs} (redundant legs: their rounded lengths fit no pose exactly)")
     if model.kind == "planar_3rpr":
         roots, degree, distinct = run_msolve(PLANAR_NAMES, planar_system(model, legs))
         xs = [planar_variables(r) for r in roots]
     elif model.kind == "hexapod_66":
-        roots, degree, distinct = run_msolve(HEXAPOD_NAMES, hexapod_system(model, legs))
+        null = has_coincident_joints(model)
+        roots, degree, distinct = run_msolve(HEXAPOD_NAMES_EXCLUDING_NULL if null else HEXAPOD_NAMES,
+                                             hexapod_system(model, legs, exclude_null=null))
         xs = []
         for r in roots:
             q, p = hexapod_pose(model, r)

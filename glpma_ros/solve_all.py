@@ -220,13 +220,14 @@ class StartSampler:
         R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
         R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
         R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
-        # platform joints B_k = P + R (b_k - c) for the model's three variable joints
-        return (P[:, None, :] + np.einsum("mij,kj->mki", R, self.model.platform[:3] - self.centroid)).reshape(m, -1)
+        # platform joints B_k = P + R (b_k - c) for the model's three frame joints (the variables)
+        return (P[:, None, :] + np.einsum("mij,kj->mki", R, self.model.frame - self.centroid)).reshape(m, -1)
 
 
 def _signature(model, x) -> np.ndarray:
-    """The points ``model.distance`` compares (3-RPR: its three joints; hexapod: B1, B2, B3)."""
-    return np.asarray(model.joints(x)[:3], dtype=float)
+    """The points ``model.distance`` compares (3-RPR: its first three joints; hexapod: the frame
+    joints, its variables)."""
+    return np.asarray(model.joints(x)[list(model.frame_joints)], dtype=float)
 
 
 def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> AllSolutions:
@@ -273,7 +274,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> 
     found = []
     for x, h in zip(modes, hits):
         t1 = time.perf_counter()
-        xp, fp, nfev = refine.polish(model, x, legs, polish_rng)
+        xp, fp, nfev, _ = refine.polish(model, x, legs, polish_rng)
         evaluations += nfev
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "multistart",
                                  polished=True))
@@ -297,7 +298,7 @@ def exact_modes(model, legs, *, seed=0) -> AllSolutions:
     found, evaluations = [], 0
     for x in sol.variables:
         t1 = time.perf_counter()
-        xp, fp, nfev = refine.polish(model, x, legs, rng)
+        xp, fp, nfev, _ = refine.polish(model, x, legs, rng)
         evaluations += nfev
         if model.distance(xp, x) > exact.POLISH_SHIFT_RELATIVE * model.scale:
             raise GlpmaError(f"polishing a certified solution moved it by {model.distance(xp, x):.3g} "

@@ -38,6 +38,13 @@ PROGRESS_EVERY = 500
 STATUS_CACHE_SIZE = 1024
 
 
+def _leg_values(est, service) -> tuple:
+    """Redundant legs: the leg most likely at fault and the one left out of the pose, by joint name."""
+    names = service.joint_names
+    legs = (("suspect_leg", est.suspect_leg), ("excluded_leg", est.excluded_leg))
+    return tuple((key, names[leg]) for key, leg in legs if leg is not None)
+
+
 @dataclass
 class Summary:
     """What a run did."""
@@ -333,14 +340,18 @@ class BagRun:
                 write(pose_conn, t_log, pose_codec.encode(p.stamp_ns, values))
                 if tf_conn is not None:
                     write(tf_conn, t_log, tf_codec_.encode(p.stamp_ns, values))
-                status = (("status", STATUS_CONVERGED), ("start", est.start))
+                status = (("status", est.status), ("start", est.start)) + _leg_values(est, service)
                 if watch(est.x, service.estimator.last_legs):
                     summary.mode_changes += 1
                     status += (("assembly_mode_change", "true"),)
-                write(status_conn, t_log, self._status(OK, STATUS_CONVERGED, status))
+                if est.converged:
+                    write(status_conn, t_log, self._status(OK, STATUS_CONVERGED, status))
+                else:       # inconsistent legs, the faulty one left out of the pose
+                    write(status_conn, t_log, self._status(WARN, est.message, status))
             elif est is not None:
-                write(status_conn, t_log, self._status(WARN, outcome.reason,
-                                                       (("status", est.status), ("start", est.start))))
+                write(status_conn, t_log, self._status(WARN, outcome.reason, (("status", est.status),
+                                                                              ("start", est.start))
+                                                       + _leg_values(est, service)))
             else:
                 key = STATUS_INTERNAL if outcome.reason.startswith("internal error") else STATUS_INVALID
                 write(status_conn, t_log, self._status(ERROR, outcome.reason, (("status", key),)))

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from glpma_ros.cli import OneLineParser
 from glpma_ros.config import config_dir
+from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import SOLVER_CHOICES
 from glpma_tools import mock_controller
 from glpma_tools.sim.domains import claim_domain
@@ -28,13 +29,37 @@ MANIPULATORS = {
     "3rpr": {"config": "planar_3rpr_seed", "params": "params_3rpr.yaml", "rate": 200.0},
     "hexapod": {"config": "hexapod_66_rolland", "params": "params_hexapod.yaml", "rate": 100.0},
 }
+#: a manipulator config given by path (or shipped name) runs with the params file of its kind
+KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod"}
+
+
+def manipulator_spec(name: str) -> tuple[str, dict]:
+    """``(label, spec)`` of ``--manipulator``: a shipped pair (3rpr, hexapod) or a manipulator config
+    (a path or a shipped config's name), driven with its kind's params file and ``manipulator_config``
+    set to it; :class:`~glpma_ros.errors.ConfigError` for an unreadable or invalid config."""
+    if name in MANIPULATORS:
+        return name, MANIPULATORS[name]
+    from glpma_ros.config import load_document, model_from_dict, resolve_config
+    from glpma_ros.models.rotations import quaternion_from_matrix
+    from glpma_tools.sim.trajectories import start_pose
+    path = resolve_config(name)
+    doc = load_document(path)
+    model = model_from_dict(doc, str(path))
+    p0, R0 = start_pose(model, doc)       # where the mock controller starts: the node starts warm there
+    x0 = model.variables_from_pose(p0, quaternion_from_matrix(R0))
+    spec = dict(MANIPULATORS[KIND_SPEC[model.kind]], config=str(path.resolve()))
+    spec["extra_args"] = ["-p", f"manipulator_config:={path.resolve()}", "-p", "joint_names:=[]",
+                          "-p", "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]"]
+    return path.stem, spec
 
 
 def _parser() -> OneLineParser:
     what = __doc__.split("\n\n")[0].split(": ", 1)[1]
     p = OneLineParser(prog="glpma-fk demo", description=what[0].upper() + what[1:])
-    p.add_argument("--manipulator", choices=sorted(MANIPULATORS), default="3rpr",
-                   help="which shipped manipulator to drive (default 3rpr)")
+    p.add_argument("--manipulator", default="3rpr",
+                   help="which manipulator to drive: 3rpr (default) or hexapod (the shipped seed 3-RPR and "
+                        "Rolland's 6-6), or a manipulator config (a path, or a shipped config's name such as "
+                        "hexapod_7legs)")
     p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod 100)")
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, default="glpma", help="the node's solver parameter")
@@ -106,18 +131,23 @@ def main(argv=None) -> int:
     if args.duration <= 0 or (args.rate is not None and args.rate <= 0):
         print("error: glpma-fk demo: --rate and --duration must be positive", file=sys.stderr)
         return 2
-    spec = MANIPULATORS[args.manipulator]
+    try:
+        label, spec = manipulator_spec(args.manipulator)
+    except GlpmaError as exc:
+        print(f"error: glpma-fk demo: --manipulator: {exc}", file=sys.stderr)
+        return 2
     rate = args.rate or spec["rate"]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     claim = None if args.domain_id is not None else claim_domain()     # held until the demo exits
     domain = args.domain_id if claim is None else claim.domain_id
-    ros_args = ["--params-file", str(config_dir() / spec["params"]), "-p", f"solver:={args.solver}"]
+    ros_args = ["--params-file", str(config_dir() / spec["params"]), "-p", f"solver:={args.solver}",
+                *spec.get("extra_args", ())]
     if args.budget_ms is not None:
         ros_args += ["-p", f"time_budget_ms:={args.budget_ms}"]
     node = NodeProcess(ros_args, node_environment(domain), out)
 
-    print(f"glpma_ros demo: {args.manipulator}, solver {args.solver}, {rate:g} Hz for {args.duration:g} s, "
+    print(f"glpma_ros demo: {label}, solver {args.solver}, {rate:g} Hz for {args.duration:g} s, "
           f"ROS_DOMAIN_ID={domain}")
     print("starting the glpma_fk node (Cyclone DDS; the first run compiles the solvers) ...", flush=True)
     try:
@@ -149,10 +179,10 @@ def main(argv=None) -> int:
         lines.insert(0, f"FAILED: the node died during the run (see {node.stderr})")
     summary["node_alive"] = alive
     summary["ok"] = ok
-    figure = out / f"demo_{args.manipulator}.png"
+    figure = out / f"demo_{label}.png"
     _figure(summary, figure)
     summary.pop("samples")
-    (out / f"demo_{args.manipulator}.json").write_text(json.dumps(summary, indent=1))
+    (out / f"demo_{label}.json").write_text(json.dumps(summary, indent=1))
     print("\nsummary")
     print(_table(summary, alive))
     print("\n" + "\n".join(lines))

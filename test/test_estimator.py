@@ -36,7 +36,7 @@ def test_rpr_tracking_1000_steps_stays_on_branch(rpr, rpr_solutions):
 
 
 def test_hexapod_tracking_1000_steps_stays_on_branch(hexapod, hex_published):
-    x0, _, _ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
+    x0, *_ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
     truth = variables_along(hexapod, x0, 1000)
     est = Estimator(hexapod, initial_pose=x0, time_budget_s=BUDGET_S)
     _track(hexapod, est, truth)

@@ -61,7 +61,7 @@ def test_rpr_singular_pose(rpr, rpr_solutions):
 
 
 def test_hexapod_singular_pose(hexapod, hex_published):
-    x0, _, _ = polish(hexapod, hex_published[10], hexapod.example_leg_lengths, np.random.default_rng(0))
+    x0, *_ = polish(hexapod, hex_published[10], hexapod.example_leg_lengths, np.random.default_rng(0))
     pose = hexapod.pose(x0)
     R0 = matrix_from_quaternion(pose.orientation)
 

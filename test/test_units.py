@@ -58,7 +58,7 @@ def test_warm_tracking_is_the_same_in_mm_cm_and_m(kind, rpr, rpr_solutions, hexa
     if kind == "rpr":
         truth_mm = variables_along(rpr, rpr_solutions[0], 100)
     else:
-        x0, _, _ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
+        x0, *_ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
         truth_mm = variables_along(hexapod, x0, 100)
     runs = {}
     for unit, f in PER_MM.items():

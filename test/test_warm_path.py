@@ -34,7 +34,7 @@ def _steps(model, truth):
 
 @pytest.fixture(scope="module")
 def hex_start(hexapod, hex_published):
-    x, f, _ = refine.polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
+    x, f, *_ = refine.polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
     return x
 
 
@@ -137,7 +137,7 @@ def test_refine_uses_the_compiled_lm(rpr, rpr_solutions, hexapod, hex_published)
     np.testing.assert_array_equal(x, r.x)
     assert (f, nfev, nit) == (r.leg_fitness, r.nfev, r.nit) and f < 1e-20
     for k in (0, 7, 10):
-        x, f, _ = refine.polish(hexapod, hex_published[k], hexapod.example_leg_lengths, np.random.default_rng(0))
+        x, f, *_ = refine.polish(hexapod, hex_published[k], hexapod.example_leg_lengths, np.random.default_rng(0))
         assert f < 1e-20
         assert np.max(np.abs(hexapod.inverse_kinematics(x) - 1250.0)) <= 1e-12 * hexapod.scale
 

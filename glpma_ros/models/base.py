@@ -45,6 +45,8 @@ class Manipulator:
 
     kind: str = ""
     unit: str = "mm"
+    #: the legs the pose needs (the degrees of freedom); a model may have more (redundant legs)
+    min_legs: int = 0
     n_legs: int = 0
     n_vars: int = 0
     n_res: int = 0
@@ -61,13 +63,25 @@ class Manipulator:
     scale: float = 1.0  # characteristic length of the geometry (config unit)
     pose_column_scale: np.ndarray  # makes the pose Jacobian's columns commensurate
     data: tuple = ()
+    #: the platform joints (indices) whose base-frame positions the solver variables and the
+    #: platform-joint distance are about; ``frame`` = their platform-frame coordinates
+    frame_joints: tuple = (0, 1, 2)
 
     def __init__(self, base, platform, unit="mm", leg_limits=None):
         self.base = np.ascontiguousarray(base, dtype=float)
         self.platform = np.ascontiguousarray(platform, dtype=float)
+        if self.base.shape != self.platform.shape or self.base.shape[0] < self.min_legs:
+            raise ValueError(f"{self.kind} needs as many base as platform joints, at least {self.min_legs}")
+        self.n_legs = int(self.base.shape[0])
+        self.frame = np.ascontiguousarray(self.platform[list(self.frame_joints)])
         self.unit = unit
         self.leg_limits = leg_limits
         self.scale = float(max(np.ptp(self.base, axis=0).max(), np.ptp(self.platform, axis=0).max()))
+
+    @property
+    def redundancy(self) -> int:
+        """Legs beyond the degrees of freedom (0: exactly determined)."""
+        return self.n_legs - self.n_pose
 
     # -- evaluation --------------------------------------------------------
     kind_id: int = -1   # selects the compiled residual kernel (models.kernels)

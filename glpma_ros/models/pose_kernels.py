@@ -6,8 +6,9 @@ hexapod the platform origin ``p`` (3) and the rotation ``R`` (9, row-major).  He
 ``r_i = |B_i(pose) - A_i| - l_i`` and their analytic Jacobian ``J_i = (u_i, (R CB_i) x u_i)`` (Chandra &
 Rolland 2014, Eq. 6-7, for 3-RPR); the retraction of a step (3-RPR: added; hexapod: ``p + dp``,
 ``exp([w]x) R`` by Rodrigues' formula); rotation matrix <-> unit quaternion; the least-squares rigid fit of
-CB_1..CB_3 onto the hexapod's nine solver variables (Kabsch 1976); the platform-joint distance of two
-solver-variable vectors."""
+the frame joints CB_F1..CB_F3 (``Manipulator.frame``) onto the hexapod's nine solver variables (Kabsch 1976);
+the platform-joint distance of two solver-variable vectors.  Every leg counts (``base.shape[0]`` of them:
+redundant legs included)."""
 from __future__ import annotations
 
 import math
@@ -27,7 +28,7 @@ STATE_SIZE = 12
 def _rpr_residuals_jacobian(state, base, platform, legs, r, J):
     c = math.cos(state[2])
     s = math.sin(state[2])
-    for i in range(3):
+    for i in range(base.shape[0]):
         rx = c * platform[i, 0] - s * platform[i, 1]        # R(theta) CB_i
         ry = s * platform[i, 0] + c * platform[i, 1]
         ex = state[0] + rx - base[i, 0]
@@ -43,7 +44,7 @@ def _rpr_residuals_jacobian(state, base, platform, legs, r, J):
 
 @njit(cache=True, error_model="numpy")
 def _hex_residuals_jacobian(state, base, platform, legs, r, J):
-    for j in range(6):
+    for j in range(base.shape[0]):
         cx, cy, cz = platform[j, 0], platform[j, 1], platform[j, 2]
         wx = state[3] * cx + state[4] * cy + state[5] * cz   # w = R CB_j
         wy = state[6] * cx + state[7] * cy + state[8] * cz
@@ -164,8 +165,8 @@ def rows_from_quaternion(q, R):
 
 @njit(cache=True, error_model="numpy")
 def kabsch_state(platform, x, state, H, V, s):
-    """``state`` = (p, R) of the rigid motion that best maps CB_1..CB_3 onto the solver variables
-    B_1..B_3 (Kabsch 1976): H = sum (CB_k - cs)(B_k - cd)^T = U S V^T, R = V diag(1, 1, d) U^T.
+    """``state`` = (p, R) of the rigid motion that best maps the frame joints ``platform`` (3 rows:
+    the model's ``frame``) onto the solver variables (Kabsch 1976): H = sum (CB_k - cs)(B_k - cd)^T = U S V^T, R = V diag(1, 1, d) U^T.
     Three points span a plane, so the third singular pair is replaced by the cross products of the
     first two (which makes det R = +1, Kabsch's d).  False when B_1..B_3 are collinear."""
     cs0 = (platform[0, 0] + platform[1, 0] + platform[2, 0]) / 3.0
@@ -212,8 +213,8 @@ def kabsch_state(platform, x, state, H, V, s):
 
 @njit(cache=True, error_model="numpy")
 def joint_distance(kind, platform, x1, x2):
-    """Largest distance between corresponding platform joints (3-RPR: all three; hexapod: B_1..B_3,
-    the variables), like ``Manipulator.distance``."""
+    """Largest distance between corresponding platform joints (3-RPR: the first three rows of
+    ``platform``; hexapod: the frame joints, the variables), like ``Manipulator.distance``."""
     d = 0.0
     if kind == KIND_PLANAR_3RPR:
         c1, s1 = math.cos(x1[2]), math.sin(x1[2])

@@ -76,7 +76,35 @@ def _joints(rng, half_width) -> np.ndarray:
 
 def random_hexapod(rng: np.random.Generator):
     """A random general 6-6 hexapod and the legs of a random pose above its base."""
-    model = Hexapod66(_joints(rng, HEXAPOD_BASE_HALF_WIDTH), _joints(rng, HEXAPOD_PLATFORM_HALF_WIDTH))
+    return _posed(rng, Hexapod66(_joints(rng, HEXAPOD_BASE_HALF_WIDTH), _joints(rng, HEXAPOD_PLATFORM_HALF_WIDTH)))
+
+
+#: which of three joints each leg of a 3-3 (octahedral) hexapod joins on the base and on the platform:
+#: every joint is shared by two legs, the legs are the lateral edges of an octahedron
+OCTAHEDRAL_BASE = (0, 1, 1, 2, 2, 0)
+OCTAHEDRAL_PLATFORM = (0, 0, 1, 1, 2, 2)
+#: a 6-3: legs 1-2, 3-4, 5-6 share a platform joint
+STEWART_PLATFORM = (0, 0, 1, 1, 2, 2)
+
+
+def random_hexapod_33(rng: np.random.Generator):
+    """A random 3-3 hexapod (three base and three platform joints, each shared by two legs, paired as an
+    octahedron) and the legs of a random pose above its base."""
+    base = _joints(rng, HEXAPOD_BASE_HALF_WIDTH)[:3]
+    platform = _joints(rng, HEXAPOD_PLATFORM_HALF_WIDTH)[:3]
+    return _posed(rng, Hexapod66(base[list(OCTAHEDRAL_BASE)], platform[list(OCTAHEDRAL_PLATFORM)]))
+
+
+def random_hexapod_63(rng: np.random.Generator):
+    """A random 6-3 hexapod (six base joints, three platform joints shared by two legs each) and the legs
+    of a random pose above its base."""
+    base = _joints(rng, HEXAPOD_BASE_HALF_WIDTH)
+    platform = _joints(rng, HEXAPOD_PLATFORM_HALF_WIDTH)[:3]
+    return _posed(rng, Hexapod66(base, platform[list(STEWART_PLATFORM)]))
+
+
+def _posed(rng, model):
+    """``(model, legs, pose)`` for a random pose above the base."""
     w = rng.uniform(-HEXAPOD_POSE_ANGLE, HEXAPOD_POSE_ANGLE, 3)
     angle = float(np.linalg.norm(w))
     axis = w / angle if angle > 0 else np.array([0.0, 0.0, 1.0])

@@ -21,7 +21,7 @@ def planar_3rpr_residuals(x, data, legs, out):
     base, platform = data[0], data[1]
     c = math.cos(x[2])
     s = math.sin(x[2])
-    for i in range(3):
+    for i in range(base.shape[0]):
         bx = x[0] + c * platform[i, 0] - s * platform[i, 1] - base[i, 0]
         by = x[1] + s * platform[i, 0] + c * platform[i, 1] - base[i, 1]
         out[i] = math.sqrt(bx * bx + by * by) - legs[i]
@@ -45,7 +45,8 @@ def hexapod_66_residuals(x, data, legs, out):
     u3x = u1y * u2z - u1z * u2y
     u3y = u1z * u2x - u1x * u2z
     u3z = u1x * u2y - u1y * u2x
-    for j in range(6):
+    n = base.shape[0]
+    for j in range(n):
         a, b, c = abc[j, 0], abc[j, 1], abc[j, 2]
         bx = x[0] + a * u1x + b * u2x + c * u3x - base[j, 0]
         by = x[1] + a * u1y + b * u2y + c * u3y - base[j, 1]
@@ -54,6 +55,6 @@ def hexapod_66_residuals(x, data, legs, out):
     e3x = x[6] - x[3]
     e3y = x[7] - x[4]
     e3z = x[8] - x[5]
-    out[6] = d0sq[0] - n1sq
-    out[7] = d0sq[1] - n2sq
-    out[8] = d0sq[2] - (e3x * e3x + e3y * e3y + e3z * e3z)
+    out[n] = d0sq[0] - n1sq
+    out[n + 1] = d0sq[1] - n2sq
+    out[n + 2] = d0sq[2] - (e3x * e3x + e3y * e3y + e3z * e3z)

@@ -103,6 +103,8 @@ class DiagnosticsMixin:
                 ("extra outputs dropped (backlog)", st.extras_dropped),
             ]
             values += modes
+            legs, leg_problems = self.leg_health.report(self.joint_names)
+            values += legs
             values += [(f"rejected: {reason}", n) for reason, n in st.reasons.most_common()]
             if st.last_reason:
                 values.append(("last rejection", st.last_reason))
@@ -121,6 +123,7 @@ class DiagnosticsMixin:
                 problems.append(f"pose at a singularity: covariance capped "
                                 f"({self.outputs.capped - st.capped_reported} times)")
             st.capped_reported = self.outputs.capped
+            problems += leg_problems
             if problems:
                 level, message = WARN, "; ".join(problems)
             elif st.handled + st.dropped == 0:

@@ -12,6 +12,7 @@ from typing import Any
 import yaml
 
 from ..errors import InputError
+from ..estimator import DEFAULT_LEG_NOISE_M
 from ..solvers import SOLVERS
 
 NODE_NAME = "glpma_fk"
@@ -86,9 +87,13 @@ PARAMETERS = (
     ParamSpec("publish_covariance", BOOL, True,
               "Publish pose_estimate_cov (geometry_msgs/PoseWithCovarianceStamped): the pose with the first-order "
               "covariance sigma^2 (J^T J)^-1 of leg-length noise leg_noise_std"),
-    ParamSpec("leg_noise_std", DOUBLE, 1e-5,
-              "Standard deviation of the leg-length measurements (metres) behind pose_estimate_cov",
+    ParamSpec("leg_noise_std", DOUBLE, DEFAULT_LEG_NOISE_M,
+              "Standard deviation of the leg-length measurements (metres) behind pose_estimate_cov and, with "
+              "redundant legs, the chi-square consistency test (inconsistent_legs)",
               range=(0.0, 1.0), min_exclusive=True),
+    ParamSpec("exclude_faulty_leg", BOOL, True,
+              "Redundant legs: when the legs are inconsistent (inconsistent_legs) and the others determine the "
+              "pose consistently, publish the pose without the leg most likely at fault (false: publish nothing)"),
     ParamSpec("publish_twist", BOOL, True,
               "Publish twist_estimate (geometry_msgs/TwistStamped, base frame): from the joint_states velocities "
               "(forward velocity kinematics) when present, else the finite difference of consecutive poses"),
@@ -100,7 +105,9 @@ PARAMETERS = (
               range=(0.0, 3600.0)),
     ParamSpec("initial_pose", DOUBLE_ARRAY, [],
               "Solver variables (config unit, radians) that select the assembly mode to start from; "
-              "3-RPR: x y theta, hexapod: x1 y1 z1 x2 y2 z2 x3 y3 z3; empty = cold start. "
+              "3-RPR: x y theta, hexapod: x1 y1 z1 x2 y2 z2 x3 y3 z3 (with coincident joints: of the first three "
+              "distinct platform joints off one line, e.g. x1 y1 z1 x3 y3 z3 x5 y5 z5 for a 6-3); empty = cold "
+              "start. "
               "Setting it at runtime restarts tracking from it"),
     ParamSpec("population", INTEGER, 0, "Population size (RCGA/G3-PCX; GLPMA master); 0 = the papers' setting",
               range=(0, 100000)),

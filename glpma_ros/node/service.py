@@ -3,9 +3,10 @@
 :class:`FkService` owns the :class:`~glpma_ros.estimator.Estimator` and does
 everything a transport should not have to know about: parameters and their
 runtime changes, unit conversion (metres on topics, the config's unit inside),
-input validation with a one-line reason, the publish decision (converged
-only), statistics (:mod:`.stats`), the diagnostics report (:mod:`.diagnostics`) and
-the assembly modes on request (:mod:`.assembly_modes`).  The threads both
+input validation with a one-line reason, the publish decision (converged,
+or -- redundant legs -- inconsistent with the faulty leg left out), statistics
+(:mod:`.stats`), the diagnostics report (:mod:`.diagnostics`, with the legs' health
+of :mod:`.leg_health`) and the assembly modes on request (:mod:`.assembly_modes`).  The threads both
 transports share are in :mod:`.loops`.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
@@ -39,6 +40,7 @@ from ..estimator import Estimator
 from ..precompile import COMPILED_S
 from .assembly_modes import AssemblyModesMixin
 from .diagnostics import DiagnosticsMixin
+from .leg_health import LegHealth
 from .outputs import OUTPUT_PARAMS, OutputBuilder
 from .stats import LogThrottle, Statistics
 
@@ -106,6 +108,7 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         self.stats = Statistics()
         self._check_joint_names(values["joint_names"])
         self._check_frames(values)
+        self.leg_health = LegHealth(self.model)
         self.outputs = OutputBuilder(self.model)
         self._throttle = LogThrottle()
         self._lock = threading.RLock()          # estimator, parameters, statistics
@@ -142,7 +145,9 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
                          tolerance=values["tolerance"], seed=values["seed"], polish=values["polish"],
                          initial_pose=warm_x, population=opt("population"),
                          local_population=opt("local_population"), ls_interval=opt("ls_interval"),
-                         ls_intensity=opt("ls_intensity"))
+                         ls_intensity=opt("ls_intensity"),
+                         leg_noise_std=values["leg_noise_std"] / self.metres_per_unit,
+                         exclude_faulty_leg=values["exclude_faulty_leg"])
 
     @property
     def deadline_s(self) -> float:
@@ -318,7 +323,8 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             st.starts[estimate.start] += 1
             st.solve_s.append(estimate.elapsed_s)
             st.evaluations.append(estimate.evaluations)
-            if not estimate.converged:
+            self.leg_health.note(estimate)
+            if not estimate.publishable:
                 return self._reject(f"{estimate.status}: {estimate.message}", estimate.status, estimate, arrival)
             st.conditioning.append(estimate.conditioning)
             st.residual_m.append(math.sqrt(estimate.fitness / self.model.n_res) * self.metres_per_unit)

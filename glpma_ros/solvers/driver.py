@@ -75,7 +75,11 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     A warm start's first individual is the previous estimate ``center``: with the
     refinement on it is polished before the rest of the population is drawn, and
     when that converges the population is never needed (the node's usual case).
+    With redundant legs (more than the degrees of freedom) measured legs leave a residual, so the
+    fitness never reaches ``tolerance``: a refinement that converges to the least-squares pose ends
+    the search instead.
     """
+    least_squares = polish and model.redundancy > 0
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s)
     problem = Problem(model, legs)
     history = []
@@ -89,21 +93,22 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
                              max_iter=POLISH_MAX_ITER, deadline=term.deadline)
         term.nfev += warm[2]
         refined = warm[:2]
-        if warm[1] < tolerance:
+        if warm[1] < tolerance or (least_squares and warm.converged):
             history.append((term.nfev, warm[1]))
-            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined)
+            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED)
     state = make_state(problem, term)
     if warm is not None and warm[1] < state.best()[1]:
         state.inject(warm[0], warm[1])
         last_polish_f = warm[1]
     seconds_per_gen = None
     x, f = state.best()
+    stop = None
     while True:
         x, f = state.best()
         if polish and f * POLISH_GAIN < last_polish_f and term.status(f) is None:
             last_polish_f = f
-            xp, fp, n = refine.polish(model, x, problem.legs, rng, tolerance=tolerance,
-                                      max_iter=POLISH_MAX_ITER, deadline=term.deadline)
+            xp, fp, n, reached = refine.polish(model, x, problem.legs, rng, tolerance=tolerance,
+                                               max_iter=POLISH_MAX_ITER, deadline=term.deadline)
             term.nfev += n
             if refined is None or fp < refined[1]:
                 refined = (xp, fp)
@@ -111,8 +116,10 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
                 state.inject(xp, fp)
                 x, f, polished = xp, fp, True
                 last_polish_f = min(last_polish_f, fp)
+            if least_squares and reached:
+                stop = CONVERGED
         history.append((term.nfev, f))
-        stop = term.status(f)
+        stop = stop or term.status(f)
         if stop is not None:
             break
         if term.deadline is None or seconds_per_gen is None:
@@ -129,15 +136,16 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()
-    return _result(name, model, x, f, term, nit, polished, history, refined)
+    return _result(name, model, x, f, term, nit, polished, history, refined,
+                   CONVERGED if stop == CONVERGED else None)
 
 
 MESSAGES = {"converged": "fitness below tolerance", "budget_exhausted": "time budget exhausted",
             "max_evals": "evaluation cap reached"}
 
 
-def _result(name, model, x, f, term, nit, polished, history, refined=None) -> SolveResult:
-    status = term.final_status(f)
+def _result(name, model, x, f, term, nit, polished, history, refined=None, status=None) -> SolveResult:
+    status = status or term.final_status(f)
     return SolveResult(x=model.canonical(x), fun=f, nfev=term.nfev, nit=nit, elapsed_s=term.elapsed(),
                        status=status, solver=name, polished=polished and status == CONVERGED,
                        history=history, message=MESSAGES[status],

@@ -24,6 +24,11 @@ Convergence is judged on the leg residuals, relative to the geometry::
 
     max_i |r_i| <= rtol * L,    L = max(scale, max_i l_i)
 
+or, with redundant legs (more than the degrees of freedom; ``S_GTOL`` > 0), at the least-squares pose
+(``LSQ_GTOL``: the gradient ``J^T r`` at round-off relative to ``|J| |r|``) -- whether those residuals
+are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.redundancy`), which
+it may hand in as ``ftol``
+
 (``scale``: the model's characteristic length; the legs enter ``L`` because a computed leg length is
 exact only to a few units in the last place *of the leg*), and optionally ``sum r_i^2 < ftol`` too (the
 papers' absolute fitness threshold, for their protocols).  Once converged, ``POLISH_STEPS`` more
@@ -82,6 +87,13 @@ MAX_REJECTIONS = 10
 PROGRESS_WINDOW = 10
 #: default iteration cap of one local solve
 MAX_ITER = 100
+#: redundant legs (more legs than degrees of freedom): measured legs have no exact pose, so a
+#: solve has also converged at the least-squares pose, where ``|J^T r| / (|J| max(|r|, LSQ_FLOOR L))``
+#: (column-scaled J) is at most ``LSQ_GTOL``.  Then the remaining step is below ``LSQ_GTOL / cond``
+#: of the residual: far below the leg noise.  The floor keeps the measure above round-off (about
+#: 1e-16 L / |r|) when the residual itself is nearly round-off: at most 1e-7 there
+LSQ_GTOL = 1e-6
+LSQ_FLOOR = 1e-9
 
 # layout of the ``info`` vector filled by ``lm_kernel``
 I_LEG_FITNESS = 0     # sum of squared leg residuals at the returned variables
@@ -110,7 +122,8 @@ S_MAX_ITER = 5        # iteration cap
 S_STALL = 6           # stop when the leg fitness fell by less than this fraction over PROGRESS_WINDOW
 #                       iterations (0: never)
 S_N_RES = 7           # length of the model's residual vector
-S_COL_SCALE = 8       # then the model's pose_column_scale (n_pose values)
+S_GTOL = 8            # redundant legs: least-squares stationarity that counts as converged (0: off)
+S_COL_SCALE = 9       # then the model's pose_column_scale (n_pose values)
 
 
 def workspace_size(n_legs: int, n_pose: int, n_res: int) -> int:
@@ -133,12 +146,28 @@ def _reference_length(legs, settings):
     return ref
 
 
+@njit(cache=True, error_model="numpy")
+def _least_squares_reached(A, g, f, col_scale, ref, gtol):
+    """The redundant legs' criterion (``LSQ_GTOL``) from the normal equations ``A = J^T J``,
+    ``g = J^T r`` and ``f = |r|^2``; False when ``gtol`` is 0 (exactly determined)."""
+    if gtol <= 0.0:
+        return False
+    jn = 0.0
+    gn = 0.0
+    for k in range(g.shape[0]):
+        c2 = col_scale[k] * col_scale[k]
+        jn += A[k, k] * c2
+        gn += g[k] * g[k] * c2
+    den = math.sqrt(jn) * max(math.sqrt(f), LSQ_FLOOR * ref)
+    return den > 0.0 and math.sqrt(gn) <= gtol * den
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
-def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, work):
+def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, out, work):
     """Levenberg-Marquardt from solver variables ``x0`` for leg lengths ``legs``.
 
     ``kind``/``data``: the model's ``kind_id`` and data tuple (:mod:`glpma_ros.models.kernels`);
-    ``platform``: its platform joints; ``settings``: see :func:`make_settings`; ``x_ref``: the
+    ``platform``: its platform joints (one per leg); ``frame``: its frame joints (``Manipulator.frame``); ``settings``: see :func:`make_settings`; ``x_ref``: the
     variables the distance is measured from; ``legs_ref``: the legs the movement is measured from
     (empty: none).  Fills ``out`` = [solver variables (n_vars), position (3), quaternion [qx, qy, qz,
     qw], info (``N_INFO``, layout: the ``I_*`` constants)]; ``work``: :func:`workspace_size` floats.
@@ -147,7 +176,7 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
     if ref < 0.0:
         out[:] = 0.0                          # I_INPUT_OK = 0: nothing solved
         return
-    _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work)
+    _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work)
     if legs_ref.shape[0] == legs.shape[0]:
         mv = 0.0
         for i in range(legs.shape[0]):
@@ -156,7 +185,7 @@ def lm_kernel(kind, data, platform, legs, x0, x_ref, legs_ref, settings, out, wo
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def multistart_kernel(kind, data, platform, legs, starts, x_ref, settings, out, work):
+def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings, out, work):
     """Levenberg-Marquardt from each row of ``starts`` in turn until one converges.
 
     Fills ``out`` (as :func:`lm_kernel`) with the first converged solve, or with the one of least leg
@@ -175,7 +204,7 @@ def multistart_kernel(kind, data, platform, legs, starts, x_ref, settings, out, 
     nfev = 0.0
     nit = 0.0
     for k in range(starts.shape[0]):
-        _solve_one(kind, data, platform, legs, ref, starts[k], x_ref, settings, trial_out, core)
+        _solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core)
         nfev += trial_out[base_info + I_NFEV]
         nit += trial_out[base_info + I_NIT]
         converged = trial_out[base_info + I_CONVERGED] == 1.0
@@ -190,7 +219,7 @@ def multistart_kernel(kind, data, platform, legs, starts, x_ref, settings, out, 
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
+def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work):
     """The iteration of :func:`lm_kernel` for legs that passed the check (``ref``: reference length)."""
     n_legs = legs.shape[0]
     n_vars = x0.shape[0]
@@ -198,6 +227,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
     col_scale = settings[S_COL_SCALE:]
     rtol, ftol, max_iter = settings[S_RTOL], settings[S_FTOL], int(settings[S_MAX_ITER])
     stall = settings[S_STALL]
+    gtol = settings[S_GTOL]
     x_out = out[:n_vars]
     pose_out = out[n_vars:n_vars + 7]
     info = out[n_vars + 7:]
@@ -242,7 +272,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
             state[k] = x0[k]
         ok = True
     else:
-        ok = kabsch_state(platform, x0, state, L[:3, :3], V[:3, :3], sv[:3])
+        ok = kabsch_state(frame, x0, state, L[:3, :3], V[:3, :3], sv[:3])
     nfev = 0
     nit = 0
     progress = 1.0
@@ -257,7 +287,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
             rmax = 0.0
             for i in range(n_legs):
                 rmax = max(rmax, abs(r[i]))
-            done = rmax <= rtol * ref and f < ftol
+            done = (rmax <= rtol * ref or _least_squares_reached(A, g, f, col_scale, ref, gtol)) and f < ftol
             polish_left = POLISH_STEPS
             f_mark = f                       # the fitness PROGRESS_WINDOW and 2 PROGRESS_WINDOW iterations ago
             f_mark_before = math.inf
@@ -293,7 +323,8 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
                         rmax = 0.0
                         for i in range(n_legs):
                             rmax = max(rmax, abs(r[i]))
-                        done = rmax <= rtol * ref and f < ftol
+                        done = (rmax <= rtol * ref or _least_squares_reached(A, g, f, col_scale, ref, gtol)) \
+                            and f < ftol
                 else:
                     lam *= nu
                     nu *= 2.0
@@ -319,7 +350,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
         info[I_FITNESS] = math.inf
         info[I_STATIONARITY] = math.inf
         info[I_PROGRESS] = 1.0
-        info[I_DISTANCE] = joint_distance(kind, platform, x_out, x_ref)
+        info[I_DISTANCE] = joint_distance(kind, frame, x_out, x_ref)
         return
     if kind == KIND_PLANAR_3RPR:
         t = np.fmod(state[2], 2.0 * math.pi)     # exact; with one exact correction = math.remainder
@@ -343,7 +374,7 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
         quaternion_from_rows(state[3:12], q)
         rows_from_quaternion(q, state[3:12])
         for k in range(3):
-            cx, cy, cz = platform[k, 0], platform[k, 1], platform[k, 2]
+            cx, cy, cz = frame[k, 0], frame[k, 1], frame[k, 2]
             for a in range(3):
                 x_out[3 * k + a] = state[a] + (state[3 + 3 * a] * cx + state[4 + 3 * a] * cy
                                                + state[5 + 3 * a] * cz)
@@ -384,8 +415,12 @@ def _solve_one(kind, data, platform, legs, ref, x0, x_ref, settings, out, work):
             smax = max(smax, sv[k])
             smin = min(smin, sv[k])
         info[I_CONDITIONING] = smin / smax if smax > 0.0 else 0.0
-    info[I_DISTANCE] = joint_distance(kind, platform, x_out, x_ref)
+    info[I_DISTANCE] = joint_distance(kind, frame, x_out, x_ref)
     info[I_NFEV] = nfev
     info[I_NIT] = nit
     info[I_PROGRESS] = progress
-    info[I_CONVERGED] = 1.0 if (rmax <= rtol * ref and f < ftol) else 0.0
+    lsq = False
+    if gtol > 0.0 and f < math.inf:
+        normal_equations(J, r, A, g)
+        lsq = _least_squares_reached(A, g, f, col_scale, ref, gtol)
+    info[I_CONVERGED] = 1.0 if ((rmax <= rtol * ref or lsq) and f < ftol) else 0.0

@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .lm import (I_CONDITIONING, I_CONVERGED, I_DISTANCE, I_FITNESS, I_INPUT_OK, I_LEG_FITNESS, I_MAX_RESIDUAL,
-                 I_MOVEMENT, I_NFEV, I_NIT, I_PROGRESS, I_STATIONARITY, LEG_RTOL, MAX_ITER, N_INFO, S_FTOL, S_HI,
+                 I_MOVEMENT, I_NFEV, I_NIT, I_PROGRESS, I_STATIONARITY, LEG_RTOL, LSQ_GTOL, MAX_ITER, N_INFO, S_FTOL, S_HI,
                  S_LO, S_MAX_ITER, S_RTOL, S_STALL, lm_kernel, multistart_kernel, workspace_size)
 
 
@@ -19,7 +19,8 @@ def make_settings(model, *, max_iter=None, rtol=None, ftol=math.inf) -> np.ndarr
     limits = model.leg_limits
     lo, hi = (-math.inf, math.inf) if limits is None else (float(limits[0]), float(limits[1]))
     head = [model.scale, lo, hi, LEG_RTOL if rtol is None else rtol, ftol,
-            MAX_ITER if max_iter is None else max_iter, 0.0, model.n_res]
+            MAX_ITER if max_iter is None else max_iter, 0.0, model.n_res,
+            LSQ_GTOL if model.n_legs > model.n_pose else 0.0]
     return np.ascontiguousarray(np.concatenate((head, model.pose_column_scale)), dtype=float)
 
 
@@ -56,6 +57,7 @@ class LocalSolver:
         self.kind = int(model.kind_id)
         self.data = model.data
         self.platform = np.ascontiguousarray(model.platform, dtype=float)
+        self.frame = np.ascontiguousarray(model.frame, dtype=float)
         self.n_vars = int(model.n_vars)
         self.n_out = self.n_vars + 7 + N_INFO
         self.info_at = self.n_vars + 7
@@ -70,8 +72,10 @@ class LocalSolver:
         settings = make_settings(self.model, max_iter=0)
         settings[S_LO], settings[S_HI] = 0.0, math.inf
         out = np.empty(self.n_out)
-        lm_kernel(self.kind, self.data, self.platform, legs, x0[0], x0[0], _NO_LEGS, settings, out, self.work)
-        multistart_kernel(self.kind, self.data, self.platform, legs, x0, x0[0], settings, out, self.work)
+        lm_kernel(self.kind, self.data, self.platform, self.frame, legs, x0[0], x0[0], _NO_LEGS, settings, out,
+                  self.work)
+        multistart_kernel(self.kind, self.data, self.platform, self.frame, legs, x0, x0[0], settings, out,
+                          self.work)
 
     def _settings(self, max_iter, rtol, ftol, stall):
         settings = self.settings
@@ -89,8 +93,8 @@ class LocalSolver:
         """``x0``, ``legs``: contiguous float64 arrays of the model's sizes.  Returns ``out``."""
         settings = self._settings(max_iter, rtol, ftol, stall)
         out = np.empty(self.n_out)
-        lm_kernel(self.kind, self.data, self.platform, legs, x0, x0 if x_ref is None else x_ref, legs_ref,
-                  settings, out, self.work)
+        lm_kernel(self.kind, self.data, self.platform, self.frame, legs, x0, x0 if x_ref is None else x_ref,
+                  legs_ref, settings, out, self.work)
         return out
 
     def solve(self, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf, x_ref=None,
@@ -106,7 +110,7 @@ class LocalSolver:
         start."""
         settings = self._settings(max_iter, rtol, ftol, stall)
         out = np.empty(self.n_out)
-        multistart_kernel(self.kind, self.data, self.platform, legs, starts,
+        multistart_kernel(self.kind, self.data, self.platform, self.frame, legs, starts,
                           starts[0] if x_ref is None else x_ref, settings, out, self.work)
         return self.result(out)
 

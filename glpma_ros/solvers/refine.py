@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import NamedTuple
 
 import numpy as np
 
@@ -75,20 +76,30 @@ def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
     return x, f, nfev
 
 
-def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None):
+class Polished(NamedTuple):
+    """Outcome of :func:`polish`: solver variables, the solver model's fitness, evaluations, and
+    whether the Levenberg-Marquardt converged (redundant legs: at the least-squares pose)."""
+
+    x: np.ndarray
+    fitness: float
+    nfev: int
+    converged: bool
+
+
+def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None) -> Polished:
     """Levenberg-Marquardt in pose space (:mod:`.lm`; its last evaluation gives the
     fitness of the solver's model), then, for models whose solver variables are
-    redundant like the hexapod's nine, the round-off search.  Returns
-    ``(x, fitness, nfev)`` with the fitness of the solver's model."""
+    redundant like the hexapod's nine, the round-off search."""
     if deadline is not None and time.perf_counter() >= deadline:
         max_iter = 0
     x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
     legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
-    r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance)
+    # redundant legs: measured legs leave a residual, the least-squares pose is the goal
+    r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance if model.redundancy == 0 else math.inf)
     if r is None:                       # legs outside the model's limits: evaluated, not refined
-        return x0.copy(), float(model.fitness(x0, legs)[0]), 1
+        return Polished(x0.copy(), float(model.fitness(x0, legs)[0]), 1, False)
     x, f, nfev = r.x.copy(), r.fitness, r.nfev
     if model.n_vars > model.n_pose and f >= tolerance * 0.1 and f < tolerance * 1e4:
         x, f, n = round_off_search(model, x, legs, f, rng, target=0.1 * tolerance, deadline=deadline)
         nfev += n
-    return x, f, nfev
+    return Polished(x, f, nfev, r.converged)

@@ -47,12 +47,19 @@ def known_solutions(doc: dict) -> list:
     return list(doc.get("real_solutions") or doc.get("published_solutions") or [])
 
 
+def default_solution(model, doc: dict) -> int:
+    """:data:`DEFAULT_SOLUTION` of the kind, or 0 for a config listing fewer known solutions (the
+    papers' configs list many modes and the default picks one; a config of one's own, one)."""
+    index = DEFAULT_SOLUTION[model.kind]
+    return index if index < len(known_solutions(doc)) else 0
+
+
 def start_pose(model, doc: dict, solution: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(position, rotation matrix) of a known solution of the config (config unit)."""
     sols = known_solutions(doc)
     if solution is None and not sols:
         return _solved_start_pose(model)
-    index = DEFAULT_SOLUTION[model.kind] if solution is None else int(solution)
+    index = default_solution(model, doc) if solution is None else int(solution)
     if not 0 <= index < len(sols):
         key = "real_solutions" if model.kind == "planar_3rpr" else "published_solutions"
         raise GlpmaError(f"the config has {len(sols)} {key}; cannot use solution {index}")
@@ -121,7 +128,7 @@ class Plan:
         self.doc = load_document(self.path)
         self.model = model_from_dict(self.doc, str(self.path))
         self.mpu = float(self.model.metres_per_unit)
-        self.solution = DEFAULT_SOLUTION[self.model.kind] if solution is None else int(solution)
+        self.solution = default_solution(self.model, self.doc) if solution is None else int(solution)
         self.amplitude = amplitude
         self.start = start_pose(self.model, self.doc, self.solution)
         self.pose_at = trajectory(self.model, *self.start, amplitude)

@@ -1,0 +1,75 @@
+"""Redundant legs on ``/diagnostics``: inputs whose legs were inconsistent, the leg left out of the
+published pose, and the legs that have failed.
+
+A leg named at fault (``inconsistent_legs``, :mod:`glpma_ros.redundancy`) on :data:`FAILED_AFTER`
+inputs in a row is reported as failed (level WARN) until it agrees again: an input whose legs are all
+consistent (status ``converged``) clears every failure.  Only for a config with redundant legs: with
+exactly as many legs as degrees of freedom nothing is added to the report.
+"""
+from __future__ import annotations
+
+from collections import Counter
+
+from ..estimator import STATUS_CONVERGED, STATUS_INCONSISTENT
+
+#: consecutive inputs naming the same leg at fault before it is reported as failed (a single
+#: inconsistent input is a false alarm in 1 - CONSISTENCY_LEVEL of a healthy manipulator's inputs)
+FAILED_AFTER = 10
+
+
+class LegHealth:
+    """Per-leg fault bookkeeping of the node (under the service's lock)."""
+
+    def __init__(self, model):
+        self.active = model.redundancy > 0
+        self.inconsistent = 0            # inputs with status inconsistent_legs
+        self.left_out: Counter = Counter()   # leg -> published poses that left it out
+        self.streak = [0] * model.n_legs     # consecutive inconsistent inputs naming each leg
+        self.failed: set = set()
+        self.last_left_out = None
+        self.last_message = ""
+        self._period = 0                 # inconsistent inputs since the last report
+
+    def note(self, estimate) -> None:
+        """Account for one estimate (any status)."""
+        if not self.active or estimate is None:
+            return
+        if estimate.status == STATUS_INCONSISTENT:
+            self.inconsistent += 1
+            self._period += 1
+            self.last_message = estimate.message
+            leg = estimate.suspect_leg
+            for i in range(len(self.streak)):
+                self.streak[i] = self.streak[i] + 1 if i == leg else 0
+            if leg is not None and self.streak[leg] >= FAILED_AFTER:
+                self.failed.add(leg)
+            self.last_left_out = estimate.excluded_leg
+            if estimate.excluded_leg is not None:
+                self.left_out[estimate.excluded_leg] += 1
+        elif estimate.status == STATUS_CONVERGED:     # every leg agrees
+            self.streak = [0] * len(self.streak)
+            self.failed.clear()
+            self.last_left_out = None
+
+    def report(self, names) -> tuple[list, list]:
+        """``(key-value pairs, problems)`` for /diagnostics, legs called by ``names`` (the joint names, leg
+        order); starts a new period."""
+        if not self.active:
+            return [], []
+        self.names = list(names)
+        period, self._period = self._period, 0
+        failed = ", ".join(self.names[i] for i in sorted(self.failed)) or "none"
+        values = [("inputs with inconsistent legs", self.inconsistent),
+                  ("leg left out last", "none" if self.last_left_out is None else self.names[self.last_left_out]),
+                  ("legs left out", ", ".join(f"{self.names[i]}: {n}" for i, n in sorted(self.left_out.items()))
+                   or "none"),
+                  ("failed legs", failed)]
+        if self.last_message:
+            values.append(("last inconsistency", self.last_message))
+        problems = []
+        if self.failed:
+            problems.append(f"failed leg{'s' if len(self.failed) > 1 else ''} {failed} (named at fault on "
+                            f"{FAILED_AFTER}+ inputs in a row)")
+        if period:
+            problems.append(f"{period} inputs with inconsistent legs")
+        return values, problems

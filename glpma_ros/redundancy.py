@@ -1,0 +1,169 @@
+"""Redundant legs: is the least-squares pose consistent with the leg noise, and which leg is at fault.
+
+With ``m`` legs and ``d`` degrees of freedom (3-RPR 3, hexapod 6) the forward kinematics is the
+least-squares pose ``argmin sum r_i^2`` (:mod:`glpma_ros.solvers.lm`).  Two classical tests of
+geodetic adjustment decide what it is worth (Baarda 1968, "A testing procedure for use in geodetic
+networks"; Teunissen 2000, *Testing theory*, sections 3-4):
+
+* **Consistency (overall model test).**  With independent leg errors ``N(0, sigma^2)`` the weighted
+  sum of squared residuals at the least-squares pose, ``T = sum r_i^2 / sigma^2``, follows a
+  chi-square law with ``m - d`` degrees of freedom (to first order).  The legs are consistent when
+  ``T <= chi2_{m-d}(CONSISTENCY_LEVEL)``: a false alarm in ``1 - CONSISTENCY_LEVEL`` of the inputs of a
+  healthy manipulator.  ``sigma`` (``leg_noise_std``) and the residuals are in the same unit, so the
+  decision is the same in mm, cm or m.
+* **Isolation (leave one out).**  A single leg with a gross error ``b`` (much larger than ``sigma``)
+  is found by solving without each leg in turn: without the faulty one the other legs are consistent
+  again.  With two or more redundant legs that is decidable from the input alone: the leg whose
+  removal leaves the smallest ``T`` (below the chi-square limit with one degree of freedom less) is
+  the most likely at fault (Baarda's data snooping, done exactly instead of linearised).  With a single
+  redundant leg every leave-one-out pose fits its legs exactly, so the input alone cannot tell the
+  legs apart (Baarda: the legs' tests are then all the same); the pose history can -- the pose
+  without the faulty leg continues the motion, the others jump by the effect of ``b``.  The leg
+  whose leave-one-out pose is nearest the pose predicted from the last two estimates (constant
+  velocity) is then the most likely at fault, and the isolation is accepted when that pose is more
+  than ``ISOLATION_MARGIN`` times nearer than every other.
+
+No ROS import: this is the core.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import chdtri
+
+from .solvers.local import LocalSolver
+
+#: confidence of the consistency test: a healthy manipulator gets ``inconsistent_legs`` for one
+#: input in a thousand (a false alarm costs little: the pose without the "faulty" leg is published)
+CONSISTENCY_LEVEL = 0.999
+#: one redundant leg: the leave-one-out pose nearest the predicted pose must be this many times
+#: nearer than the next for the isolation to hold (otherwise the fault is named, not isolated)
+ISOLATION_MARGIN = 3.0
+#: iteration cap of a leave-one-out solve (it starts at the previous pose: a few iterations)
+LEAVE_ONE_OUT_MAX_ITER = 50
+
+
+def chi2_limit(dof: int, level: float = CONSISTENCY_LEVEL) -> float:
+    """The ``level`` quantile of the chi-square law with ``dof`` degrees of freedom (0 for ``dof`` 0:
+    an exactly determined pose has no residual to test)."""
+    return float(chdtri(dof, 1.0 - level)) if dof > 0 else 0.0
+
+
+@dataclass
+class Isolation:
+    """The leg most likely at fault (0-based) and, when the isolation holds, the pose without it."""
+
+    leg: int | None               # None: no leave-one-out solve converged
+    isolated: bool                # the other legs determine the pose consistently
+    result: object = None         # LocalResult of the pose without ``leg`` (full model's variables)
+    statistic: float = math.nan   # T of the legs without ``leg``
+    evaluations: int = 0
+    reason: str = ""
+
+
+class FaultIsolator:
+    """The leave-one-out solves of one redundant model (a sub-model and a local solver per leg, built
+    once).  A sub-model's solver variables may be other joints than the full model's (its frame joints
+    when a frame joint's leg is left out): poses cross between them as position + quaternion."""
+
+    def __init__(self, model):
+        self.model = model
+        self.dof_left = model.redundancy - 1
+        self.limit_left = chi2_limit(self.dof_left)
+        self._subs: dict = {}
+
+    def _sub(self, leg: int):
+        if leg not in self._subs:
+            m = self.model
+            keep = [i for i in range(m.n_legs) if i != leg]
+            try:
+                sub = type(m)(m.base[keep], m.platform[keep], unit=m.unit, leg_limits=m.leg_limits)
+                self._subs[leg] = (keep, sub, LocalSolver(sub))
+            except ValueError:      # the other legs' joints leave the pose undetermined
+                self._subs[leg] = None
+        return self._subs[leg]
+
+    def solve_without(self, leg: int, legs, start_x, starts=None, ftol=math.inf):
+        """``(LocalResult in the full model's variables, T * sigma^2)`` of the legs without ``leg``
+        from the full model's variables ``start_x`` -- or, without a start (no history), from the rows of
+        ``starts`` until one converges with a leg fitness below ``ftol``; None when that sub-model is
+        undetermined."""
+        entry = self._sub(leg)
+        if entry is None:
+            return None
+        keep, sub, solver = entry
+        m = self.model
+        mine = np.ascontiguousarray(legs[keep])
+        if start_x is None:
+            r = solver.multistart(starts, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER, ftol=ftol)
+        else:
+            pose = m.pose(start_x)
+            x0 = np.ascontiguousarray(sub.variables_from_pose(pose.position, pose.orientation))
+            r = solver.solve(x0, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER)
+        if r is None:
+            return None
+        x = m.variables_from_pose(r.position, r.orientation)
+        return r._replace(x=x), r.leg_fitness
+
+    def isolate(self, legs, start_x, sigma: float, predicted=None, near: float = math.inf,
+                first: int | None = None, starts=None) -> Isolation:
+        """The most likely faulty leg of ``legs`` (config unit) whose least-squares pose failed the
+        consistency test.  ``start_x``: where the leave-one-out solves start (the previous pose), or
+        None without history: then each solve tries the rows of ``starts`` (fixed starts over the
+        pose space) until it finds a pose consistent with its legs; ``predicted``: the pose expected
+        from the history (full model's variables) or None; ``near``: the largest distance from it a
+        continuing pose may have; ``first``: the leg left out last time, tried first (a leg that stays
+        faulty is left out again without solving for the others)."""
+        m = self.model
+        s2 = sigma * sigma
+        if start_x is None and self.dof_left <= 0:
+            return Isolation(None, False, None, math.nan, 0,
+                             "one redundant leg and no previous pose: the faulty leg cannot be told")
+        ftol = self.limit_left * s2
+        order = list(range(m.n_legs))
+        if first is not None:
+            order.remove(first)
+            order.insert(0, first)
+        tried = []                  # (leg, result, T)
+        nfev = 0
+        for leg in order:
+            out = self.solve_without(leg, legs, start_x, starts, ftol)
+            if out is None:
+                continue
+            r, fit = out
+            nfev += r.nfev
+            if not r.converged:
+                continue
+            T = fit / s2
+            tried.append((leg, r, T))
+            if leg == first and self._consistent(T) and self._continues(r, predicted, near):
+                return Isolation(leg, True, r, T, nfev, "left out again")
+        if not tried:
+            return Isolation(None, False, None, math.nan, nfev, "no leave-one-out pose converged")
+        if self.dof_left > 0:
+            tried.sort(key=lambda t: t[2])
+            leg, r, T = tried[0]
+            ok = self._consistent(T) and (len(tried) < 2 or not self._consistent(tried[1][2]))
+            why = "" if ok else ("the other legs are not consistent either" if not self._consistent(T)
+                                 else "several legs could be at fault")
+            return Isolation(leg, ok, r, T, nfev, why)
+        if predicted is None:
+            return Isolation(None, False, None, math.nan, nfev,
+                             "one redundant leg and no previous pose: the faulty leg cannot be told")
+        dist = [m.distance(r.x, predicted) for _, r, _ in tried]
+        order = np.argsort(dist)
+        leg, r, T = tried[order[0]]
+        best = dist[order[0]]
+        second = dist[order[1]] if len(order) > 1 else math.inf
+        ok = best <= near and second > ISOLATION_MARGIN * best
+        why = "" if ok else "the poses without each leg are alike: the faulty leg is uncertain"
+        return Isolation(leg, ok, r, T, nfev, why)
+
+    def _consistent(self, T: float) -> bool:
+        return self.dof_left <= 0 or T <= self.limit_left
+
+    def _continues(self, r, predicted, near) -> bool:
+        """The pose ``r`` continues the motion: within ``near`` of the predicted pose (if any)."""
+        return predicted is None or self.model.distance(r.x, predicted) <= near
