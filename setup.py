@@ -50,7 +50,9 @@ setup(
         "console_scripts": [
             "glpma-fk = glpma_ros.cli:main",
             "fk_node = glpma_ros.node.ros_node:main",
+            "fk_lifecycle_node = glpma_ros.node.ros_node:lifecycle_main",
             "mock_controller = glpma_tools.mock_controller:main",
+            "mock_publisher = glpma_tools.mock_publisher:main",
         ],
     },
 )

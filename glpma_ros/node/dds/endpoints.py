@@ -40,11 +40,6 @@ def expand_topic_name(ros_name: str, node_name: str) -> str:
     return ros_name.lstrip("/")
 
 
-def remapped(ros_name: str, remaps: dict) -> str:
-    """``ros_name`` after the ``-r FROM:=TO`` remappings (FROM with or without its leading slash)."""
-    return remaps.get(ros_name, remaps.get(ros_name.lstrip("/"), remaps.get("/" + ros_name.lstrip("/"), ros_name)))
-
-
 def dds_topic_name(ros_name: str, node_name: str = "glpma_fk") -> str:
     """``leg_lengths`` or ``/leg_lengths`` -> ``rt/leg_lengths``; ``~/assembly_modes`` ->
     ``rt/glpma_fk/assembly_modes`` (the node has no namespace)."""

@@ -38,7 +38,7 @@ from cyclonedds.util import duration
 from .. import params as P
 from ...errors import GlpmaError, InputError
 from ..loops import AssemblyModesLoop, SolveLoop
-from ..ros_args import node_values, parse_ros_args, split_transport
+from ..ros_args import node_values, parse_ros_args, remapped, split_transport
 from ..service import FkService
 from ..service import JointStateInput
 from .. import qos
@@ -81,7 +81,7 @@ class DdsNode:
         remaps = remaps or {}
 
         def topic(name):
-            return endpoints.expand_topic_name(endpoints.remapped(name, remaps), service.node_name)
+            return endpoints.expand_topic_name(remapped(name, remaps), service.node_name)
 
         self.joint_state = service.input_type == P.INPUT_JOINT_STATE
         self.input_name = endpoints.JOINT_STATES if self.joint_state else endpoints.LEG_LENGTHS
@@ -256,7 +256,7 @@ def node_qos(service: FkService, remaps: dict, qos_overrides: dict) -> tuple[dic
     input topic and node name, the topics remapped by ``remaps``; :class:`InputError` for a bad value."""
     input_name = endpoints.JOINT_STATES if service.input_type == P.INPUT_JOINT_STATE else endpoints.LEG_LENGTHS
     return qos.resolve(qos_overrides, service.params["qos_depth"], input_name, service.node_name,
-                       topic_of=lambda name: endpoints.remapped(name, remaps))
+                       topic_of=lambda name: remapped(name, remaps))
 
 
 class ParameterReload:
