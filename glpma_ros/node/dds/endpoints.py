@@ -19,6 +19,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
 from ..qos import TF_DEPTH, QosSpec  # noqa: F401 - TF_DEPTH: the depth of /tf, re-exported
+from ..security import check_dds_transport
 from .messages import type_hash
 
 LEG_LENGTHS = "leg_lengths"
@@ -83,6 +84,7 @@ class Participant:
     """A domain participant that creates ROS-compatible topics, readers and writers."""
 
     def __init__(self, domain_id: int | None = None):
+        check_dds_transport()           # never unsecured when ROS_SECURITY_ENABLE=true (glpma_ros.node.security)
         self.domain_id = domain_id_from_env() if domain_id is None else int(domain_id)
         self.dp = DomainParticipant(self.domain_id)
         self._topics: dict[str, Topic] = {}

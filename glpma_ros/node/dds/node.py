@@ -39,6 +39,7 @@ from .. import params as P
 from ...errors import GlpmaError, InputError
 from ..loops import AssemblyModesLoop, SolveLoop
 from ..ros_args import node_values, parse_ros_args, remapped, split_transport
+from ..security import check_dds_transport
 from ..service import FkService
 from ..service import JointStateInput
 from .. import qos
@@ -296,6 +297,7 @@ def main(argv=None) -> int:
     if transport not in ("dds", "auto"):
         return _error(f"this is the Cyclone DDS transport; --transport {transport} is not it")
     try:
+        check_dds_transport()
         ros = parse_ros_args(argv)
     except InputError as exc:
         return _error(str(exc))
