@@ -1,6 +1,6 @@
 """Launch test (launch_testing, run by ``colcon test`` on a real ROS 2 Jazzy): ``fk.launch.py`` for the
-3-RPR (``leg_lengths`` input) and for the hexapod (``joint_states`` input) beside
-``ros2 run glpma_ros mock_publisher``.  Every pose is on its input's true pose (1e-9 m, 1e-9 rad),
+3-RPR (``leg_lengths`` input), for the hexapod (``joint_states`` input) and for the 3-RPR's managed
+node (``managed:=true autostart:=true``) beside ``ros2 run glpma_ros mock_publisher``.  Every pose is on its input's true pose (1e-9 m, 1e-9 rad),
 ``/tf`` resolves through a tf2 ``Buffer`` at the poses' stamps, ``/diagnostics`` reports OK, and the
 node and the mock exit 0 when the launch shuts down.  Skipped where launch_testing is not importable
 (no ROS 2 sourced)."""
@@ -27,20 +27,23 @@ POSES = 100
 #: /tf at a pose's stamp is that pose: the buffer stores the transform's doubles and a lookup at a
 #: stored stamp interpolates with weight 0 (round-off of unit-size numbers at most)
 TF_TOL = 1e-12
-CASES = [("3rpr", "float64_multi_array"), ("hexapod", "joint_state")]
+#: (manipulator, input, managed:=true autostart:=true): both kinds, both inputs, and the managed node
+#: brought up by the launch file itself
+CASES = [("3rpr", "float64_multi_array", False), ("hexapod", "joint_state", False), ("3rpr", "joint_state", True)]
 
 
-@launch_testing.parametrize("manipulator, input_type", CASES)
+@launch_testing.parametrize("manipulator, input_type, managed", CASES)
 @pytest.mark.launch_test
-def generate_test_description(manipulator, input_type):
+def generate_test_description(manipulator, input_type, managed):
     return LaunchDescription([
-        *fk_with_mock(manipulator, input_type=input_type, rate_hz=RATE_HZ, params_file=params_file(manipulator)),
+        *fk_with_mock(manipulator, input_type=input_type, managed=managed, autostart=managed, rate_hz=RATE_HZ,
+                      params_file=params_file(manipulator)),
         launch_testing.actions.ReadyToTest(),
     ])
 
 
 class TestTracking(unittest.TestCase):
-    def test_poses_tf_and_diagnostics(self, manipulator, input_type):
+    def test_poses_tf_and_diagnostics(self, manipulator, input_type, managed):
         import tf2_ros
         from rclpy.time import Time
         with TestNode() as t:

@@ -29,10 +29,11 @@ ORIENTATION_TOL_RAD = 1e-9
 MONITOR_DEPTH = 1000
 
 
-def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, input_type: str = "float64_multi_array",
+def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart: bool = False,
+                 input_type: str = "float64_multi_array",
                  rate_hz: float = 50.0, duration_s: float = 0.0, params_file: str | None = None,
                  mock_parameters: dict | None = None) -> list:
-    """Launch actions: ``fk.launch.py`` with ``manipulator``, ``managed``, ``input_type`` (and
+    """Launch actions: ``fk.launch.py`` with ``manipulator``, ``managed``, ``autostart``, ``input_type`` (and
     ``params_file`` if given) and the mock publisher driving the same manipulator's shipped config
     at ``rate_hz`` for ``duration_s`` (0: until shutdown).  Add ``launch_testing.actions.ReadyToTest()``
     (or launch_pytest's) after them."""
@@ -42,7 +43,8 @@ def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, input_type
     from launch_ros.substitutions import FindPackageShare
     from launch.substitutions import PathJoinSubstitution
 
-    args = {"manipulator": manipulator, "managed": str(bool(managed)).lower(), "input_type": input_type}
+    args = {"manipulator": manipulator, "managed": str(bool(managed)).lower(),
+            "autostart": str(bool(autostart)).lower(), "input_type": input_type}
     if params_file is not None:
         args["params_file"] = str(params_file)
     fk = IncludeLaunchDescription(
