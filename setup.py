@@ -22,6 +22,9 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.xml") + glob("config/*.rviz")),
+        # SROS2 access-control policies (README, "Running secured") and the profiles they include
+        ("share/" + package_name + "/config/security", glob("config/security/*.xml")),
+        ("share/" + package_name + "/config/security/common", glob("config/security/common/*.xml")),
         ("share/" + package_name + "/launch", glob("launch/*.py")),
         ("share/" + package_name + "/msg_docs", glob("msg_docs/*.md")),
     ],
@@ -35,7 +38,8 @@ setup(
     extras_require={
         "tools": TOOLS,
         # no benchmark peers here (the bench extra): tests that compare with them skip without them.
-        # pytest < 9: the launch_testing plugin of ROS 2 Jazzy breaks colcon test under pytest 9
+        # pytest < 9: ROS 2 Jazzy's launch_testing plugin (the launch tests under colcon test) fails to load
+        # under pytest 9 (README, "Testing your integration"); Ubuntu 24.04 ships 7.4.4
         "test": TOOLS + ["pytest>=7,<9", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
                          "dask[distributed]>=2024.1"],
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
@@ -54,7 +58,9 @@ setup(
         "console_scripts": [
             "glpma-fk = glpma_ros.cli:main",
             "fk_node = glpma_ros.node.ros_node:main",
+            "fk_lifecycle_node = glpma_ros.node.ros_node:lifecycle_main",
             "mock_controller = glpma_tools.mock_controller:main",
+            "mock_publisher = glpma_tools.mock_publisher:main",
         ],
     },
 )

@@ -4,18 +4,30 @@
     ros2 launch glpma_ros fk.launch.py manipulator:=hexapod # 6-6 hexapod, config/params_hexapod.yaml
     ros2 launch glpma_ros fk.launch.py params_file:=/path/to/my_params.yaml
     ros2 launch glpma_ros fk.launch.py rviz:=true           # + rviz2 with config/glpma_fk.rviz (markers on)
+    ros2 launch glpma_ros fk.launch.py managed:=true        # fk_lifecycle_node, driven by ros2 lifecycle set
+    ros2 launch glpma_ros fk.launch.py managed:=true autostart:=true   # ... configured and activated at once
+    ros2 launch glpma_ros fk.launch.py secure:=true keystore:=$HOME/glpma_keystore   # SROS2, enclave /glpma_fk
 
+``managed:=true`` runs the managed node (same name, parameters and topics; it starts unconfigured).
+``input_type:=joint_state|float64_multi_array`` sets ``input_type`` whatever the params file says.
+``secure:=true`` starts the node with ``ROS_SECURITY_ENABLE=true``, ``ROS_SECURITY_STRATEGY=Enforce``,
+``ROS_SECURITY_KEYSTORE=<keystore>`` and ``--enclave <enclave>`` (default ``/glpma_fk``): README,
+"Running secured".
 ``rviz:=true`` starts ``rviz2`` where it is installed and says so in the log where it is not
 (the node runs either way); it also turns ``publish_markers`` on unless ``markers:=false``.
 ``markers:=true|false`` sets ``publish_markers`` whatever the params file says.
 """
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
+from launch.events import matches_action
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution, PythonExpression
-from launch_ros.actions import Node
+from launch_ros.actions import LifecycleNode, Node
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
 from launch_ros.substitutions import FindPackageShare
+from lifecycle_msgs.msg import Transition
 
 RVIZ_PACKAGE = "rviz2"
 
@@ -33,15 +45,39 @@ def rviz_if_installed(context, *args, **kwargs):
 
 
 def fk_node(context, *args, **kwargs):
-    """The node with the params file, and ``publish_markers`` when markers:= or rviz:= ask for it."""
-    parameters = [LaunchConfiguration("params_file").perform(context)]
-    markers = LaunchConfiguration("markers").perform(context)
-    if markers == "" and LaunchConfiguration("rviz").perform(context) == "true":
+    """The node (managed or not) with the params file, ``publish_markers`` when markers:= or rviz:=
+    ask for it, ``input_type`` when input_type:= is given, and the SROS2 environment with secure:=true."""
+    def arg(name):
+        return LaunchConfiguration(name).perform(context)
+
+    parameters = [arg("params_file")]
+    markers = arg("markers")
+    if markers == "" and arg("rviz") == "true":
         markers = "true"
     if markers in ("true", "false"):
         parameters.append({"publish_markers": markers == "true"})
-    return [Node(package="glpma_ros", executable="fk_node", name="glpma_fk", output="screen",
-                 parameters=parameters)]
+    if arg("input_type"):
+        parameters.append({"input_type": arg("input_type")})
+    options = dict(package="glpma_ros", name="glpma_fk", output="screen", parameters=parameters)
+    if arg("secure") == "true":
+        if not arg("keystore"):
+            raise RuntimeError("secure:=true needs keystore:=DIR (a keystore from ros2 security create_keystore "
+                               "with an enclave made by ros2 security create_enclave DIR " + arg("enclave") + ")")
+        options.update(ros_arguments=["--enclave", arg("enclave")],
+                       additional_env={"ROS_SECURITY_KEYSTORE": arg("keystore"), "ROS_SECURITY_ENABLE": "true",
+                                       "ROS_SECURITY_STRATEGY": "Enforce"})
+    if arg("managed") != "true":
+        return [Node(executable="fk_node", **options)]
+    node = LifecycleNode(executable="fk_lifecycle_node", namespace="", **options)
+    if arg("autostart") != "true":
+        return [node]
+
+    def transition(transition_id):
+        return EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(node), transition_id=transition_id))
+    return [node,
+            RegisterEventHandler(OnStateTransition(target_lifecycle_node=node, goal_state="inactive",
+                                                   entities=[transition(Transition.TRANSITION_ACTIVATE)])),
+            transition(Transition.TRANSITION_CONFIGURE)]
 
 
 def generate_launch_description():
@@ -60,6 +96,20 @@ def generate_launch_description():
         DeclareLaunchArgument("markers", default_value="", choices=["", "true", "false"],
                               description="parameter publish_markers of the node (default: the params file's "
                                           "value, true with rviz:=true)"),
+        DeclareLaunchArgument("input_type", default_value="", choices=["", "float64_multi_array", "joint_state"],
+                              description="parameter input_type of the node (default: the params file's value)"),
+        DeclareLaunchArgument("managed", default_value="false", choices=["true", "false"],
+                              description="run fk_lifecycle_node (a managed node, starts unconfigured) "
+                                          "instead of fk_node"),
+        DeclareLaunchArgument("autostart", default_value="false", choices=["true", "false"],
+                              description="with managed:=true: configure and activate the node at once"),
+        DeclareLaunchArgument("secure", default_value="false", choices=["true", "false"],
+                              description="run the node under SROS2 (DDS-Security, Enforce) with keystore:= "
+                                          "and enclave:="),
+        DeclareLaunchArgument("keystore", default_value="",
+                              description="with secure:=true: the keystore directory (ros2 security create_keystore)"),
+        DeclareLaunchArgument("enclave", default_value="/glpma_fk",
+                              description="with secure:=true: the node's enclave in the keystore"),
         OpaqueFunction(function=fk_node),
         OpaqueFunction(function=rviz_if_installed, condition=IfCondition(LaunchConfiguration("rviz"))),
     ])

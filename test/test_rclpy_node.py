@@ -23,7 +23,8 @@ SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 
 
 @pytest.fixture
-def ros():
+def ros(dds_env):
+    """rclpy in the test's own ROS domain (conftest: claimed, loopback discovery)."""
     rclpy.init()
     try:
         yield
@@ -154,7 +155,7 @@ def test_tf_covariance_twist_and_markers(ros):
         node.destroy_node()
 
 
-def test_ctrl_c_stops_cleanly(tmp_path):
+def test_ctrl_c_stops_cleanly(tmp_path, dds_env):
     """SIGINT: the summary is logged (also to /rosout, while the context is valid), exit 0, and no
     'publisher's context is invalid' or abort."""
     import os
@@ -163,7 +164,7 @@ def test_ctrl_c_stops_cleanly(tmp_path):
     import sys
     from conftest import CONFIG, ROOT
     out = tmp_path / "node.log"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    env = dds_env
     with open(out, "w") as f:
         proc = subprocess.Popen([sys.executable, "-c", "import sys; from glpma_ros.node.ros_node import main; "
                                  "sys.exit(main(sys.argv[1:]))", "--ros-args", "--params-file",
@@ -183,3 +184,96 @@ def test_ctrl_c_stops_cleanly(tmp_path):
     assert "stopped: received" in log
     for bad in ("context is invalid", "Failed to publish", "terminate called", "Traceback"):
         assert bad not in log, log
+
+
+# -- the managed node, QoS overrides, the mock publisher (issue 20) --------------------------------------
+
+def test_lifecycle_node_walk_in_process(ros):
+    """configure builds the service and the endpoints (with the QoS override), activate lets inputs
+    through, deactivate counts them as dropped, cleanup releases everything."""
+    from lifecycle_msgs.msg import State
+    from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.qos import ReliabilityPolicy
+
+    from glpma_ros.node.ros_node import FkLifecycleNode
+    node = FkLifecycleNode(parameter_overrides=[
+        Parameter("manipulator_config", value=str(RPR_YAML)), Parameter("initial_pose", value=SEED_X),
+        Parameter("time_budget_ms", value=GENEROUS_BUDGET_MS),
+        Parameter("qos_overrides./leg_lengths.subscription.reliability", value="best_effort"),
+        Parameter("qos_overrides./leg_lengths.subscription.depth", value=4)])
+    client = rclpy.create_node("glpma_fk_lifecycle_client")
+    poses = []
+    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
+    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    executor.add_node(client)
+    try:
+        assert node.service is None and not node.get_subscriptions_info_by_topic("/leg_lengths")
+        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+        assert node.service is not None
+        assert node.get_parameter("qos_overrides./leg_lengths.subscription.depth").value == 4
+        mine = [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
+        assert mine and mine[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+        legs = Float64MultiArray(data=[0.100, 0.120, 0.150])
+        # inactive: inputs are taken and counted as dropped, no pose
+        assert _spin_until(executor, lambda: node.service.stats.dropped >= 3, publish=lambda: pub.publish(legs))
+        assert poses == []
+        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+        assert _spin_until(executor, lambda: poses, publish=lambda: pub.publish(legs))
+        assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)
+        assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
+        assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
+        assert node.service is None and not [i for i in node.get_subscriptions_info_by_topic("/leg_lengths")
+                                             if i.node_name == "glpma_fk"]
+        assert node.trigger_shutdown() == TransitionCallbackReturn.SUCCESS
+        assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+        node.destroy_node()
+
+
+def test_a_bad_qos_override_is_one_line(dds_env):
+    r = subprocess.run([sys.executable, "-c", "import sys; from glpma_ros.node.ros_node import main; "
+                        "sys.exit(main(sys.argv[1:]))", "--ros-args", "-p",
+                        "qos_overrides./leg_lengths.subscription.reliability:=fast"],
+                       capture_output=True, text=True, env=dds_env, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "qos_overrides./leg_lengths.subscription.reliability" in r.stderr
+
+
+def test_mock_publisher_with_every_parameter(ros, dds_env):
+    """ros2 run glpma_ros mock_publisher with a valid value of each parameter: JointState legs under the
+    given names, the true pose in the given frame, the same stamp on both, exit 0 after duration_s."""
+    from sensor_msgs.msg import JointState
+    client = rclpy.create_node("glpma_mock_client")
+    states, truths = [], []
+    client.create_subscription(JointState, "joint_states", states.append, 100)
+    client.create_subscription(PoseStamped, "/glpma_mock_publisher/true_pose", truths.append, 100)
+    executor = SingleThreadedExecutor()
+    executor.add_node(client)
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from glpma_tools.mock_publisher import main; "
+                             "sys.exit(main())", "--ros-args", "-p", "config:=planar_3rpr_seed",
+                             "-p", "input_type:=joint_state", "-p", "joint_names:=[a, b, c]", "-p", "rate_hz:=50.0",
+                             "-p", "duration_s:=2.0", "-p", "solution:=1", "-p", "amplitude:=0.5",
+                             "-p", "frame_id:=world", "-p", "wait_for_subscriber:=true"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dds_env)
+    try:
+        assert _spin_until(executor, lambda: proc.poll() is not None and len(truths) >= 100, timeout_s=120)
+        assert proc.wait(30) == 0, proc.stdout.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        executor.shutdown()
+        client.destroy_node()
+    assert len(states) == len(truths) == 100            # 2 s at 50 Hz, started when we subscribed
+    assert states[0].name == ["a", "b", "c"] and truths[0].header.frame_id == "world"
+    assert [s.header.stamp for s in states] == [t.header.stamp for t in truths]
+
+
+def test_mock_publisher_bad_parameter_is_one_line(dds_env):
+    r = subprocess.run([sys.executable, "-c", "import sys; from glpma_tools.mock_publisher import main; "
+                        "sys.exit(main())", "--ros-args", "-p", "config:=no_such_config"],
+                       capture_output=True, text=True, env=dds_env, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr

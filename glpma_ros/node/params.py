@@ -14,6 +14,7 @@ import yaml
 from ..errors import InputError
 from ..estimator import DEFAULT_LEG_NOISE_M
 from ..solvers import SOLVERS
+from .qos import PREFIX as QOS_PREFIX
 
 NODE_NAME = "glpma_fk"
 #: every registered solver: the papers' G3-PCX, RCGA, GLPMA and the baselines SA, GA-SA, DE
@@ -202,11 +203,14 @@ def resolve(overrides: dict) -> tuple[dict, list[str]]:
 
     Returns ``(params, warnings)``; an override of an unknown parameter is a
     warning (ROS ignores overrides of undeclared parameters), a bad value an
-    :class:`InputError`.
+    :class:`InputError`.  The QoS overrides (``qos_overrides.*``) are not among them: they are
+    read by :func:`glpma_ros.node.qos.resolve`.
     """
     params = defaults()
     warnings = []
     for name, value in overrides.items():
+        if name.startswith(QOS_PREFIX):
+            continue
         if name not in SPECS:
             warnings.append(f"ignoring unknown parameter '{name}'")
             continue

@@ -198,6 +198,11 @@ def parse_ros_args(argv) -> RosArgs:
     return args
 
 
+def remapped(ros_name: str, remaps: dict) -> str:
+    """``ros_name`` after the ``-r FROM:=TO`` remappings (FROM with or without its leading slash)."""
+    return remaps.get(ros_name, remaps.get(ros_name.lstrip("/"), remaps.get("/" + ros_name.lstrip("/"), ros_name)))
+
+
 def node_values(argv) -> tuple[dict, list[str], RosArgs]:
     """Every parameter of the node for a command line with ``--ros-args``: ``(values, warnings, args)``."""
     args = parse_ros_args(argv)

@@ -38,9 +38,11 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import ColorRGBA, Empty, Float64MultiArray
@@ -48,13 +50,15 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
 from . import params as P
+from . import qos
 from ..errors import GlpmaError
 from .loops import AssemblyModesLoop, SolveLoop
-from .ros_args import check_params_files
+from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput
 
-#: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
-TF_DEPTH = 100
+#: every publisher and subscription declares qos_overrides.<topic>.<entity>.<policy> for these
+#: policies (glpma_ros.node.qos.POLICIES; the DDS transport reads the same keys)
+QOS_OVERRIDING = QoSOverridingOptions([QoSPolicyKind[name.upper()] for name in qos.POLICIES])
 #: seconds main() waits at exit for the executor's thread to leave rclpy (it wakes at once on
 #: executor.shutdown(); the cap only guards against a wedged middleware)
 SPINNER_JOIN_TIMEOUT_S = 10.0
@@ -77,6 +81,13 @@ def descriptor(spec: P.ParamSpec) -> ParameterDescriptor:
     return d
 
 
+def qos_profile(spec: qos.QosSpec) -> QoSProfile:
+    """:class:`~glpma_ros.node.qos.QosSpec` -> rclpy's ``QoSProfile``."""
+    return QoSProfile(depth=spec.depth, history=HistoryPolicy[spec.history.upper()],
+                      reliability=ReliabilityPolicy[spec.reliability.upper()],
+                      durability=DurabilityPolicy[spec.durability.upper()])
+
+
 def _plain(value):
     """rclpy parameter value -> the plain Python value the service expects."""
     if isinstance(value, (array.array, tuple)):
@@ -84,48 +95,82 @@ def _plain(value):
     return value
 
 
-class FkNode(Node):
-    def __init__(self, **node_kwargs):
-        super().__init__(P.NODE_NAME, **node_kwargs)
-        self._stopped = False
+class FkEndpoints:
+    """What both rclpy nodes share (mixed into :class:`rclpy.node.Node` or
+    :class:`rclpy.lifecycle.LifecycleNode`): the declared parameters, and :meth:`_open` /
+    :meth:`_close` of the service, the publishers and subscriptions (with QoS overrides), the
+    loops and the diagnostics timer, and the message conversions."""
+
+    service = None
+    _active = True          # inputs are solved and outputs published (a lifecycle node: only while active)
+    _stopped = True
+
+    def _declare_parameters(self) -> None:
         for spec in P.PARAMETERS:
             # an empty array has no inferable type: declare the type without a default
             default = ARRAY_PARAMETER_TYPES[spec.type] if spec.type in P.ARRAY_TYPES and not spec.default \
                 else spec.default
             self.declare_parameter(spec.name, default, descriptor(spec))
-        values = {spec.name: self._value(spec) for spec in P.PARAMETERS}
-        self.service = FkService(values, logger=self.get_logger(), node_name=self.get_name())
-        self.get_logger().info(f"{self.service.describe()}; warming up the solvers")
-        self.get_logger().info(f"warm-up done in {self.service.warm_up():.2f} s")
+        self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        qos = QoSProfile(depth=values["qos_depth"], history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-        self.pose_pub = self.create_publisher(PoseStamped, "pose_estimate", qos)
+    def _values(self) -> dict:
+        return {spec.name: self._value(spec) for spec in P.PARAMETERS}
+
+    def _open(self, values: dict, create_publisher) -> None:
+        """Build the service (reads the config), warm up the solvers, create every endpoint with
+        ``create_publisher`` (a lifecycle node's publishers are managed) and start the loops."""
+        service = FkService(values, logger=self.get_logger(), node_name=self.get_name())
+        self.get_logger().info(f"{service.describe()}; warming up the solvers")
+        self.get_logger().info(f"warm-up done in {service.warm_up():.2f} s")
+        self.service, self._stopped = service, False
+        input_topic = "joint_states" if values["input_type"] == P.INPUT_JOINT_STATE else "leg_lengths"
+        profiles = qos.node_endpoints(values["qos_depth"], input_topic)
+
+        def pub(msg_type, topic):
+            return create_publisher(msg_type, topic, qos_profile(profiles[(topic, qos.PUBLISHER)]),
+                                    qos_overriding_options=QOS_OVERRIDING)
+
+        def sub(msg_type, topic, callback):
+            return self.create_subscription(msg_type, topic, callback, qos_profile(profiles[(topic, qos.SUBSCRIPTION)]),
+                                            qos_overriding_options=QOS_OVERRIDING)
+
         # every output has its publisher from the start: the publish_* parameters switch them at runtime
-        tf_qos = QoSProfile(depth=max(values["qos_depth"], TF_DEPTH), history=HistoryPolicy.KEEP_LAST,
-                            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-        self.tf_pub = self.create_publisher(TFMessage, "/tf", tf_qos)
-        self.cov_pub = self.create_publisher(PoseWithCovarianceStamped, "pose_estimate_cov", qos)
-        self.twist_pub = self.create_publisher(TwistStamped, "twist_estimate", qos)
-        self.markers_pub = self.create_publisher(MarkerArray, "~/markers", qos)
-        self.diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
-        latched = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.modes_pub = self.create_publisher(PoseArray, "~/assembly_modes", latched)
+        self.pose_pub = pub(PoseStamped, "pose_estimate")
+        self.tf_pub = pub(TFMessage, "/tf")
+        self.cov_pub = pub(PoseWithCovarianceStamped, "pose_estimate_cov")
+        self.twist_pub = pub(TwistStamped, "twist_estimate")
+        self.markers_pub = pub(MarkerArray, "~/markers")
+        self.diag_pub = pub(DiagnosticArray, "/diagnostics")
+        self.modes_pub = pub(PoseArray, "~/assembly_modes")        # latched by default
+        self._publishers_opened = [self.pose_pub, self.tf_pub, self.cov_pub, self.twist_pub, self.markers_pub,
+                                   self.diag_pub, self.modes_pub]
         # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
         self._extra_pubs = (("tf", self.tf_pub), ("covariance", self.cov_pub), ("twist", self.twist_pub),
                             ("markers", self.markers_pub))
-        self.loop = SolveLoop(self.service, self._publish_pose, publish_extras=self._publish_extras,
+        self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed)
-        self.modes = AssemblyModesLoop(self.service, self._publish_modes).start()
+        self.modes = AssemblyModesLoop(service, self._publish_modes).start()
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
-            self.input_sub = self.create_subscription(JointState, "joint_states", self._on_joint_state, qos)
+            self.input_sub = sub(JointState, "joint_states", self._on_joint_state)
         else:
-            self.input_sub = self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
-        self.create_subscription(Empty, "~/request_assembly_modes", self._on_request_modes, qos)
-        self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.get_logger().info("ready")
+            self.input_sub = sub(Float64MultiArray, "leg_lengths", self._on_legs)
+        self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
+        self.diag_timer = self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
+
+    def _close(self) -> None:
+        """Stop the loops (logging the summary) and destroy what :meth:`_open` created."""
+        if self.service is None:
+            return
+        self.stop()
+        self.destroy_timer(self.diag_timer)
+        for subscription in (self.input_sub, self.request_sub):
+            self.destroy_subscription(subscription)
+        for publisher in self._publishers_opened:
+            self._destroy_publisher(publisher)
+        self._publishers_opened, self._extra_pubs, self.service = [], (), None
+
+    def _destroy_publisher(self, publisher) -> None:
+        self.destroy_publisher(publisher)
 
     def _value(self, spec: P.ParamSpec):
         try:
@@ -148,18 +193,32 @@ class FkNode(Node):
             self.service.note_dropped(passed_over)
         return msg
 
+    def _taking(self) -> bool:
+        """True when inputs are solved; otherwise (an inactive lifecycle node) the input and the
+        ones waiting behind it are counted as received and dropped."""
+        if self._active:
+            return True
+        self._newest(None)
+        self.service.note_dropped(1)
+        return False
+
     def _on_legs(self, msg: Float64MultiArray) -> None:
+        if not self._taking():
+            return
         msg = self._newest(msg)         # the pose's stamp is the arrival of the input it answers:
         self.loop.offer(tuple(msg.data), self.get_clock().now().nanoseconds)   # taken after the newest
 
     def _on_joint_state(self, msg: JointState) -> None:
+        if not self._taking():
+            return
         msg = self._newest(msg)
         stamp = msg.header.stamp
         self.loop.offer(JointStateInput(tuple(msg.name), tuple(msg.position), tuple(msg.velocity)),
                         stamp.sec * 1_000_000_000 + stamp.nanosec)
 
     def _on_request_modes(self, _msg: Empty) -> None:
-        self.modes.request(self.get_clock().now().nanoseconds)
+        if self._active:
+            self.modes.request(self.get_clock().now().nanoseconds)
 
     def _publish_modes(self, modes) -> None:
         msg = PoseArray()
@@ -229,6 +288,8 @@ class FkNode(Node):
         return marker
 
     def _publish_diagnostics(self) -> None:
+        if not self._active:
+            return
         report = self.service.diagnostics()
         msg = DiagnosticArray()
         msg.header.stamp = self.get_clock().now().to_msg()
@@ -238,7 +299,15 @@ class FkNode(Node):
         self.diag_pub.publish(msg)
 
     def _on_set_parameters(self, parameters) -> SetParametersResult:
-        ok, reason = self.service.set_parameters({p.name: _plain(p.value) for p in parameters})
+        mine = [p for p in parameters if not p.name.startswith(qos.PREFIX)]    # QoS overrides: rclpy's, read-only
+        if self.service is None:        # not configured yet (lifecycle): checked now, applied at configure
+            try:
+                for p in mine:
+                    P.coerce(p.name, _plain(p.value))
+            except GlpmaError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+            return SetParametersResult(successful=True)
+        ok, reason = self.service.set_parameters({p.name: _plain(p.value) for p in mine})
         return SetParametersResult(successful=ok, reason=reason)
 
     def stop(self) -> None:
@@ -252,20 +321,101 @@ class FkNode(Node):
         self.get_logger().info(f"stopped: {self.service.summary()}")
 
     def destroy_node(self):
-        if rclpy.ok(context=self.context):
-            self.stop()
-        else:                       # the context is gone: no logging through rosout any more
-            self._stopped = True
-            self.loop.stop()
-            self.modes.stop()
+        if self.service is not None:
+            if rclpy.ok(context=self.context):
+                self.stop()
+            elif not self._stopped:     # the context is gone: no logging through rosout any more
+                self._stopped = True
+                self.loop.stop()
+                self.modes.stop()
         return super().destroy_node()
 
 
-def main(args=None) -> int:
-    """Entry point of ``fk_node``; ``args`` are the arguments after the program name.
+class FkNode(FkEndpoints, Node):
+    """``ros2 run glpma_ros fk_node``: configured and publishing from the start."""
+
+    def __init__(self, **node_kwargs):
+        super().__init__(P.NODE_NAME, **node_kwargs)
+        self._declare_parameters()
+        self._open(self._values(), self.create_publisher)
+        self.get_logger().info("ready")
+
+
+class FkLifecycleNode(FkEndpoints, LifecycleNode):
+    """``ros2 run glpma_ros fk_lifecycle_node``: the same node, managed (ROS 2 design, *Managed nodes*).
+
+    * unconfigured: parameters declared (and checked when set), nothing else;
+    * ``configure``: reads the config, builds the estimator, loads the compiled solvers (the
+      warm-up), creates the publishers (managed: silent until active) and subscriptions;
+    * ``activate``: inputs are solved and every output published;
+    * ``deactivate``: nothing is published; inputs that arrive are counted (received, dropped)
+      and not solved; the warm-start state is kept;
+    * ``cleanup`` / ``shutdown``: the loops stop (the summary is logged) and every endpoint is
+      destroyed; ``configure`` starts again from the parameters' values.
+    A failed configure (a bad config) logs the reason and leaves the node unconfigured."""
+
+    _active = False
+
+    def __init__(self, **node_kwargs):
+        super().__init__(P.NODE_NAME, **node_kwargs)
+        self._declare_parameters()
+        self.get_logger().info("unconfigured: waiting for configure (ros2 lifecycle set /glpma_fk configure)")
+
+    def _destroy_publisher(self, publisher) -> None:
+        self.destroy_lifecycle_publisher(publisher)
+
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        try:
+            self._open(self._values(), self.create_lifecycle_publisher)
+        except GlpmaError as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self.get_logger().info("configured (inactive)")
+        return super().on_configure(state)
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        result = super().on_activate(state)        # enables the managed publishers
+        self._active = True
+        self.get_logger().info("active")
+        return result
+
+    def on_deactivate(self, state) -> TransitionCallbackReturn:
+        self._active = False
+        self.get_logger().info("inactive: inputs are counted and dropped")
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state) -> TransitionCallbackReturn:
+        self._active = False
+        self._close()
+        return super().on_cleanup(state)
+
+    def on_shutdown(self, state) -> TransitionCallbackReturn:
+        self._active = False
+        self._close()
+        return super().on_shutdown(state)
+
+
+def check_arguments(argv) -> None:
+    """The mistakes in ``--ros-args`` that rclpy would report with a traceback, as one
+    :class:`GlpmaError` line: a params file that is not one (e.g. a manipulator YAML) and a bad QoS
+    override.  What our parser cannot read is left to rclpy."""
+    check_params_files(argv)
+    try:
+        values, _, ros = node_values(argv)
+    except GlpmaError:
+        return
+    input_topic = "joint_states" if values["input_type"] == P.INPUT_JOINT_STATE else "leg_lengths"
+    qos.resolve(ros.overrides, values["qos_depth"], input_topic, ros.node_name,
+                topic_of=lambda name: remapped(name, ros.remaps))
+
+
+def main(args=None, node_class=None) -> int:
+    """Entry point of ``fk_node`` (``node_class`` :class:`FkNode`) and ``fk_lifecycle_node``
+    (:class:`FkLifecycleNode`); ``args`` are the arguments after the program name.
     SIGINT / SIGTERM end it with status 0 after logging the summary."""
+    node_class = node_class or FkNode
     try:   # a params-file mistake (e.g. a manipulator YAML) in one line, before rcl's parser sees it
-        check_params_files(sys.argv[1:] if args is None else args)
+        check_arguments(sys.argv[1:] if args is None else args)
     except GlpmaError as exc:
         print(f"glpma_fk: error: {exc}", file=sys.stderr)
         return 2
@@ -275,14 +425,15 @@ def main(args=None) -> int:
     previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     node = executor = spinner = None
     try:
-        node = FkNode()
+        node = node_class()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         spinner = threading.Thread(target=_spin, args=(executor, stop), name="glpma_fk-executor", daemon=True)
         spinner.start()
         stop.wait()                 # returns on a signal (the handler runs in this thread)
-        node.stop()
-    except (GlpmaError, ParameterException) as exc:
+        if node.service is not None:
+            node.stop()
+    except (GlpmaError, ParameterException, InvalidQosOverridesError) as exc:
         print(f"glpma_fk: error: {exc}", file=sys.stderr)
         return 2
     finally:
@@ -298,6 +449,11 @@ def main(args=None) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return 0
+
+
+def lifecycle_main(args=None) -> int:
+    """Entry point of ``fk_lifecycle_node``: the managed node, driven by ``ros2 lifecycle set``."""
+    return main(args, FkLifecycleNode)
 
 
 def _spin(executor, stop: threading.Event) -> None:

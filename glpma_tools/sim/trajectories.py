@@ -10,7 +10,7 @@ tracking runs and the tests.
   (:data:`SPATIAL_TWIST_RAD`) and tilts (:data:`SPATIAL_TILT` of the twist).
 
 The position on the circle tells the time within a loop, so the pose (and, this close to one
-assembly mode, the legs) repeats only a whole period later: :mod:`.matching` relies on it to pair
+assembly mode, the legs) repeats only a whole period later: :mod:`glpma_ros.testing.matching` relies on it to pair
 a pose with the input it answers.  Sizes scale with ``amplitude``.
 """
 from __future__ import annotations
@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from glpma_ros.errors import GlpmaError
+from glpma_ros.testing.matching import legs_for  # noqa: F401 - the tools' name for it
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 
 #: known solution of each manipulator to move around (index in the config's list)
@@ -111,12 +112,6 @@ def variables_along(model, x0, n: int, amplitude: float = 1.0) -> np.ndarray:
         p, R = pose_at(k * PERIOD_S / n)
         out.append(model.variables_from_pose(p, quaternion_from_matrix(R)))
     return np.array(out)
-
-
-def legs_for(model, position, quaternion) -> np.ndarray:
-    """What the leg sensors read (config unit) at a pose (config unit, quaternion [x, y, z, w]): the
-    inverse kinematics less the config's ``leg_offsets``, which the node adds back."""
-    return model.sensors_from_legs(model.inverse_kinematics(model.variables_from_pose(position, quaternion)))
 
 
 class Plan:

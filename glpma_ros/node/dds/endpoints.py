@@ -18,6 +18,8 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
+from ..qos import TF_DEPTH, QosSpec  # noqa: F401 - TF_DEPTH: the depth of /tf, re-exported
+from ..security import check_dds_transport
 from .messages import type_hash
 
 LEG_LENGTHS = "leg_lengths"
@@ -27,8 +29,6 @@ POSE_ESTIMATE_COV = "pose_estimate_cov"
 TWIST_ESTIMATE = "twist_estimate"
 TF = "/tf"
 MARKERS = "~/markers"
-#: keep-last depth of /tf, as tf2_ros's TransformBroadcaster has it (DynamicBroadcasterQoS)
-TF_DEPTH = 100
 DIAGNOSTICS = "/diagnostics"
 ASSEMBLY_MODES = "~/assembly_modes"
 REQUEST_ASSEMBLY_MODES = "~/request_assembly_modes"
@@ -61,12 +61,21 @@ def domain_id_from_env() -> int:
     return value
 
 
-def ros_qos(msg_type, depth: int, transient_local: bool = False) -> Qos:
-    """Reliable, keep-last(depth), volatile (or transient-local), with the type hash in USER_DATA."""
+#: how long a reliable writer may block when the reader's history is full (Cyclone's default)
+RELIABLE_MAX_BLOCKING = duration(milliseconds=100)
+
+
+def ros_qos(msg_type, depth: int, transient_local: bool = False, spec: QosSpec | None = None) -> Qos:
+    """Reliable, keep-last(depth), volatile (or transient-local) -- or the policies of ``spec``
+    (:class:`~glpma_ros.node.qos.QosSpec`, e.g. with QoS overrides applied) -- with the type hash
+    in USER_DATA."""
+    spec = (spec or QosSpec(depth=int(depth), durability="transient_local" if transient_local else "volatile"))
+    spec = spec.resolved()
     return Qos(
-        Policy.Reliability.Reliable(duration(milliseconds=100)),
-        Policy.History.KeepLast(int(depth)),
-        Policy.Durability.TransientLocal if transient_local else Policy.Durability.Volatile,
+        Policy.Reliability.BestEffort if spec.reliability == "best_effort"
+        else Policy.Reliability.Reliable(RELIABLE_MAX_BLOCKING),
+        Policy.History.KeepAll if spec.history == "keep_all" else Policy.History.KeepLast(int(spec.depth)),
+        Policy.Durability.TransientLocal if spec.durability == "transient_local" else Policy.Durability.Volatile,
         Policy.Userdata(f"typehash={type_hash(msg_type)};".encode()),
     )
 
@@ -75,6 +84,7 @@ class Participant:
     """A domain participant that creates ROS-compatible topics, readers and writers."""
 
     def __init__(self, domain_id: int | None = None):
+        check_dds_transport()           # never unsecured when ROS_SECURITY_ENABLE=true (glpma_ros.node.security)
         self.domain_id = domain_id_from_env() if domain_id is None else int(domain_id)
         self.dp = DomainParticipant(self.domain_id)
         self._topics: dict[str, Topic] = {}
@@ -85,13 +95,16 @@ class Participant:
             self._topics[name] = Topic(self.dp, name, msg_type)
         return self._topics[name]
 
-    def writer(self, ros_name: str, msg_type, depth: int = 10, transient_local: bool = False) -> DataWriter:
+    def writer(self, ros_name: str, msg_type, depth: int = 10, transient_local: bool = False,
+               qos: QosSpec | None = None) -> DataWriter:
         """``ros_name`` as :func:`dds_topic_name` takes it (``~/x`` is private to ``glpma_fk``;
-        expand it with :func:`expand_topic_name` for another node name)."""
-        return DataWriter(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth, transient_local))
+        expand it with :func:`expand_topic_name` for another node name); ``qos`` replaces
+        ``depth`` and ``transient_local`` when given."""
+        return DataWriter(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth, transient_local, qos))
 
-    def reader(self, ros_name: str, msg_type, depth: int = 10, transient_local: bool = False) -> DataReader:
-        return DataReader(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth, transient_local))
+    def reader(self, ros_name: str, msg_type, depth: int = 10, transient_local: bool = False,
+               qos: QosSpec | None = None) -> DataReader:
+        return DataReader(self.dp, self.topic(ros_name, msg_type), ros_qos(msg_type, depth, transient_local, qos))
 
 
 def wait_for_match(endpoints, timeout_s: float, poll_s: float = 0.02) -> bool:

@@ -38,9 +38,11 @@ from cyclonedds.util import duration
 from .. import params as P
 from ...errors import GlpmaError, InputError
 from ..loops import AssemblyModesLoop, SolveLoop
-from ..ros_args import node_values, parse_ros_args, split_transport
+from ..ros_args import node_values, parse_ros_args, remapped, split_transport
+from ..security import check_dds_transport
 from ..service import FkService
 from ..service import JointStateInput
+from .. import qos
 from . import cdr, endpoints
 from .messages import (DiagnosticArray, DiagnosticStatus, Empty, Float64MultiArray, Header, JointState, KeyValue,
                        MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
@@ -72,42 +74,51 @@ class DdsNode:
     """Endpoints and threads around one :class:`FkService`."""
 
     def __init__(self, service: FkService, participant: endpoints.Participant, remaps: dict | None = None,
-                 modes_solve=None):
-        """``modes_solve``: how assembly modes are computed (default: a worker process)."""
+                 modes_solve=None, qos_overrides: dict | None = None):
+        """``modes_solve``: how assembly modes are computed (default: a worker process);
+        ``qos_overrides``: the ``qos_overrides.*`` parameters (:mod:`glpma_ros.node.qos`)."""
         self.service = service
         self.participant = participant
-        depth = service.params["qos_depth"]
         remaps = remaps or {}
 
         def topic(name):
-            name = remaps.get(name, remaps.get(name.lstrip("/"), remaps.get("/" + name.lstrip("/"), name)))
-            return endpoints.expand_topic_name(name, service.node_name)
+            return endpoints.expand_topic_name(remapped(name, remaps), service.node_name)
 
         self.joint_state = service.input_type == P.INPUT_JOINT_STATE
         self.input_name = endpoints.JOINT_STATES if self.joint_state else endpoints.LEG_LENGTHS
+        self.qos, qos_warnings = node_qos(service, remaps, qos_overrides or {})
+        for warning in qos_warnings:
+            service.log.warning(warning)
+        pub, sub = self.qos_of(qos.PUBLISHER), self.qos_of(qos.SUBSCRIPTION)
         self.topics = {name: topic(name) for name in (self.input_name, endpoints.POSE_ESTIMATE,
                                                        endpoints.POSE_ESTIMATE_COV, endpoints.TWIST_ESTIMATE,
                                                        endpoints.TF, endpoints.MARKERS,
                                                        endpoints.DIAGNOSTICS, endpoints.ASSEMBLY_MODES,
                                                        endpoints.REQUEST_ASSEMBLY_MODES)}
         # every output has its writer from the start: the publish_* parameters switch them at runtime
-        self.pose_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE], PoseStamped, depth)
-        self.tf_writer = participant.writer(self.topics[endpoints.TF], TFMessage, max(depth, endpoints.TF_DEPTH))
+        self.pose_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE], PoseStamped,
+                                              qos=pub(endpoints.POSE_ESTIMATE))
+        self.tf_writer = participant.writer(self.topics[endpoints.TF], TFMessage, qos=pub(endpoints.TF))
         self.cov_writer = participant.writer(self.topics[endpoints.POSE_ESTIMATE_COV], PoseWithCovarianceStamped,
-                                             depth)
-        self.twist_writer = participant.writer(self.topics[endpoints.TWIST_ESTIMATE], TwistStamped, depth)
-        self.markers_writer = participant.writer(self.topics[endpoints.MARKERS], MarkerArray, depth)
+                                             qos=pub(endpoints.POSE_ESTIMATE_COV))
+        self.twist_writer = participant.writer(self.topics[endpoints.TWIST_ESTIMATE], TwistStamped,
+                                               qos=pub(endpoints.TWIST_ESTIMATE))
+        self.markers_writer = participant.writer(self.topics[endpoints.MARKERS], MarkerArray,
+                                                 qos=pub(endpoints.MARKERS))
         self._encode = cdr.Encoder()
         self._raw_pose, self._raw_tf, self._raw_cov, self._raw_twist, self._raw_markers = (
             cdr.RawWriter(w) for w in (self.pose_writer, self.tf_writer, self.cov_writer, self.twist_writer,
                                        self.markers_writer))
-        self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray, depth)
-        # latched: a late subscriber gets the last answer
-        self.modes_writer = participant.writer(self.topics[endpoints.ASSEMBLY_MODES], PoseArray, 1,
-                                               transient_local=True)
+        self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray,
+                                              qos=pub(endpoints.DIAGNOSTICS))
+        # latched (by default: transient-local, keep-last 1): a late subscriber gets the last answer
+        self.modes_writer = participant.writer(self.topics[endpoints.ASSEMBLY_MODES], PoseArray,
+                                               qos=pub(endpoints.ASSEMBLY_MODES))
         self.input_reader = participant.reader(self.topics[self.input_name],
-                                               JointState if self.joint_state else Float64MultiArray, depth)
-        self.request_reader = participant.reader(self.topics[endpoints.REQUEST_ASSEMBLY_MODES], Empty, depth)
+                                               JointState if self.joint_state else Float64MultiArray,
+                                               qos=sub(self.input_name))
+        self.request_reader = participant.reader(self.topics[endpoints.REQUEST_ASSEMBLY_MODES], Empty,
+                                                 qos=sub(endpoints.REQUEST_ASSEMBLY_MODES))
         self._extra_writers = (("tf", self.tf_writer), ("covariance", self.cov_writer),
                                ("twist", self.twist_writer), ("markers", self.markers_writer))
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
@@ -118,6 +129,10 @@ class DdsNode:
         self._lead = threading.Lock()           # held by the thread that waits for input
         self._reader_threads = [threading.Thread(target=self._read_loop, name=f"glpma_fk-reader-{i}", daemon=True)
                                 for i in range(READER_THREADS)]
+
+    def qos_of(self, entity: str):
+        """``name -> QosSpec`` of this node's ``entity`` (publisher or subscription) endpoints."""
+        return lambda name: self.qos[(name, entity)]
 
     def start(self) -> "DdsNode":
         self.modes.start()
@@ -237,6 +252,14 @@ class DdsNode:
         self.modes.stop()
 
 
+def node_qos(service: FkService, remaps: dict, qos_overrides: dict) -> tuple[dict, list]:
+    """Every endpoint's QoS (:func:`glpma_ros.node.qos.resolve`) for the service's ``qos_depth``,
+    input topic and node name, the topics remapped by ``remaps``; :class:`InputError` for a bad value."""
+    input_name = endpoints.JOINT_STATES if service.input_type == P.INPUT_JOINT_STATE else endpoints.LEG_LENGTHS
+    return qos.resolve(qos_overrides, service.params["qos_depth"], input_name, service.node_name,
+                       topic_of=lambda name: remapped(name, remaps))
+
+
 class ParameterReload:
     """SIGHUP: re-read the ``--ros-args`` (params files included) and apply what changed."""
 
@@ -274,6 +297,7 @@ def main(argv=None) -> int:
     if transport not in ("dds", "auto"):
         return _error(f"this is the Cyclone DDS transport; --transport {transport} is not it")
     try:
+        check_dds_transport()
         ros = parse_ros_args(argv)
     except InputError as exc:
         return _error(str(exc))
@@ -289,6 +313,7 @@ def main(argv=None) -> int:
         for warning in warnings:
             log.warning(warning)
         service = FkService(values, logger=log, node_name=ros.node_name)
+        node_qos(service, ros.remaps, ros.overrides)        # a bad QoS override: refused before the warm-up
         domain_id = endpoints.domain_id_from_env()
     except (GlpmaError, ValueError) as exc:
         return _error(str(exc))
@@ -296,7 +321,7 @@ def main(argv=None) -> int:
     log.info(f"{service.describe()}; warming up the solvers (Numba compiles on first use)")
     log.info(f"warm-up done in {service.warm_up():.2f} s")
     try:
-        node = DdsNode(service, endpoints.Participant(domain_id), ros.remaps).start()
+        node = DdsNode(service, endpoints.Participant(domain_id), ros.remaps, qos_overrides=ros.overrides).start()
     except Exception as exc:  # noqa: BLE001 - e.g. a bad CYCLONEDDS_URI
         return _error(f"cannot start Cyclone DDS: {exc}", 1)
 
