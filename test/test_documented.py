@@ -109,7 +109,8 @@ def readme_commands() -> list[str]:
             inside = not inside
             continue
         line = line.split("  #", 1)[0].strip()
-        if inside and line.startswith("glpma-fk"):
+        # "glpma-fk calibrate: ..." is a line of output shown in the README, not a command
+        if inside and line.startswith("glpma-fk") and not re.match(r"glpma-fk [\w-]+:", line):
             out.append(line)
     return out
 

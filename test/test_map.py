@@ -148,14 +148,26 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, words):
     assert p.stderr.count("\n") == 1 and p.stderr.startswith("error: glpma-fk map:") and words in p.stderr, p.stderr
 
 
-def test_cli_writes_the_map_and_help_describes_every_option(tmp_path):
-    p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 3, 2, "--runs", 2, "--workers", 1, "--json",
-             "--at", "theta=10")
+def test_cli_writes_the_map(tmp_path):
+    p = _cli(RPR_YAML, "--out", tmp_path, "--axes", "x", "y", "--limits", 20, 80, 50, 110, "--resolution", 3, 2,
+             "--runs", 2, "--workers", 1, "--chunk-size", 3, "--json", "--at", "theta=10")
     assert p.returncode == 0, p.stderr
     summary = json.loads(p.stdout)
     assert summary["points"] == 6 and summary["engine"] == "this process"
     with np.load(tmp_path / "assembly_modes.npz") as f:
         assert f["counts"].shape == (2, 3) and list(f["fixed_names"]) == ["theta"] and f["fixed_values"][0] == 10
+
+
+def test_cli_on_a_dask_scheduler(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 2, "--runs", 2, "--scheduler", c.scheduler_address,
+                 "--json")
+    assert p.returncode == 0, p.stderr
+    assert json.loads(p.stdout)["engine"].startswith("Dask")
+
+
+def test_cli_help_describes_every_option():
     h = _cli("--help")
     assert h.returncode == 0
     for option in ("--out", "--axes", "--limits", "--resolution", "--at", "--runs", "--seed", "--workers",
