@@ -12,7 +12,8 @@ every ``1 / rate_hz`` seconds, publishes
 
 Sample k is the trajectory at ``k / rate_hz`` (the motion does not depend on timer jitter).  With
 ``wait_for_subscriber`` (default) it starts once something subscribes to the legs (the estimator
-node subscribes after its warm-up); with ``duration_s`` > 0 it ends after that many seconds of
+node subscribes after its warm-up), with ``wait_for_monitor`` also once something subscribes to
+``~/true_pose`` (a test's :class:`glpma_ros.testing.TrackingMonitor`, which then misses no true pose); with ``duration_s`` > 0 it ends after that many seconds of
 trajectory with status 0, else at SIGINT.  :mod:`glpma_ros.testing` pairs the node's poses with
 these true poses.  Parameters are declared with descriptions and ranges (``ros2 param describe``);
 a bad value is one line on stderr and status 2.
@@ -44,6 +45,8 @@ def _parameters():
         ("frame_id", "base", "header.frame_id of ~/true_pose", None),
         ("wait_for_subscriber", True, "Start once something subscribes to the legs (e.g. after the node's warm-up)",
          None),
+        ("wait_for_monitor", False, "Also wait until something subscribes to ~/true_pose (a test's monitor: then "
+                                    "it has the true pose of every input)", None),
     )
 
 
@@ -84,7 +87,7 @@ def main(args=None) -> int:
                 raise GlpmaError(f"joint_names must name the {n_legs} legs, got {len(names)} names")
             self.names, self.frame_id = names, p["frame_id"]
             self.joint_state = p["input_type"] == INPUT_JOINT_STATE
-            self.rate, self.wait = p["rate_hz"], p["wait_for_subscriber"]
+            self.rate, self.wait, self.wait_monitor = p["rate_hz"], p["wait_for_subscriber"], p["wait_for_monitor"]
             self.total = round(p["duration_s"] * self.rate) if p["duration_s"] > 0 else None
             self.legs_pub = (self.create_publisher(JointState, "joint_states", 10) if self.joint_state
                              else self.create_publisher(Float64MultiArray, "leg_lengths", 10))
@@ -104,8 +107,13 @@ def main(args=None) -> int:
                 return default
             return list(value) if isinstance(value, (list, tuple)) else value
 
+        def _waiting(self) -> bool:
+            """Before the first input: is a subscriber it waits for still missing?"""
+            return self.k == 0 and ((self.wait and self.legs_pub.get_subscription_count() == 0)
+                                    or (self.wait_monitor and self.true_pub.get_subscription_count() == 0))
+
         def _tick(self):
-            if self.done or (self.wait and self.k == 0 and self.legs_pub.get_subscription_count() == 0):
+            if self.done or self._waiting():
                 return
             legs, position_m, q = self.plan.sample(self.k / self.rate)
             legs_m = [float(v) * self.plan.mpu for v in legs]

@@ -93,6 +93,8 @@ def counters(values: dict) -> dict:
 
 
 _SCRATCH = tempfile.TemporaryDirectory(prefix="glpma_launch_test_")     # removed when the process ends
+#: this process's scratch directory (params files, keystores)
+SCRATCH = Path(_SCRATCH.name)
 
 
 def params_file(manipulator: str, **changes) -> str:
@@ -102,6 +104,6 @@ def params_file(manipulator: str, **changes) -> str:
     doc = yaml.safe_load((CONFIG / f"params_{manipulator}.yaml").read_text())
     values = doc["glpma_fk"]["ros__parameters"]
     values.update(time_budget_ms=GENEROUS_BUDGET_MS, deadline_ms=GENEROUS_BUDGET_MS, **changes)
-    path = Path(_SCRATCH.name) / f"params_{manipulator}_{len(os.listdir(_SCRATCH.name))}.yaml"
+    path = SCRATCH / f"params_{manipulator}_{len(os.listdir(SCRATCH))}.yaml"
     path.write_text(yaml.safe_dump(doc))
     return str(path)

@@ -257,7 +257,8 @@ def test_mock_publisher_with_every_parameter(ros, dds_env):
                              "sys.exit(main())", "--ros-args", "-p", "config:=planar_3rpr_seed",
                              "-p", "input_type:=joint_state", "-p", "joint_names:=[a, b, c]", "-p", "rate_hz:=50.0",
                              "-p", "duration_s:=2.0", "-p", "solution:=1", "-p", "amplitude:=0.5",
-                             "-p", "frame_id:=world", "-p", "wait_for_subscriber:=true"],
+                             "-p", "frame_id:=world", "-p", "wait_for_subscriber:=true",
+                             "-p", "wait_for_monitor:=true"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dds_env)
     try:
         assert _spin_until(executor, lambda: proc.poll() is not None and len(truths) >= 100, timeout_s=120)

@@ -32,11 +32,13 @@ MONITOR_DEPTH = 1000
 def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart: bool = False,
                  input_type: str = "float64_multi_array",
                  rate_hz: float = 50.0, duration_s: float = 0.0, params_file: str | None = None,
-                 mock_parameters: dict | None = None) -> list:
+                 mock_parameters: dict | None = None, keystore: str | None = None,
+                 mock_enclave: str = "/controller") -> list:
     """Launch actions: ``fk.launch.py`` with ``manipulator``, ``managed``, ``autostart``, ``input_type`` (and
     ``params_file`` if given) and the mock publisher driving the same manipulator's shipped config
-    at ``rate_hz`` for ``duration_s`` (0: until shutdown).  Add ``launch_testing.actions.ReadyToTest()``
-    (or launch_pytest's) after them."""
+    at ``rate_hz`` for ``duration_s`` (0: until shutdown).  With ``keystore`` (an SROS2 keystore
+    with enclaves ``/glpma_fk`` and ``mock_enclave``) both run secured (``secure:=true``; README,
+    "Running secured").  Add ``launch_testing.actions.ReadyToTest()`` (or launch_pytest's) after them."""
     from launch.actions import IncludeLaunchDescription
     from launch.launch_description_sources import PythonLaunchDescriptionSource
     from launch_ros.actions import Node
@@ -47,12 +49,21 @@ def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart:
             "autostart": str(bool(autostart)).lower(), "input_type": input_type}
     if params_file is not None:
         args["params_file"] = str(params_file)
+    secured = {}
+    if keystore is not None:
+        args.update(secure="true", keystore=str(keystore))
+        secured = dict(ros_arguments=["--enclave", mock_enclave],
+                       additional_env={"ROS_SECURITY_KEYSTORE": str(keystore), "ROS_SECURITY_ENABLE": "true",
+                                       "ROS_SECURITY_STRATEGY": "Enforce"})
     fk = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(PathJoinSubstitution([FindPackageShare("glpma_ros"), "launch", "fk.launch.py"])),
         launch_arguments=args.items())
     mock = Node(package="glpma_ros", executable="mock_publisher", name=MOCK_NODE_NAME, output="screen",
                 parameters=[{"config": MANIPULATOR_CONFIGS.get(manipulator, manipulator), "input_type": input_type,
-                             "rate_hz": float(rate_hz), "duration_s": float(duration_s), **(mock_parameters or {})}])
+                             "rate_hz": float(rate_hz), "duration_s": float(duration_s),
+                             # the first input once the node and the test's TrackingMonitor listen
+                             "wait_for_subscriber": True, "wait_for_monitor": True, **(mock_parameters or {})}],
+                **secured)
     return [fk, mock]
 
 
