@@ -545,6 +545,7 @@ def test_leg_offsets_are_added_by_the_command_line_and_the_node(tmp_path, capsys
     assert np.allclose(pose["position"], expected.position, atol=1e-9 * rpr.scale)
     service = FkService({"manipulator_config": str(path), "initial_pose": list(x),
                          "time_budget_ms": GENEROUS_BUDGET_MS})
+    assert "leg_offsets [0.2, -0.1, 0.3] mm added to the legs" in service.describe()     # the node's start line
     outcome = service.handle(readings * rpr.metres_per_unit, 0)
     assert outcome.pose is not None
     assert np.allclose(outcome.pose.position, expected.position * rpr.metres_per_unit, atol=1e-9 * rpr.scale * 1e-3)
