@@ -208,6 +208,30 @@ def test_any_number_of_legs(legs, dim):
     assert np.all(np.abs(res.residual_std - noise) <= 0.2 * noise)      # the noise, to its sampling spread
 
 
+def test_joints_legs_share_are_identified_once():
+    """A 6-3 hexapod (platform joints coinciding in pairs): each shared joint is one physical joint,
+    identified once from both legs' residuals, and stays shared; the truth within 4 standard errors."""
+    model, sim = simulated("hexapod", seed=11)
+    pairs = np.repeat(sim.nominal.platform[[0, 2, 4]], 2, axis=0)          # B1 = B2, B3 = B4, B5 = B6
+    moved = np.repeat(sim.truth.platform[[0, 2, 4]], 2, axis=0)
+    nominal = I.Geometry(sim.nominal.base, pairs, sim.nominal.offsets)
+    truth = I.Geometry(sim.truth.base, moved, sim.truth.offsets)
+    m = sim.measured
+    legs = S.true_readings(truth, sim.true_poses.position, sim.true_poses.rotation) + \
+        np.random.default_rng(12).normal(0.0, S.NOISE_M / model.metres_per_unit, m.legs.shape)
+    res = I.identify(nominal, I.Measurements(legs, m.position, m.rotation), scale=model.scale)
+    assert res.converged and not res.unidentifiable
+    shared = [p for p in res.parameters if p.group == "platform"]
+    assert len(shared) == 9 and {p.legs for p in shared} == {(1, 2), (3, 4), (5, 6)}
+    assert shared[0].name == "legs 1 and 2 platform x"
+    assert len(res.parameters) == 6 * 3 + 9 + 6
+    for a, b in ((0, 1), (2, 3), (4, 5)):
+        # one parameter written to both legs: still one joint (far below round-off of the geometry's scale)
+        assert np.all(np.abs(res.geometry.platform[a] - res.geometry.platform[b]) <= 1e-12 * model.scale)
+    z = np.array([(p.value - truth_of(truth, p)) / p.se for p in res.parameters])
+    assert np.all(np.abs(z) <= 4.0), z
+
+
 # -- identifiability ------------------------------------------------------------------------------
 
 def test_poses_without_rotation_are_rank_deficient_and_named(tmp_path, capsys):
@@ -521,6 +545,7 @@ def test_leg_offsets_are_added_by_the_command_line_and_the_node(tmp_path, capsys
     assert np.allclose(pose["position"], expected.position, atol=1e-9 * rpr.scale)
     service = FkService({"manipulator_config": str(path), "initial_pose": list(x),
                          "time_budget_ms": GENEROUS_BUDGET_MS})
+    assert "leg_offsets [0.2, -0.1, 0.3] mm added to the legs" in service.describe()     # the node's start line
     outcome = service.handle(readings * rpr.metres_per_unit, 0)
     assert outcome.pose is not None
     assert np.allclose(outcome.pose.position, expected.position * rpr.metres_per_unit, atol=1e-9 * rpr.scale * 1e-3)

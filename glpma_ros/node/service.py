@@ -172,7 +172,10 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             source = f"input joint_states ({', '.join(self.joint_names)})"
         else:
             source = "input leg_lengths"
-        return (f"{m.kind} ({Path(str(getattr(m, 'source', ''))).name}, {m.n_legs} legs, config unit {m.unit}), "
+        offsets = "" if m.leg_offsets is None else \
+            f", leg_offsets [{', '.join(f'{v:g}' for v in m.leg_offsets)}] {m.unit} added to the legs"
+        name = Path(str(getattr(m, "source", ""))).name
+        return (f"{m.kind} ({name}, {m.n_legs} legs, config unit {m.unit}{offsets}), "
                 f"{source}, solver {self.params['solver']}, budget {self.params['time_budget_ms']:g} ms, "
                 f"{'warm start from initial_pose' if self._initial_x is not None else 'cold start'}")
 

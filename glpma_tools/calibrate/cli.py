@@ -191,7 +191,7 @@ def _write(path: Path, text_: str) -> None:
 
 
 def _direction(d) -> dict:
-    return {"leg": d.leg, "text": d.text, "se": d.se, "components": d.components}
+    return {"legs": list(d.legs), "text": d.text, "se": d.se, "components": d.components}
 
 
 def _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, identify_s, total_s) -> dict:
@@ -205,8 +205,8 @@ def _report(args, model, config_path, meas, fit, hold, nominal, result, groups, 
         "holdout_rms_before": _rms(leg_residuals(nominal, hold)) if len(hold) else None,
         "holdout_rms_after": _rms(leg_residuals(result.geometry, hold)) if len(hold) else None,
         "condition_number": finite(result.condition_number),
-        "parameters": [{"name": p.name, "leg": p.leg, "group": KEYS[p.group], "axis": p.axis, "nominal": p.nominal,
-                        "value": p.value, "se": p.se} for p in result.parameters],
+        "parameters": [{"name": p.name, "leg": p.leg, "legs": list(p.legs), "group": KEYS[p.group], "axis": p.axis,
+                        "nominal": p.nominal, "value": p.value, "se": p.se} for p in result.parameters],
         "residual_std": [float(s) for s in result.residual_std],
         "unidentifiable": [_direction(d) for d in result.unidentifiable],
         "weak": [_direction(d) for d in result.weak],
@@ -223,7 +223,7 @@ def text(r: dict) -> str:
         b = r["bag"]
         lines.append(f"  bag: {b['paired']} pairs of {b['legs_messages']} leg readings on {b['legs_topic']} and "
                      f"{b['pose_messages']} poses on {b['pose_topic']}")
-    per_leg = sum(1 for p in r["parameters"] if p["leg"] == 1)
+    per_leg = sum(1 for p in r["parameters"] if 1 in p["legs"])
     lines += [f"identified {' '.join(r['identify'])}: {per_leg} parameters per leg, {len(r['parameters'])} in all, "
               f"{r['iterations']} Gauss-Newton iterations, {r['identify_s'] * 1e3:.1f} ms",
               f"leg residual RMS ({u}):        before       after",

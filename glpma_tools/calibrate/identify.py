@@ -87,6 +87,9 @@ RANK_RTOL = 1e-7
 UNIDENTIFIABLE_SE_SHARE = 1e-3
 #: a direction whose standard error exceeds this share of the scale is reported as weakly identified
 WEAK_SE_SHARE = 1e-4
+#: joints closer than this share of the scale in the nominal geometry are one physical joint that
+#: their legs share (6-3, 3-6, 3-3 designs), identified once (the config's own coincidence rule)
+COINCIDENT_RTOL = 1e-9
 #: components of a direction (a unit vector) at least this large in magnitude are named in its
 #: description (1/sqrt(k) of a k-parameter direction spread evenly is 0.38 for k = 7)
 NAMED_COMPONENT = 0.3
@@ -130,7 +133,7 @@ class Measurements:
 
 @dataclass
 class Parameter:
-    leg: int                  # 1-based
+    legs: tuple               # the legs it belongs to, 1-based (several for a joint they share)
     group: str                # base | platform | offsets
     axis: str                 # x | y | z, "" for an offset
     nominal: float
@@ -138,32 +141,46 @@ class Parameter:
     se: float
 
     @property
+    def leg(self) -> int:
+        return self.legs[0]
+
+    @property
     def name(self) -> str:
-        return f"leg {self.leg} offset" if self.group == "offsets" else f"leg {self.leg} {self.group} {self.axis}"
+        if self.group == "offsets":
+            return f"leg {self.leg} offset"
+        return f"{_legs_text(self.legs)} {self.group} {self.axis}"
 
 
 @dataclass
 class Direction:
-    """A direction of parameter space the data see badly: its leg, unit vector over the leg's
-    identified parameters (names -> component), standard error along it and a description."""
+    """A direction of parameter space the data see badly: the legs it concerns, its unit vector over
+    their identified parameters (names -> component), the standard error along it, in words."""
 
-    leg: int
+    legs: tuple
     components: dict
     singular_value: float
     se: float
     text: str
 
+    @property
+    def leg(self) -> int:
+        return self.legs[0]
+
 
 @dataclass
 class Identification:
     geometry: Geometry                   # identified (the groups not identified as given)
-    parameters: list                     # Parameter, leg by leg, in GROUPS order
+    parameters: list                     # Parameter, in GROUPS order, joints in leg order
     residual_std: np.ndarray             # s_i per leg (config unit)
     condition_number: float
     unidentifiable: list = field(default_factory=list)   # Direction
     weak: list = field(default_factory=list)             # Direction
     iterations: int = 0
     converged: bool = False
+
+
+def _legs_text(legs) -> str:
+    return f"leg {legs[0]}" if len(legs) == 1 else "legs " + ", ".join(map(str, legs[:-1])) + f" and {legs[-1]}"
 
 
 def leg_residuals(geometry: Geometry, meas: Measurements) -> np.ndarray:
@@ -186,6 +203,63 @@ def parameter_labels(dim: int, groups) -> list:
     return out
 
 
+@dataclass
+class Layout:
+    """The distinct parameters: a joint that several legs share (6-3, 3-6, 3-3 designs: joints that
+    coincide in the nominal geometry) is one physical joint, identified once.  ``labels``: (legs,
+    group, axis) of each distinct parameter; ``index`` (n, k): leg i's local parameter c is distinct
+    parameter ``index[i, c]``; ``component`` (p,): the group of legs tied by shared joints that each
+    distinct parameter belongs to (legs that share nothing are their own component: the problem
+    separates by component)."""
+
+    labels: list
+    index: np.ndarray
+    component: np.ndarray
+
+    @property
+    def size(self) -> int:
+        return len(self.labels)
+
+
+def _joint_ids(points: np.ndarray, scale: float) -> np.ndarray:
+    """For each joint, the first joint it coincides with (itself when none)."""
+    ids = np.arange(len(points))
+    for i in range(len(points)):
+        for j in range(i):
+            if ids[j] == j and np.linalg.norm(points[i] - points[j]) <= COINCIDENT_RTOL * scale:
+                ids[i] = j
+                break
+    return ids
+
+
+def layout(nominal: Geometry, groups, scale: float) -> Layout:
+    n, d = nominal.base.shape
+    labels, columns = [], []
+    for g in GROUPS:
+        if g not in groups:
+            continue
+        ids = np.arange(n) if g == "offsets" else _joint_ids(getattr(nominal, g), scale)
+        axes = ("",) if g == "offsets" else AXES[:d]
+        cols = np.empty((n, len(axes)), dtype=int)
+        for joint in dict.fromkeys(ids.tolist()):               # in the order of first appearance
+            legs = tuple(int(i) + 1 for i in np.flatnonzero(ids == joint))
+            for a, axis in enumerate(axes):
+                cols[ids == joint, a] = len(labels)
+                labels.append((legs, g, axis))
+        columns.append(cols)
+    parent = list(range(n))                                     # union-find of legs sharing a joint
+
+    def root(i):
+        while parent[i] != i:
+            i = parent[i]
+        return i
+    for legs, _, _ in labels:
+        for leg in legs[1:]:
+            parent[root(leg - 1)] = root(legs[0] - 1)
+    component = np.array([root(legs[0] - 1) for legs, _, _ in labels])
+    return Layout(labels, np.concatenate(columns, axis=1), component)
+
+
 def _residuals_jacobian(geometry: Geometry, meas: Measurements, groups):
     """Residuals (n, m) and the per-leg Jacobian blocks (n, m, k) of the identified groups."""
     e = _leg_vectors(geometry, meas)
@@ -203,7 +277,7 @@ def _residuals_jacobian(geometry: Geometry, meas: Measurements, groups):
 
 
 def _vector(geometry: Geometry, groups) -> np.ndarray:
-    """The identified parameters, (n, k)."""
+    """Each leg's identified parameters, (n, k)."""
     parts = [getattr(geometry, g) for g in GROUPS if g in groups]
     return np.concatenate([p if p.ndim == 2 else p[:, None] for p in parts], axis=1)
 
@@ -222,26 +296,39 @@ def _with_vector(geometry: Geometry, theta: np.ndarray, groups) -> Geometry:
     return g
 
 
-def _spectrum(J: np.ndarray):
-    """Singular values (n, k), ascending, and right singular vectors (n, k, k; columns) of each leg's
-    block, from the eigen-decomposition of the small normal matrix J_i^T J_i (k x k): the blocks
-    are tall (m >> k), and forming J^T J costs one pass over them."""
-    lam, V = np.linalg.eigh(J.transpose(0, 2, 1) @ J)
-    return np.sqrt(np.maximum(lam, 0.0)), V
+def _assemble(blocks: np.ndarray, index: np.ndarray, p: int) -> np.ndarray:
+    """``sum_i P_i^T blocks_i P_i`` of per-leg matrices (n, k, k) -> (p, p), or vectors (n, k) -> (p,),
+    where ``P_i`` places leg i's local parameters at ``index[i]``."""
+    if blocks.ndim == 3:
+        out = np.zeros(p * p)
+        np.add.at(out, (index[:, :, None] * p + index[:, None, :]).ravel(), blocks.ravel())
+        return out.reshape(p, p)
+    out = np.zeros(p)
+    np.add.at(out, index.ravel(), blocks.ravel())
+    return out
 
 
-def _seen(s: np.ndarray) -> np.ndarray:
-    """The singular values the data see: above round-off relative to the largest of all legs."""
-    return s > RANK_RTOL * float(s.max())
+def _spectra(N: np.ndarray, lay: Layout) -> list:
+    """(parameters, singular values ascending, right singular vectors as columns) of each component's
+    block of J: from the eigen-decomposition of its normal matrix (small: k parameters per leg), so
+    that a direction never mixes legs that share nothing."""
+    out = []
+    for c in dict.fromkeys(lay.component.tolist()):
+        sub = np.flatnonzero(lay.component == c)
+        lam, V = np.linalg.eigh(N[np.ix_(sub, sub)])
+        out.append((sub, np.sqrt(np.maximum(lam, 0.0)), V))
+    return out
 
 
-def _step(J: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Gauss-Newton step of every leg, ``-J^+ r`` = ``-V S^-2 V^T J^T r`` over the directions the data
-    see (the others are left alone), (n, k)."""
-    s, V = _spectrum(J)
-    inv2 = np.where(_seen(s), 1.0 / np.where(_seen(s), s, 1.0) ** 2, 0.0)
-    g = np.einsum("nmk,nm->nk", J, r)                                   # J^T r
-    return -np.einsum("nkj,nj->nk", V, inv2 * np.einsum("nkj,nk->nj", V, g))
+def _pinv(spectra: list, p: int, s_max: float) -> tuple[np.ndarray, list]:
+    """N^+ over the directions the data see (singular values above ``RANK_RTOL s_max``), and the
+    unseen directions as (parameters, vector)."""
+    out, unseen = np.zeros((p, p)), []
+    for sub, s, V in spectra:
+        seen = s > RANK_RTOL * s_max
+        out[np.ix_(sub, sub)] = (V[:, seen] / s[seen] ** 2) @ V[:, seen].T
+        unseen += [(sub, V[:, c]) for c in np.flatnonzero(~seen)]
+    return out, unseen
 
 
 def _cost_roundoff(r: np.ndarray, meas: Measurements, scale: float) -> np.ndarray:
@@ -253,96 +340,128 @@ def _cost_roundoff(r: np.ndarray, meas: Measurements, scale: float) -> np.ndarra
     return np.einsum("nm,nm->n", 2.0 * np.abs(r) + d, d)
 
 
+def _normal(J: np.ndarray, r: np.ndarray, lay: Layout):
+    """The normal matrix J^T J (p, p) and gradient J^T r (p,) of the distinct parameters."""
+    JtJ = J.transpose(0, 2, 1) @ J
+    return _assemble(JtJ, lay.index, lay.size), _assemble(np.einsum("nmk,nm->nk", J, r), lay.index, lay.size)
+
+
 def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float | None = None) -> Identification:
     """Least-squares geometry from ``meas``, starting from ``nominal``; only ``groups`` (a subset of
-    :data:`GROUPS`) are estimated, the others stay as in ``nominal``.  ``scale``: the geometry's size
-    (config unit) for the thresholds (default: the largest extent of the base joints)."""
+    :data:`GROUPS`) are estimated, the others stay as in ``nominal``; joints that coincide in
+    ``nominal`` stay one joint.  ``scale``: the geometry's size (config unit) for the thresholds
+    (default: the largest extent of the base joints)."""
     groups = tuple(g for g in GROUPS if g in groups)
     if not groups:
         raise ValueError("nothing to identify")
     scale = float(scale if scale is not None else np.ptp(nominal.base, axis=0).max())
-    geometry = nominal.copy()
-    theta = _vector(geometry, groups)
+    lay = layout(nominal, groups, scale)
+    theta = np.empty(lay.size)
+    theta[lay.index] = _vector(nominal, groups)
+    geometry = _with_vector(nominal, theta[lay.index], groups)
+    leg_component = lay.component[lay.index[:, 0]]
+    components = np.unique(lay.component)
+    k = lay.index.shape[1]
     r, J = _residuals_jacobian(geometry, meas, groups)
     cost = np.einsum("nm,nm->n", r, r)
     converged, iterations = False, 0
     for iterations in range(1, MAX_ITERATIONS + 1):
-        step = _step(J, r)
-        predicted = np.einsum("nmk,nk->nm", J, step)        # J d: the step's change of the residuals
-        in_se = np.einsum("nm,nm->n", predicted, predicted) * max(len(meas) - J.shape[2], 1)
+        N, G = _normal(J, r, lay)
+        spectra = _spectra(N, lay)
+        Np, _ = _pinv(spectra, lay.size, max(float(s.max()) for _, s, _ in spectra))
+        step = -Np @ G                                       # Gauss-Newton: -(J^T J)^+ J^T r
+        predicted = np.einsum("nmk,nk->nm", J, step[lay.index])     # J d: the step's change of the residuals
+        in_se = np.einsum("nm,nm->n", predicted, predicted) * max(len(meas) - k, 1)
         if float(np.abs(step).max()) <= STEP_RTOL * scale or np.all(in_se <= STEP_SE_SHARE ** 2 * cost):
             converged = True
             break
-        trial_theta = theta + step
         allowed = cost + _cost_roundoff(r, meas, scale)
+        allowed_c = np.array([allowed[leg_component == c].sum() for c in components])
+        trial = theta + step
         for _ in range(MAX_HALVINGS):
-            r_trial = leg_residuals(_with_vector(geometry, trial_theta, groups), meas).T
-            worse = ~(np.einsum("nm,nm->n", r_trial, r_trial) <= allowed)
-            if not worse.any():
+            r_trial = leg_residuals(_with_vector(geometry, trial[lay.index], groups), meas).T
+            cost_leg = np.einsum("nm,nm->n", r_trial, r_trial)
+            worse = components[~(np.array([cost_leg[leg_component == c].sum() for c in components]) <= allowed_c)]
+            if not worse.size:
                 break
-            step[worse] *= 0.5               # only the legs whose sum of squares rose
-            trial_theta[worse] = theta[worse] + step[worse]
+            halve = np.isin(lay.component, worse)            # only where a component's sum of squares rose
+            step[halve] *= 0.5
+            trial[halve] = theta[halve] + step[halve]
         else:
             break                            # no descent left along the Gauss-Newton direction
-        theta = trial_theta
-        geometry = _with_vector(geometry, theta, groups)
+        theta = trial
+        geometry = _with_vector(geometry, theta[lay.index], groups)
         r, J = _residuals_jacobian(geometry, meas, groups)
         cost = np.einsum("nm,nm->n", r, r)
-    return _statistics(nominal, geometry, r, J, groups, scale, iterations, converged)
+    return _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged)
 
 
-def _statistics(nominal, geometry, r, J, groups, scale, iterations, converged) -> Identification:
+def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged) -> Identification:
+    """Standard errors (sandwich ``N^+ M N^+`` with ``M = sum_i s_i^2 J_i^T J_i``: each leg with its
+    own noise; for legs that share nothing this is ``s_i^2 (J_i^T J_i)^-1``), the identifiability of
+    every direction, the condition number."""
     n, m, k = J.shape
-    s, V = _spectrum(J)
     dof = m - k
     resid_std = np.sqrt(np.einsum("nm,nm->n", r, r) / dof) if dof > 0 else np.full(n, math.nan)
-    s_max = float(s.max())
-    seen = _seen(s)
-    inv2 = np.where(seen, 1.0 / np.where(seen, s, 1.0) ** 2, math.inf)
-    # the diagonal of the covariance s_i^2 V diag(1/sigma^2) V^T (inf along a direction not seen)
-    with np.errstate(invalid="ignore"):
-        var = resid_std[:, None] ** 2 * np.einsum("njk,nk->nj", V ** 2, inv2)
-    se = np.sqrt(np.where(np.isnan(var), math.inf, var))
-    labels = parameter_labels(geometry.dim, groups)
-    theta0, theta = _vector(nominal, groups), _vector(geometry, groups)
-    params = [Parameter(i + 1, g, a, float(theta0[i, c]), float(theta[i, c]), float(se[i, c]))
-              for i in range(n) for c, (g, a) in enumerate(labels)]
-    s_min = float(s.min())
+    JtJ = J.transpose(0, 2, 1) @ J
+    N = _assemble(JtJ, lay.index, lay.size)
+    M = _assemble(resid_std[:, None, None] ** 2 * JtJ, lay.index, lay.size)
+    spectra = _spectra(N, lay)
+    s_all = np.concatenate([s for _, s, _ in spectra])
+    s_max = float(s_all.max())
+    Np, unseen = _pinv(spectra, lay.size, s_max)
+    cov = Np @ M @ Np
+    var = np.diag(cov).copy()
+    for sub, v in unseen:                    # a parameter in a direction the data do not see at all
+        var[sub[np.abs(v) > math.sqrt(EPS)]] = math.inf
+    se = np.sqrt(np.maximum(var, 0.0))
+    theta0 = np.empty(lay.size)
+    theta0[lay.index] = _vector(nominal, groups)
+    params = [Parameter(legs, g, a, float(theta0[j]), float(theta[j]), float(se[j]))
+              for j, (legs, g, a) in enumerate(lay.labels)]
+    s_min = float(s_all.min())
     cond = s_max / s_min if s_min > 0 else math.inf
     unident, weak = [], []
-    for i in range(n):
-        for c in range(k):
-            sigma = float(s[i, c])
-            dir_se = resid_std[i] / sigma if seen[i, c] else math.inf
-            if not seen[i, c] or dir_se > UNIDENTIFIABLE_SE_SHARE * scale:
-                unident.append(_direction(i, V[i, :, c], labels, sigma, dir_se, geometry.dim))
+    for sub, s, V in spectra:
+        for c in range(len(s)):
+            v, sigma = V[:, c], float(s[c])
+            seen = sigma > RANK_RTOL * s_max
+            dir_se = math.sqrt(max(float(v @ M[np.ix_(sub, sub)] @ v), 0.0)) / sigma ** 2 if seen else math.inf
+            if not seen or dir_se > UNIDENTIFIABLE_SE_SHARE * scale:
+                unident.append(_direction(v, [lay.labels[j] for j in sub], sigma, dir_se, geometry.dim))
             elif dir_se > WEAK_SE_SHARE * scale:
-                weak.append(_direction(i, V[i, :, c], labels, sigma, dir_se, geometry.dim))
+                weak.append(_direction(v, [lay.labels[j] for j in sub], sigma, dir_se, geometry.dim))
     return Identification(geometry, params, resid_std, cond, unident, weak, iterations, converged)
 
 
-def _direction(i, v, labels, sigma, se, dim) -> Direction:
-    """Name direction ``v`` (unit vector over leg i's parameters ``labels``) in words."""
+def _direction(v, labels, sigma, se, dim) -> Direction:
+    """Name direction ``v`` (unit vector over the distinct parameters ``labels``: (legs, group, axis))
+    in words, with the kind of pose that would separate what moves together."""
     v = v if v[int(np.argmax(np.abs(v)))] > 0 else -v
-    comps = {("offset" if g == "offsets" else f"{g} {a}"): float(x) for (g, a), x in zip(labels, v)}
-    big = [(g, a, x) for (g, a), x in zip(labels, v) if abs(x) >= NAMED_COMPONENT]
-    leg = i + 1
-    words = []
-    for g, a, x in big:
-        words.append(f"the offset of leg {leg}" if g == "offsets" else f"the {a} of its {g} joint")
-    if words and words[0].startswith("the ") and "offset" not in words[0]:
-        words[0] = words[0].replace("its", f"leg {leg}'s", 1)
-    involved = {g for g, _, _ in big}
-    if len(words) == 1:
-        what = f"{words[0]} is not seen"
-    else:
-        what = ", ".join(words[:-1]) + f" and {words[-1]} move together"
+    comps = {Parameter(legs, g, a, 0.0, 0.0, 0.0).name: float(x) for (legs, g, a), x in zip(labels, v)}
+    big = [(legs, g, a) for (legs, g, a), x in zip(labels, v) if abs(x) >= NAMED_COMPONENT]
+    all_legs = tuple(sorted({leg for legs, _, _ in labels for leg in legs}))
+    one_leg = len({legs for legs, _, _ in big}) == 1 and len(big[0][0]) == 1
+    words, said = [], False
+    for legs, g, a in big:
+        if g == "offsets":
+            words.append(f"the offset of leg {legs[0]}")
+        elif one_leg and said:
+            words.append(f"the {a} of its {g} joint")
+        elif len(legs) == 1:
+            words.append(f"the {a} of leg {legs[0]}'s {g} joint")
+            said = True
+        else:
+            words.append(f"the {a} of the {g} joint of {_legs_text(legs)}")
+    involved = {g for _, g, _ in big}
+    what = f"{words[0]} is not seen" if len(words) == 1 else ", ".join(words[:-1]) + f" and {words[-1]} move together"
+    legs_text = _legs_text(tuple(sorted({leg for legs, _, _ in big for leg in legs})))
     if {"base", "platform"} <= involved and "offsets" not in involved:
         advice = "add poses that rotate the platform"
     elif "offsets" in involved:
-        advice = ("add poses that tilt the platform and move it sideways (leg "
-                  f"{leg} must change direction)" if dim == 3 else
-                  f"add poses that move and rotate the platform so that leg {leg} changes direction")
+        advice = (f"add poses that tilt the platform and move it sideways ({legs_text} must change direction)"
+                  if dim == 3 else f"add poses that move and rotate the platform so that {legs_text} changes "
+                                   f"direction")
     else:
         advice = "add poses spread wider over the workspace"
-    return Direction(leg, comps, sigma, se, f"{what}: {advice}")
+    return Direction(all_legs, comps, sigma, se, f"{what}: {advice}")
