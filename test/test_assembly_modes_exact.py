@@ -269,10 +269,10 @@ def test_cli_no_mode_exit_1_with_the_reason():
 
 def test_node_reply_says_how_many_starts():
     svc = FkService({"manipulator_config": str(HEX_YAML)})
-    svc.note_input([1.25] * 6, 0)
-    result = svc.assembly_modes(0)
+    svc.modes.note_input([1.25] * 6, 0)
+    result = svc.modes.compute(0)
     assert len(result.poses) == 16 and result.starts >= SA.STALL_MIN
-    svc.note_assembly_modes(result)
+    svc.modes.note(result)
     values = svc.diagnostics().as_dict()
     assert values["assembly modes last starts"] == str(result.starts)
     assert values["assembly modes last"].startswith("16 modes in ")

@@ -147,23 +147,23 @@ def test_waiting_message_names_the_input_topic(service):
 
 def test_assembly_modes_of_the_last_input_in_metres(service):
     with pytest.raises(InputError, match="no input received yet on joint_states"):
-        service.assembly_modes(1)
-    service.note_input(JointStateInput(("j_c", "j_a", "j_b", "x"), (0.15, 0.1, 0.12, 4.0)), 33)
-    result = service.assembly_modes(1234)
+        service.modes.compute(1)
+    service.modes.note_input(JointStateInput(("j_c", "j_a", "j_b", "x"), (0.15, 0.1, 0.12, 4.0)), 33)
+    result = service.modes.compute(1234)
     assert result.stamp_ns == 1234 and result.input_stamp_ns == 33 and result.frame_id == "base"
     assert len(result.poses) == 2
     np.testing.assert_allclose(sorted(p[:2] for p, _ in result.poses), rpr_solutions_m(), atol=1e-9)
     for position, q in result.poses:
         assert position[2] == 0.0 and abs(np.linalg.norm(q) - 1.0) < 1e-12
-    service.note_input(JointStateInput(("j_a",), (0.1,)), 34)
+    service.modes.note_input(JointStateInput(("j_a",), (0.1,)), 34)
     with pytest.raises(InputError, match="the last input is invalid: joint_states has no joint 'j_b'"):
-        service.assembly_modes(1)
+        service.modes.compute(1)
 
 
 def test_assembly_modes_of_the_hexapod_example_are_sixteen():
     svc = FkService({"manipulator_config": str(HEX_YAML)})
-    svc.note_input([1.25] * 6, 0)
-    result = svc.assembly_modes(0)
+    svc.modes.note_input([1.25] * 6, 0)
+    result = svc.modes.compute(0)
     assert len(result.poses) == 16
     assert all(abs(p[2]) < 3.0 for p, _ in result.poses)          # metres
 
@@ -177,9 +177,9 @@ def test_assembly_modes_loop_with_the_worker_process(service):
         assert worker.pid is not None
         loop.request(10)                                   # nothing received yet
         deadline = time.monotonic() + WAIT_S
-        while service.stats.modes_failed == 0 and time.monotonic() < deadline:
+        while service.modes.failed == 0 and time.monotonic() < deadline:
             time.sleep(0.001)
-        service.note_input(JointStateInput(tuple(NAMES), tuple(SEED_LEGS_M)), 20)
+        service.modes.note_input(JointStateInput(tuple(NAMES), tuple(SEED_LEGS_M)), 20)
         loop.request(11)
         deadline = time.monotonic() + WAIT_S
         while not published and time.monotonic() < deadline:
@@ -192,7 +192,7 @@ def test_assembly_modes_loop_with_the_worker_process(service):
         assert values["assembly modes last failure"] == "no input received yet on joint_states"
         assert values["assembly modes last"].startswith("2 modes in ")
         # the worker's result is the in-process one
-        ours = service.assembly_modes(0, (list(SEED_LEGS_M), 0))
+        ours = service.modes.compute(0, (list(SEED_LEGS_M), 0))
         assert ours.poses == published[0].poses
     finally:
         loop.stop()
@@ -210,12 +210,12 @@ def test_assembly_modes_requests_are_coalesced_while_one_waits(service):
     published = []
     loop = AssemblyModesLoop(service, published.append, solve=slow).start()
     try:
-        service.note_input(list(SEED_LEGS_M), 1)
+        service.modes.note_input(list(SEED_LEGS_M), 1)
         loop.request(1)
         deadline = time.monotonic() + WAIT_S
         while not calls and time.monotonic() < deadline:
             time.sleep(0.001)
-        service.note_input([0.1, 0.12, 0.1501], 2)
+        service.modes.note_input([0.1, 0.12, 0.1501], 2)
         loop.request(2)
         loop.request(3)                                    # replaces 2
         release.set()
@@ -232,7 +232,7 @@ def test_switching_to_a_baseline_solver_warms_it_up_first():
     svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X,
                      "time_budget_ms": GENEROUS_BUDGET_MS})
     assert svc.set_parameters({"solver": "de"}) == (True, "")
-    assert "de" in svc._warmed
+    assert "de" in svc.warmed_up
     out = svc.handle([0.1, 0.12, 0.1501], 0)
     assert out.pose is not None and out.estimate.solver == "de" and out.estimate.start == "warm"
 

@@ -13,8 +13,9 @@ waiting in the subscription's queue (the ones it passes over count as dropped: t
 newest-input rule) and solves it right there (:meth:`SolveLoop.offer
 <glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and hands it to the extras
 thread (:class:`~glpma_ros.node.loops.ExtrasLoop`), which publishes TF, covariance, twist and
-markers on the topics that have subscribers; a solve holds up the diagnostics timer and the
-parameter services for at most the time budget.
+markers on the topics that have subscribers; ``/diagnostics`` is published by a thread of its own
+(:class:`~glpma_ros.node.loops.ReportLoop`), off the executor's; a solve holds up the parameter
+services for at most the time budget.
 Handing each input to a solver thread instead costs a thread switch per input, and the Python
 executor, busy taking the next messages, competes with that thread for the GIL, so it is
 slower end to end (BENCHMARKS.md, "Extra outputs and the transport path"); a
@@ -49,7 +50,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from . import params as P
 from ..errors import GlpmaError
-from .loops import AssemblyModesLoop, SolveLoop
+from .loops import AssemblyModesLoop, ReportLoop, SolveLoop
 from .ros_args import check_params_files
 from .service import FkService, JointStateInput
 
@@ -123,7 +124,7 @@ class FkNode(Node):
         else:
             self.input_sub = self.create_subscription(Float64MultiArray, "leg_lengths", self._on_legs, qos)
         self.create_subscription(Empty, "~/request_assembly_modes", self._on_request_modes, qos)
-        self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
+        self.reports = ReportLoop(self.service, self._publish_diagnostics, values["diagnostics_period_s"]).start()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info("ready")
 
@@ -228,8 +229,7 @@ class FkNode(Node):
         marker.color.r, marker.color.g, marker.color.b, marker.color.a = m.color
         return marker
 
-    def _publish_diagnostics(self) -> None:
-        report = self.service.diagnostics()
+    def _publish_diagnostics(self, report) -> None:
         msg = DiagnosticArray()
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.status = [DiagnosticStatus(level=bytes([report.level]), name=report.name, message=report.message,
@@ -247,6 +247,7 @@ class FkNode(Node):
         if self._stopped:
             return
         self._stopped = True
+        self.reports.stop()
         self.loop.stop()
         self.modes.stop()
         self.get_logger().info(f"stopped: {self.service.summary()}")
@@ -256,6 +257,7 @@ class FkNode(Node):
             self.stop()
         else:                       # the context is gone: no logging through rosout any more
             self._stopped = True
+            self.reports.stop()
             self.loop.stop()
             self.modes.stop()
         return super().destroy_node()

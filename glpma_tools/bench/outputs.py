@@ -180,10 +180,10 @@ def output_costs(scenarios, n_inputs: int, domain: int, pace_s: float = PACE_S) 
                 def cpu(pairs):
                     return _us([c for c, _ in pairs])
                 rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, "published": st.published,
-                             "solve_us": _us(st.solve_s), "pose_cpu_us": cpu(pose),
+                             "solve_us": _us(st.solve_s.values()), "pose_cpu_us": cpu(pose),
                              "pose_us": _us([w for _, w in pose]),
-                             "handoff_cpu_us": cpu(handoff), "handoff_us": _us(st.extras_handoff_s),
-                             "extras_cpu_us": cpu(thread), "build_cpu_us": cpu(build), "extras_us": _us(st.extras_s),
+                             "handoff_cpu_us": cpu(handoff), "handoff_us": _us(st.extras_handoff_s.values()),
+                             "extras_cpu_us": cpu(thread), "build_cpu_us": cpu(build), "extras_us": _us(st.extras_s.values()),
                              "extras_dropped": st.extras_dropped})
     finally:
         sub.kill()
