@@ -7,7 +7,10 @@ A report is built from snapshots (:meth:`Statistics.snapshot <glpma_ros.node.sta
 :meth:`AssemblyModes.snapshot <glpma_ros.node.assembly_modes.AssemblyModes.snapshot>`) taken in
 microseconds; its percentiles and its formatting happen afterwards in the caller's thread (the
 transports call it from a thread of its own, :class:`~glpma_ros.node.loops.ReportLoop`), holding no
-lock of the service, so that no input waits for a report.
+lock of the service, so that no input waits for a report.  That thread still holds the interpreter
+(the GIL) while it computes, and a solving thread that needs it meanwhile waits: the report is
+therefore built in stages of a few tens of microseconds, with ``pause()`` (the report thread
+sleeps, releasing the interpreter) between them.
 """
 from __future__ import annotations
 
@@ -47,19 +50,24 @@ class Diagnostics:
         self.service = service
         self._capped_reported = 0     # covariances capped at a singularity, at the last report
 
-    def report(self) -> DiagnosticReport:
-        """The current statistics as a DiagnosticStatus; starts a new reporting period."""
+    def report(self, pause=lambda: None) -> DiagnosticReport:
+        """The current statistics as a DiagnosticStatus; starts a new reporting period.
+        ``pause()`` is called between the stages of the work (default: nothing)."""
         svc = self.service
         st = svc.stats.snapshot(new_period=True)
         modes, modes_failed = svc.modes.snapshot(new_period=True)
         params, model, outputs = svc.params, svc.model, svc.outputs
         capped, self._capped_reported = outputs.capped - self._capped_reported, outputs.capped
-        w = st.windows
-        solve, latency = percentiles_ms(w["solve_s"]), percentiles_ms(w["latency_s"])
-        extras, handoff = percentiles_ms(w["extras_s"]), percentiles_ms(w["extras_handoff_s"])
-        residual, evaluations, conditioning = w["residual_m"], w["evaluations"], w["conditioning"]
+        tails = []                    # p50, p99, max (ms) of each timed window
+        for name in ("solve_s", "latency_s", "extras_s", "extras_handoff_s"):
+            pause()
+            tails.append(percentiles_ms(st.window(name)))
+        solve, latency, extras, handoff = tails
+        pause()
+        residual, evaluations, conditioning = (st.window(n) for n in ("residual_m", "evaluations", "conditioning"))
         last = st.last_estimate
         cond_last = last.conditioning if last is not None else math.nan
+        pause()
         values = [
             ("input", "joint_states (" + ", ".join(svc.joint_names) + ")"
              if svc.input_type == P.INPUT_JOINT_STATE else "leg_lengths"),
@@ -78,6 +86,9 @@ class Diagnostics:
             ("latency p50 (ms)", _g(latency[0])),
             ("latency p99 (ms)", _g(latency[1])),
             ("latency max (ms)", _g(latency[2])),
+        ]
+        pause()
+        values += [
             ("residual RMS last (m)", _g(residual[-1], ".3g") if residual.size else "nan"),
             ("residual RMS max (m)", _g(residual.max(), ".3g") if residual.size else "nan"),
             ("fitness last", _g(last.fitness, ".3g") if last is not None else "nan"),
@@ -87,6 +98,9 @@ class Diagnostics:
             ("conditioning min", _g(conditioning.min(), ".3g") if conditioning.size else "nan"),
             ("time budget (ms)", _g(params["time_budget_ms"], "g")),
             ("tolerance", _g(params["tolerance"], "g")),
+        ]
+        pause()
+        values += [
             ("manipulator", f"{model.kind} ({model.unit})"),
             ("frame_id", params["frame_id"]),
             ("outputs", ", ".join(name for name, on in (
@@ -108,6 +122,7 @@ class Diagnostics:
         ]
         if st.last_reason:
             values.append(("last rejection", st.last_reason))
+        pause()
         problems = [f"{n} {what}" for n, what in ((st.period.get("rejected", 0), "inputs rejected"),
                                                   (st.period.get("deadline_misses", 0), "deadline misses"),
                                                   (st.period.get("dropped", 0), "inputs dropped"),
@@ -125,13 +140,14 @@ class Diagnostics:
             level, message = OK, "tracking"
         return DiagnosticReport(level, f"{svc.node_name}: forward kinematics", message,
                                 f"{model.kind}:{Path(str(getattr(model, 'source', ''))).name}",
-                                [(k, str(v)) for k, v in values])
+                                [(k, v if isinstance(v, str) else str(v)) for k, v in values])
 
     def summary(self) -> str:
         """One line of totals, for the log at shutdown."""
         st = self.service.stats.snapshot()
-        solve = percentiles_ms(st.windows["solve_s"])
+        solve_s = st.window("solve_s")
+        solve = percentiles_ms(solve_s)
         times = (f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms"
-                 if st.windows["solve_s"].size else "no solve yet")
+                 if solve_s.size else "no solve yet")
         return (f"received {st.received}, solved {st.published}, rejected {st.rejected}, "
                 f"dropped {st.dropped}, deadline misses {st.deadline_misses}, {times}")

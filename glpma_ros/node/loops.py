@@ -333,11 +333,24 @@ class AssemblyModesLoop:
         self._thread.join(timeout)
 
 
+#: the report thread's sleep between two stages of a report: it releases the interpreter, so that
+#: a solving thread waiting for it takes it (the thread otherwise keeps it until it blocks, or for
+#: up to ``sys.getswitchinterval()``, 5 ms); a report takes a few of these, once a period
+REPORT_PAUSE_S = 50e-6
+
+
+def pause_report() -> None:
+    """What the report thread does between two stages of a report: sleep :data:`REPORT_PAUSE_S`."""
+    time.sleep(REPORT_PAUSE_S)
+
+
 class ReportLoop:
     """Publishes ``service.diagnostics()`` every ``period_s`` from a thread of its own, so that a
     report -- taken from snapshots, its formatting and its message built outside every lock of
     the service -- is never on the solving thread's path (in the rclpy node a timer would run it
-    in the executor's thread, between two inputs)."""
+    in the executor's thread, between two inputs).  Between the stages of a report (and before
+    its message is built) the thread sleeps :data:`REPORT_PAUSE_S`: a solving thread waits at
+    most one stage for the interpreter."""
 
     def __init__(self, service: FkService, publish, period_s: float, name: str = "glpma_fk-diagnostics"):
         """``publish(DiagnosticReport)``: converts and writes the report (a failure is logged)."""
@@ -355,7 +368,9 @@ class ReportLoop:
         next_report = time.monotonic()
         while not self._stop.wait(max(0.0, next_report - time.monotonic())):
             try:
-                self.publish(self.service.diagnostics())
+                report = self.service.diagnostics(pause=pause_report)
+                pause_report()
+                self.publish(report)
             except Exception as exc:  # noqa: BLE001 - a failed report must not end the reports
                 self.service.log.warning(f"publishing diagnostics failed: {exc!r}")
             next_report = max(next_report + self.period_s, time.monotonic())

@@ -388,10 +388,12 @@ class FkService:
         self.stats.record_dropped(count)
 
     # -- reports --------------------------------------------------------------------------------
-    def diagnostics(self) -> DiagnosticReport:
+    def diagnostics(self, pause=lambda: None) -> DiagnosticReport:
         """The current statistics as a DiagnosticStatus (:class:`~glpma_ros.node.diagnostics.Diagnostics`);
-        starts a new reporting period.  Holds no lock of the service: call it from any thread."""
-        return self._diagnostics.report()
+        starts a new reporting period.  Holds no lock of the service: call it from any thread;
+        ``pause()`` runs between the stages of the work (:class:`~glpma_ros.node.loops.ReportLoop`
+        sleeps there)."""
+        return self._diagnostics.report(pause)
 
     def summary(self) -> str:
         """One line of totals, for the log at shutdown."""
