@@ -52,5 +52,14 @@ setup(
             "fk_node = glpma_ros.node.ros_node:main",
             "mock_controller = glpma_tools.mock_controller:main",
         ],
+        # glpma-fk's tool subcommands (glpma_ros/cli.py, doc/interface.md): "NAME = module:main [extra]",
+        # main(argv) -> exit status; the first line of the module's docstring is its --help line
+        "glpma_fk.commands": [
+            "bag = glpma_tools.bag:main [bag]",
+            "bench = glpma_tools.bench:main [bench]",
+            "demo = glpma_tools.demo:main [tools]",
+            "map = glpma_tools.workspace_map:main [map]",
+            "stress = glpma_tools.stress:main [tools]",
+        ],
     },
 )

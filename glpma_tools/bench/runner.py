@@ -7,7 +7,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from glpma_ros.cli import OneLineParser
+from glpma_ros.cli import OneLineParser, command_main
+from glpma_ros.errors import GlpmaError
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "offline")
@@ -119,28 +120,23 @@ def _count(args, name):
     v = getattr(args, name)
     if v is not None:
         if v < 0:
-            raise SystemExit(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
+            raise GlpmaError(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
         return v
     return DEFAULTS[name][1 if args.quick else 0]
 
 
+@command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--"]:          # `glpma-fk bench -- --quick` (the CLI passes the rest through)
         argv = argv[1:]
-    try:
-        args = build_parser().parse_args(argv)
-        counts = {name: _count(args, name) for name in DEFAULTS}
-        from glpma_ros import solvers
-        unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
-        if unknown:
-            raise SystemExit(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
-                             f"choose from {', '.join(solvers.SOLVERS)}")
-    except SystemExit as exc:           # usage errors and --help: a status, not an exception
-        if isinstance(exc.code, str):
-            print(f"error: {exc.code}", file=sys.stderr)
-            return 2
-        return 0 if exc.code in (0, None) else 2
+    args = build_parser().parse_args(argv)
+    counts = {name: _count(args, name) for name in DEFAULTS}
+    from glpma_ros import solvers
+    unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
+    if unknown:
+        raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
+                         f"choose from {', '.join(solvers.SOLVERS)}")
     os.environ.setdefault("MPLBACKEND", "Agg")
     from . import dds, deadlines, experiments as ex, report, tracking
     from .scenarios import load
