@@ -9,8 +9,8 @@ package_name = "glpma_ros"
 #: one version of record: glpma_ros/__init__.py (package.xml repeats it; a test checks they agree)
 VERSION = re.search(r'__version__ = "([^"]+)"',
                     (Path(__file__).resolve().parent / package_name / "__init__.py").read_text()).group(1)
-#: glpma_tools (demo, bench, stress, mock controller): plots and progress bars
-TOOLS = ["matplotlib>=3.6", "tqdm>=4.60"]   # accept Ubuntu 24.04 / Debian 12 (3.6.3)
+#: glpma_tools (demo, bench, stress, mock controller, map): plots, progress bars, a process's memory and CPU
+TOOLS = ["matplotlib>=3.6", "tqdm>=4.60", "psutil>=5.9"]   # accept Ubuntu 24.04 / Debian 12 (3.6.3, 5.9)
 
 setup(
     name=package_name,

@@ -11,7 +11,6 @@ import yaml
 from glpma_ros.node import params as P
 from glpma_ros.node import ros_args
 from glpma_ros.node.ros_args import node_values
-from glpma_ros.node.dds.rihs import type_hash
 from glpma_ros.errors import InputError
 from glpma_ros.node.loops import AssemblyModesLoop, SolveLoop
 from glpma_ros.node.service import FkService, JointStateInput
@@ -248,18 +247,20 @@ CONTRACT_HASHES = {
 }
 
 
-def test_rihs01_computation_reproduces_the_contract_and_gives_empty():
-    for name, expected in CONTRACT_HASHES.items():
-        assert type_hash(name) == expected, name
-    assert type_hash("std_msgs/msg/Empty") == \
-        "RIHS01_20b625256f32d5dbc0d04fee44f43c41e51c70d3502f84b4a08e7a9c26a96312"
-
-
-def test_message_types_carry_the_computed_hashes():
+def test_the_type_hash_table_is_jazzys():
+    """The node's fixed table of RIHS01 hashes against an independent implementation (rosbags'
+    Jazzy type store, from the Jazzy .msg definitions) and the contract's."""
     pytest.importorskip("cyclonedds")
+    typesys = pytest.importorskip("rosbags.typesys")
     from glpma_ros.node.dds import messages
+    jazzy = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+    for name, expected in messages.TYPE_HASHES.items():
+        assert jazzy.hash_rihs01(name) == expected, name
+    for name, expected in CONTRACT_HASHES.items():
+        assert messages.TYPE_HASHES[name] == expected, name
+    assert set(messages.ROS_TYPE_NAMES.values()) <= set(messages.TYPE_HASHES)
     for msg_type, ros_name in messages.ROS_TYPE_NAMES.items():
-        assert messages.type_hash(msg_type) == type_hash(ros_name), ros_name
+        assert messages.type_hash(msg_type) == messages.TYPE_HASHES[ros_name], ros_name
     assert messages.Empty.__idl_typename__ == "std_msgs::msg::dds_::Empty_"
 
 

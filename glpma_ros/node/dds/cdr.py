@@ -225,14 +225,6 @@ class RawWriter:
             raise DDSException(ret, f"Occurred while writing sample in {self.writer!r}")
 
 
-def matched_readers(writer) -> int:
-    """How many readers ``writer`` is matched with now (``dds_get_matched_subscriptions``)."""
-    count = writer._get_matched_subscriptions(writer._ref, None, 0)
-    if count < 0:
-        raise DDSException(count, f"Occurred when counting the matched readers of {writer!r}")
-    return count
-
-
 def take_raw(reader, n: int) -> list:
     """Up to ``n`` samples of ``reader`` as ``(bytes, SampleInfo)``, not deserialized."""
     ret = ddspy_take(reader._ref, ANY_STATE, n)

@@ -192,7 +192,7 @@ class DdsNode:
 
     def _subscribed(self) -> set:
         """The extra outputs some reader is matched with (the others are not built)."""
-        return {name for name, writer in self._extra_writers if cdr.matched_readers(writer)}
+        return {name for name, writer in self._extra_writers if writer.get_matched_subscriptions()}
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
