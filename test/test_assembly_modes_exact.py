@@ -134,7 +134,7 @@ def test_the_polynomial_systems_vanish_at_a_known_mode(rpr, rpr_solutions, hexap
     e = np.array([qw, qx, qy, qz])
     e = e / float(sum(float(k) * v for k, v in zip(exact.CHART, e)))
     t = P.position + R @ model.platform[0] - model.base[0]
-    f = 0.5 * np.array(exact._qmul((0.0, *t), tuple(e)))
+    f = 0.5 * np.array(exact.qmul((0.0, *t), tuple(e)))
     for p in exact.hexapod_system(model, legs):
         assert abs(_evaluate(p, (*e, *f))) < 1e-6 * max(1.0, max(abs(float(c)) for c in p.terms.values()))
     q, pos = exact.hexapod_pose(model, (*e, *f))

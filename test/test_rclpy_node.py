@@ -157,10 +157,6 @@ def test_tf_covariance_twist_and_markers(ros):
 def test_ctrl_c_stops_cleanly(tmp_path):
     """SIGINT: the summary is logged (also to /rosout, while the context is valid), exit 0, and no
     'publisher's context is invalid' or abort."""
-    import os
-    import signal
-    import subprocess
-    import sys
     from conftest import CONFIG, ROOT
     out = tmp_path / "node.log"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))

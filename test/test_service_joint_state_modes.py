@@ -9,7 +9,6 @@ import pytest
 import yaml
 
 from glpma_ros.node import params as P
-from glpma_ros.node import ros_args
 from glpma_ros.node.ros_args import node_values
 from glpma_ros.errors import InputError
 from glpma_ros.node.loops import AssemblyModesLoop, SolveLoop
@@ -195,7 +194,7 @@ def test_assembly_modes_loop_with_the_worker_process(service):
         assert ours.poses == published[0].poses
     finally:
         loop.stop()
-    assert worker._proc is None                            # the child was stopped
+    assert worker.pid is None                             # the child was stopped
 
 
 def test_assembly_modes_requests_are_coalesced_while_one_waits(service):

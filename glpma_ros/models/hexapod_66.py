@@ -17,7 +17,6 @@ state converts back to the nine variables exactly as ``B_k = p + R CB_k``.
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 

@@ -6,10 +6,9 @@ with :mod:`.ros_args` and resolve the values with :func:`resolve`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-import yaml
 
 from ..errors import InputError
 from ..solvers import SOLVERS

@@ -108,7 +108,7 @@ class FkService:
         self._check_joint_names(values["joint_names"])
         self._check_frames(values)
         self.outputs = OutputBuilder(self.model)
-        self._throttle = LogThrottle()
+        self.log_throttle = LogThrottle()    # one log line a second per rejection reason
         self._lock = threading.RLock()          # estimator and parameters (statistics and modes: their own)
         self._warmed: set = set()               # solvers warm_up() has run
         self.modes = AssemblyModes(self.model, self.config_path, self.to_config_unit, lambda: self.params,
@@ -376,7 +376,7 @@ class FkService:
 
     def _reject(self, reason: str, key: str, estimate, arrival: float) -> Outcome:
         self.stats.record_rejected(key, reason)
-        suppressed = self._throttle(key)
+        suppressed = self.log_throttle(key)
         if suppressed is not None:
             more = f" (+{suppressed} similar suppressed)" if suppressed else ""
             self.log.warning(f"input rejected: {reason}{more}")

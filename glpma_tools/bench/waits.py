@@ -13,9 +13,9 @@ with the same warm 3-RPR inputs:
 * ``handle + reports`` -- the same with a thread making a report as the node's
   :class:`~glpma_ros.node.loops.ReportLoop` does, every :data:`REPORT_PERIOD_S` (200 times the node's default rate, so that a round meets hundreds of
   reports);
-* ``offer + extras + reports`` -- the node's path at 1 kHz (:data:`NODE_PERIOD_S`):
-  :meth:`SolveLoop.offer` with the pose's extra outputs (TF, covariance, twist) built by the
-  extras thread, and the reports.
+* ``node at 1 kHz`` -- the node's path as it runs: inputs every :data:`NODE_PERIOD_S` through
+  :meth:`SolveLoop.offer`, the pose's extra outputs (TF, covariance, twist) built by the extras
+  thread, and a :class:`~glpma_ros.node.loops.ReportLoop` at the default ``diagnostics_period_s``.
 
 Rounds alternate between the setups (``rounds`` each); the quietest round of each setup is
 reported (the one with the fewest inputs over :data:`SLOW_S`), as the machine's load varies
@@ -31,7 +31,8 @@ import time
 import numpy as np
 
 from glpma_ros.config import config_dir
-from glpma_ros.node.loops import SolveLoop, pause_report
+from glpma_ros.node import params as P
+from glpma_ros.node.loops import ReportLoop, SolveLoop, pause_report
 from glpma_ros.node.service import FkService
 from glpma_tools.sim.trajectories import variables_along
 
@@ -45,7 +46,7 @@ SLOW_S = 0.3e-3
 TAIL = 99.9
 #: the goal for the tail of the wait (us)
 WAIT_GOAL_US = 20.0
-SETUPS = ("handle", "handle + reports", "offer + extras + reports")
+SETUPS = ("handle", "handle + reports", "node at 1 kHz")
 #: parameters of the measured node: the shipped 3-RPR, with the extra outputs of the last setup
 PARAMS = {"manipulator_config": str(config_dir() / "planar_3rpr_seed.yaml")}
 EXTRAS = {"publish_tf": True, "publish_covariance": True, "publish_twist": True}
@@ -152,18 +153,21 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
     try:
         for _ in range(rounds):
             for setup in SETUPS:
-                target = node if setup.startswith("offer") else service
-                call = loop.offer if setup.startswith("offer") else target.handle
-                pace = NODE_PERIOD_S if setup.startswith("offer") else 0.0
                 if setup == "handle":
-                    wall, cpu, delay = _round(call, legs)
+                    wall, cpu, delay = _round(service.handle, legs)
                     report_cpu = []
-                else:
-                    with _Reporter(target, period_s) as reporter:
-                        wall, cpu, delay = _round(call, legs, pace)
+                elif setup == "handle + reports":
+                    with _Reporter(service, period_s) as reporter:
+                        wall, cpu, delay = _round(service.handle, legs)
                     report_cpu = reporter.cpu_s
-                if setup.startswith("offer"):
+                else:
+                    reports = ReportLoop(node, lambda report: None, P.SPECS["diagnostics_period_s"].default).start()
+                    try:
+                        wall, cpu, delay = _round(loop.offer, legs, NODE_PERIOD_S)
+                    finally:
+                        reports.stop()
                     loop.extras.flush(10.0)
+                    report_cpu = []
                 row = _row(setup, wall, cpu, delay, report_cpu)
                 if setup not in best or row["slow"] < best[setup]["slow"]:
                     best[setup] = row

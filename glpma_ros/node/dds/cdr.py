@@ -217,7 +217,8 @@ class RawWriter:
 
     def __init__(self, writer):
         self.writer = writer
-        self._ref = writer._ref
+        # the entity's handle, which the binding keeps private: it has no public raw write
+        self._ref = writer._ref  # noqa: SLF001
 
     def write(self, data: bytes) -> None:
         ret = ddspy_write(self._ref, data)
@@ -227,7 +228,7 @@ class RawWriter:
 
 def take_raw(reader, n: int) -> list:
     """Up to ``n`` samples of ``reader`` as ``(bytes, SampleInfo)``, not deserialized."""
-    ret = ddspy_take(reader._ref, ANY_STATE, n)
+    ret = ddspy_take(reader._ref, ANY_STATE, n)  # noqa: SLF001 - the binding has no public raw take
     if isinstance(ret, int):
         raise DDSException(ret, f"Occurred while taking data in {reader!r}")
     return ret
