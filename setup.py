@@ -33,7 +33,7 @@ setup(
     extras_require={
         "tools": TOOLS,
         "test": TOOLS + ["pytest>=7", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
-                         "dask[distributed]>=2024.1"],
+                         "dask[distributed]>=2024.1", "ruff>=0.4"],     # ruff: .ci/run's lint
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
         "bag": TOOLS + ["rosbags>=0.10"],
