@@ -11,7 +11,8 @@ from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
-SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "offline")
+SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
+            "offline")
 
 #: default run counts: (full, --quick)
 DEFAULTS = {
@@ -28,6 +29,8 @@ DEFAULTS = {
     "outputs_seconds": (60, 2),       # seconds per legs written -> pose read run (node, outputs off, echo)
     "outputs_profile": (5000, 500),   # writes and thread round trips of the micro-profile
     "outputs_rclpy_seconds": (10, 2),  # seconds per rclpy executor variant (where rclpy imports)
+    "waits_rounds": (4, 1),           # rounds per setup of the waits section
+    "waits_inputs": (5000, 1000),     # inputs per round of the waits section
     "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
     "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
     "modes_g3pcx_hexapods": (3, 0),
@@ -85,6 +88,10 @@ def build_parser() -> OneLineParser:
                    "micro-profile (default 5000; --quick 500; 0 = skipped)")
     p.add_argument("--outputs-rclpy-seconds", type=float, help="seconds per rclpy executor variant of the outputs "
                    "section, where rclpy imports (default 10; --quick 2; 0 = skipped)")
+    p.add_argument("--waits-rounds", type=int, help="rounds per setup of the waits section (default 4; --quick 1; "
+                   "0 = skipped)")
+    p.add_argument("--waits-inputs", type=int, help="inputs per round of the waits section (default 5000; --quick "
+                   "1000)")
     p.add_argument("--bag-messages", type=int, help="inputs of the recorded run glpma-fk bag processes "
                    "(default 10000; --quick 1000)")
     p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grid (default 24; "
@@ -217,6 +224,11 @@ def main(argv=None) -> int:
         say("extra outputs and the transport path", "outputs")
         res["outputs"] = outputs.measure(list(scenarios.values()), counts["outputs_inputs"], counts["outputs_seconds"],
                                          counts["outputs_profile"], counts["outputs_rclpy_seconds"], say)
+
+    if "waits" in sections and counts["waits_rounds"] > 0:
+        from . import waits
+        say("waits of an input for anything but its own solve", "waits")
+        res["waits"] = waits.measure(counts["waits_rounds"], max(1, counts["waits_inputs"]))
 
     if "offline" in sections:
         from . import offline

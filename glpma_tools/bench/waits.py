@@ -123,11 +123,11 @@ def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray,
     return wall, cpu, delay
 
 
-def _row(setup, wall, cpu, delay, report_cpu) -> dict:
+def _row(setup, wall, cpu, delay, report_cpu, reports) -> dict:
     # the clocks differ by their resolutions: a negative difference is none
     off_cpu = np.maximum(wall - cpu, 0.0)
     blocked = np.maximum(off_cpu - delay, 0.0)
-    return {"setup": setup, "inputs": int(wall.size), "reports": len(report_cpu),
+    return {"setup": setup, "inputs": int(wall.size), "reports": reports,
             "report cpu p50 us": float(np.percentile(report_cpu, 50) * 1e6) if report_cpu else None,
             "report cpu max us": float(np.max(report_cpu) * 1e6) if report_cpu else None,
             "slow": int(np.sum(wall > SLOW_S)),
@@ -161,14 +161,16 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                         wall, cpu, delay = _round(service.handle, legs)
                     report_cpu = reporter.cpu_s
                 else:
-                    reports = ReportLoop(node, lambda report: None, P.SPECS["diagnostics_period_s"].default).start()
+                    made: list = []
+                    reporter = ReportLoop(node, made.append, P.SPECS["diagnostics_period_s"].default).start()
                     try:
                         wall, cpu, delay = _round(loop.offer, legs, NODE_PERIOD_S)
                     finally:
-                        reports.stop()
+                        reporter.stop()
                     loop.extras.flush(10.0)
                     report_cpu = []
-                row = _row(setup, wall, cpu, delay, report_cpu)
+                row = _row(setup, wall, cpu, delay, report_cpu, len(made) if setup == "node at 1 kHz" else
+                           len(report_cpu))
                 if setup not in best or row["slow"] < best[setup]["slow"]:
                     best[setup] = row
     finally:
@@ -176,9 +178,28 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
     return [best[s] for s in SETUPS]
 
 
+def section(res) -> list[str]:
+    """The BENCHMARKS.md section (``res["waits"]``: :func:`measure`'s rows), prose from templates/waits.md."""
+    from glpma_tools.tables import fmt, table
+    from .report import prose
+    rows = res.get("waits")
+    if not rows:
+        return []
+    by = {r["setup"]: r for r in rows}
+    node = by["node at 1 kHz"]
+    return ["## Waits of an input for anything but its own solve", "",
+            prose("waits", period_ms=f"{REPORT_PERIOD_S * 1e3:g}", slow_ms=f"{SLOW_S * 1e3:g}"), "",
+            table(["setup", "inputs", "reports", f"over {SLOW_S * 1e3:g} ms", "wall p50 us", "wall p99.9 us",
+                   "off-CPU p99.9 us", "blocked p50 us", "blocked p99.9 us", "blocked max us"],
+                  [[r["setup"], str(r["inputs"]), str(r["reports"]), str(r["slow"]), fmt(r["wall p50 us"]),
+                    fmt(r["wall p99.9 us"]), fmt(r["off-cpu p99.9 us"]), fmt(r["blocked p50 us"]),
+                    fmt(r["blocked p99.9 us"]), fmt(r["blocked max us"])] for r in rows]), "",
+            prose("waits", "reading", blocked=fmt(node["blocked p99.9 us"]), goal=f"{WAIT_GOAL_US:g}",
+                  met="met" if node["blocked p99.9 us"] <= WAIT_GOAL_US else "missed"), ""]
+
+
 if __name__ == "__main__":       # python -m glpma_tools.bench.waits: the table alone
     import json
-    import os
     print(f"load average {os.getloadavg()}")
     for r in measure():
         print(json.dumps(r))
