@@ -49,7 +49,7 @@ class LatestInput:
 EXTRAS_BACKLOG = 100
 #: while poses keep coming, the extras thread looks for new ones every EXTRAS_POLL_S rather than
 #: being woken: waking a blocked thread costs the waking (solving) thread a futex call and an
-#: inter-processor interrupt, tens of microseconds on a virtual machine (BENCHMARKS.md)
+#: inter-processor interrupt (its cost: BENCHMARKS.md, "Extra outputs and the transport path")
 EXTRAS_POLL_S = 0.5e-3
 #: ... and goes back to a blocking wait (woken by the next hand-off) after this long without one
 EXTRAS_LINGER_S = 0.05

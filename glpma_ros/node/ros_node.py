@@ -17,11 +17,10 @@ markers on the topics that have subscribers; ``/diagnostics`` is published by a 
 (:class:`~glpma_ros.node.loops.ReportLoop`), off the executor's; a solve holds up the parameter
 services for at most the time budget.
 Handing each input to a solver thread instead costs a thread switch per input, and the Python
-executor, busy taking the next messages, competes with that thread for the GIL, so it is
-slower end to end (BENCHMARKS.md, "Extra outputs and the transport path"); a
+executor, busy taking the next messages, competes with that thread for the GIL; a
 ``MultiThreadedExecutor`` with a reentrant group adds a thread pool and futures to every
-callback and is slower still.  Signals: rclpy's own handler is not installed
-(``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
+callback (the three compared: BENCHMARKS.md, "Extra outputs and the transport path").
+Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
 the context is still valid and then shuts down -- no "publisher's context is invalid" at Ctrl-C.
 """
 from __future__ import annotations

@@ -132,4 +132,5 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     if res.get("offline") is not None:
         parts += s.offline_section(res)
     parts += reliability_section(reliability, reliability_source)
+    parts += ["## Design measurements", "", prose("design"), ""]
     return "\n".join(parts).rstrip() + "\n"
