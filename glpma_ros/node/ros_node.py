@@ -20,8 +20,9 @@ Handing each input to a solver thread instead costs a thread switch per input, a
 executor, busy taking the next messages, competes with that thread for the GIL; a
 ``MultiThreadedExecutor`` with a reentrant group adds a thread pool and futures to every
 callback (the three compared: BENCHMARKS.md, "Extra outputs and the transport path").
-Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
-the context is still valid and then shuts down -- no "publisher's context is invalid" at Ctrl-C.
+Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop
+the node, which logs its summary while the context is still valid and then shuts down -- no
+"publisher's context is invalid" at Ctrl-C.
 """
 from __future__ import annotations
 
