@@ -54,7 +54,8 @@ class Diagnostics:
         """The current statistics as a DiagnosticStatus; starts a new reporting period.
         ``pause()`` is called between the stages of the work (default: nothing)."""
         svc = self.service
-        st = svc.stats.snapshot(new_period=True)
+        st = svc.stats.snapshot(new_period=True, pause=pause)
+        pause()
         modes, modes_failed = svc.modes.snapshot(new_period=True)
         params, model, outputs = svc.params, svc.model, svc.outputs
         capped, self._capped_reported = outputs.capped - self._capped_reported, outputs.capped
@@ -80,6 +81,9 @@ class Diagnostics:
             ("last start", last.start if last is not None else "none"),
             ("warm state", "yes" if svc.warm_x is not None else "no (cold start next)"),
             ("starts warm/widened/cold", "/".join(str(st.starts.get(k, 0)) for k in ("warm", "widened", "cold"))),
+        ]
+        pause()
+        values += [
             ("solve time p50 (ms)", _g(solve[0])),
             ("solve time p99 (ms)", _g(solve[1])),
             ("solve time max (ms)", _g(solve[2])),
@@ -112,6 +116,9 @@ class Diagnostics:
             ("leg noise std (m)", _g(params["leg_noise_std"], "g")),
             ("covariance capped (singular pose)", outputs.capped),
             ("twist source", outputs.twist_source or "none yet"),
+        ]
+        pause()
+        values += [
             ("extra outputs time p50 (ms)", _g(extras[0])),
             ("extra outputs time p99 (ms)", _g(extras[1])),
             ("extra outputs hand-off p50 (ms)", _g(handoff[0])),

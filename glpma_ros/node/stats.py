@@ -211,16 +211,17 @@ class Statistics:
             self.extras_dropped += count
 
     # -- reports -----------------------------------------------------------------------------
-    def snapshot(self, new_period: bool = False) -> StatsSnapshot:
+    def snapshot(self, new_period: bool = False, pause=lambda: None) -> StatsSnapshot:
         """Everything a report needs, copied (the counters under the lock, about a microsecond;
         the windows and the record after it); with ``new_period`` the events of the period are handed over and a new
-        period starts."""
+        period starts; ``pause()`` runs between the counters and the windows."""
         with self._lock:
             counts = (self.handled, self.published, self.rejected, self.dropped, self.deadline_misses,
                       self.extras_dropped, dict(self.starts), dict(self.reasons), self.last_estimate,
                       self.last_reason, dict(self._period))
             if new_period:
                 self._period.clear()
+        pause()
         # the windows are copied after the lock is released (each copy is one call that the
         # interpreter runs whole, so it sees every append whole): they may hold the input being
         # recorded meanwhile, which the counters above do not yet count

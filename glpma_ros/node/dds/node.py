@@ -38,13 +38,12 @@ from cyclonedds.util import duration
 
 from .. import params as P
 from ...errors import GlpmaError, InputError
-from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop
+from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop, pause_report
 from ..ros_args import node_values, parse_ros_args, split_transport
 from ..service import FkService
 from ..service import JointStateInput
 from . import cdr, endpoints
-from .messages import (DiagnosticArray, DiagnosticStatus, Empty, Float64MultiArray, Header, JointState, KeyValue,
-                       MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
+from .messages import (DiagnosticArray, Empty, Float64MultiArray, Header, JointState, MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
                        TFMessage, Time, TwistStamped)
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
@@ -61,14 +60,6 @@ def pose_array_message(modes) -> PoseArray:
     return PoseArray(header=Header(stamp=Time.from_ns(modes.stamp_ns), frame_id=modes.frame_id),
                      poses=[Pose(position=Point(*position), orientation=Quaternion(*orientation))
                             for position, orientation in modes.poses])
-
-
-def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
-    """:class:`~glpma_ros.node.diagnostics.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
-    status = DiagnosticStatus(level=report.level, name=report.name, message=report.message,
-                              hardware_id=report.hardware_id,
-                              values=[KeyValue(key=k, value=v) for k, v in report.values])
-    return DiagnosticArray(header=Header(stamp=Time.from_ns(stamp_ns)), status=[status])
 
 
 class DdsNode:
@@ -105,6 +96,7 @@ class DdsNode:
             cdr.RawWriter(w) for w in (self.pose_writer, self.tf_writer, self.cov_writer, self.twist_writer,
                                        self.markers_writer))
         self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray, depth)
+        self._raw_diag = cdr.RawWriter(self.diag_writer)
         # latched: a late subscriber gets the last answer
         self.modes_writer = participant.writer(self.topics[endpoints.ASSEMBLY_MODES], PoseArray, 1,
                                                transient_local=True)
@@ -212,7 +204,9 @@ class DdsNode:
         self.modes_writer.write(pose_array_message(modes))
 
     def _publish_report(self, report) -> None:
-        self.diag_writer.write(diagnostic_message(report, time.time_ns()))
+        """Encoded by :func:`cdr.diagnostic_array <glpma_ros.node.dds.cdr.diagnostic_array>` in chunks, with the
+        report thread's pauses between them (the binding's serializer takes ~0.1 ms in one piece)."""
+        self._raw_diag.write(cdr.diagnostic_array(time.time_ns(), report, pause=pause_report))
 
     def publish_diagnostics(self) -> None:
         """Publish a report now (the report thread does every ``diagnostics_period_s``)."""
