@@ -32,6 +32,8 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
 INPUT_MSGTYPES = {P.INPUT_FLOAT64_MULTI_ARRAY: FLOAT64_MULTI_ARRAY, P.INPUT_JOINT_STATE: JOINT_STATE}
+#: nanoseconds per second (builtin_interfaces/msg/Time)
+NS_PER_S = 1_000_000_000
 
 #: statuses of inputs the estimator never saw
 STATUS_INVALID, STATUS_UNDECODABLE, STATUS_INTERNAL = "invalid_input", "undecodable", "internal_error"
@@ -45,21 +47,22 @@ PROGRESS_EVERY = 500
 STATUS_CACHE_SIZE = 1024
 
 
-def decode_float64_multi_array(raw, typestore) -> tuple:
+def decode_float64_multi_array(raw, typestore) -> np.ndarray:
     """``data`` of a std_msgs/msg/Float64MultiArray: read by the node's codec (:mod:`glpma_ros.node.dds.cdr`)
     when little-endian CDR, as rosbag2 records it; otherwise by ``rosbags``."""
     if cdr.little_endian_cdr(raw):
-        return cdr.float64_multi_array_data(raw)
-    return tuple(typestore.deserialize_cdr(raw, FLOAT64_MULTI_ARRAY).data)
+        return np.asarray(cdr.float64_multi_array_data(raw), dtype=float)
+    return np.asarray(typestore.deserialize_cdr(raw, FLOAT64_MULTI_ARRAY).data, dtype=float)
 
 
 def decode_joint_state(raw, typestore) -> tuple:
     """``(names, positions, header.stamp in ns)`` of a sensor_msgs/msg/JointState (as above)."""
     if cdr.little_endian_cdr(raw):
         stamp_ns, names, positions, _ = cdr.joint_state_fields(raw)
-        return names, positions, stamp_ns
+        return list(names), np.asarray(positions, dtype=float), stamp_ns
     msg = typestore.deserialize_cdr(raw, JOINT_STATE)
-    return tuple(msg.name), tuple(msg.position), msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+    stamp = msg.header.stamp
+    return list(msg.name), np.asarray(msg.position, dtype=float), stamp.sec * NS_PER_S + stamp.nanosec
 
 
 @dataclass
