@@ -94,13 +94,12 @@ def missing_requirements(extra: str) -> list[str]:
     return missing
 
 
-def _not_installed(ep) -> str | None:
-    """Why plug-in ``ep`` cannot run here (its extra is not installed), or None."""
+def _missing_extra(ep) -> tuple[str, list] | None:
+    """``(extra, its distributions not installed)`` of plug-in ``ep``, or None when it can run here."""
     for extra in ep.extras:
         missing = missing_requirements(extra)
         if missing:
-            return (f"needs {', '.join(missing)}: pip install '{DISTRIBUTION}[{extra}]' "
-                    f"(in a checkout: pip install -e '.[{extra}]')")
+            return extra, missing
     return None
 
 
@@ -120,9 +119,11 @@ def _summary(ep) -> str:
 
 
 def _run_plugin(ep, argv) -> int:
-    why = _not_installed(ep)
-    if why is not None:
-        return _fail(f"glpma-fk {ep.name} {why}")
+    missing = _missing_extra(ep)
+    if missing is not None:
+        extra, names = missing
+        return _fail(f"glpma-fk {ep.name} needs {', '.join(names)}: pip install '{DISTRIBUTION}[{extra}]' "
+                     f"(in a checkout: pip install -e '.[{extra}]')")
     return int(ep.load()(argv) or 0)
 
 
@@ -294,8 +295,9 @@ def build_parser() -> argparse.ArgumentParser:
     # subcommands with parsers of their own (their options may start with ``--``)
     delegated = {"node": "run the estimator node (rclpy or Cyclone DDS)"}
     for name, ep in sorted(plugins().items()):
-        why = _not_installed(ep)
-        delegated.setdefault(name, _summary(ep) + (f" ({why})" if why else ""))
+        missing = _missing_extra(ep)
+        delegated.setdefault(name, _summary(ep) + (f" (not installed: pip install '{DISTRIBUTION}[{missing[0]}]')"
+                                                   if missing else ""))
     for name, helptext in delegated.items():
         q = sub.add_parser(name, help=helptext, add_help=False)
         q.add_argument("rest", nargs=argparse.REMAINDER)
