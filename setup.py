@@ -9,8 +9,8 @@ package_name = "glpma_ros"
 #: one version of record: glpma_ros/__init__.py (package.xml repeats it; a test checks they agree)
 VERSION = re.search(r'__version__ = "([^"]+)"',
                     (Path(__file__).resolve().parent / package_name / "__init__.py").read_text()).group(1)
-#: glpma_tools (demo, bench, stress, mock controller): plots and progress bars
-TOOLS = ["matplotlib>=3.6", "tqdm>=4.60"]   # accept Ubuntu 24.04 / Debian 12 (3.6.3)
+#: glpma_tools (demo, bench, stress, mock controller, map): plots, progress bars, a process's memory and CPU
+TOOLS = ["matplotlib>=3.6", "tqdm>=4.60", "psutil>=5.9"]   # accept Ubuntu 24.04 / Debian 12 (3.6.3, 5.9)
 
 setup(
     name=package_name,
@@ -41,7 +41,7 @@ setup(
         # pytest < 9: ROS 2 Jazzy's launch_testing plugin (the launch tests under colcon test) fails to load
         # under pytest 9 (README, "Testing your integration"); Ubuntu 24.04 ships 7.4.4
         "test": TOOLS + ["pytest>=7,<9", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
-                         "dask[distributed]>=2024.1"],
+                         "dask[distributed]>=2024.1", "ruff>=0.4"],     # ruff: .ci/run's lint
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
         "bag": TOOLS + ["rosbags>=0.10"],
@@ -61,6 +61,16 @@ setup(
             "fk_lifecycle_node = glpma_ros.node.ros_node:lifecycle_main",
             "mock_controller = glpma_tools.mock_controller:main",
             "mock_publisher = glpma_tools.mock_publisher:main",
+        ],
+        # glpma-fk's tool subcommands (glpma_ros/cli.py, doc/interface.md): "NAME = module:main [extra]",
+        # main(argv) -> exit status; the first line of the module's docstring is its --help line
+        "glpma_fk.commands": [
+            "bag = glpma_tools.bag:main [bag]",
+            "bench = glpma_tools.bench:main [bench]",
+            "calibrate = glpma_tools.calibrate:main",
+            "demo = glpma_tools.demo:main [tools]",
+            "map = glpma_tools.workspace_map:main [map]",
+            "stress = glpma_tools.stress:main [tools]",
         ],
     },
 )

@@ -1,12 +1,25 @@
-"""``glpma-fk``: solve, solve-all, precompile, modes, node, bench, demo, stress, bag, map, calibrate
-(the command line of record: doc/interface.md)."""
+"""``glpma-fk``: solve, solve-all, precompile, modes, node, and the installed tools' subcommands
+(the command line of record: doc/interface.md).
+
+The tools (:mod:`glpma_tools`: bench, demo, stress, bag, map, ...) plug their subcommands in through
+the entry-point group :data:`COMMANDS` (as ros2cli's verbs do): one line in setup.py,
+``"NAME = module:main [extra]"``, where ``main(argv) -> exit status`` parses its own arguments,
+the first line of ``module``'s docstring (``glpma-fk NAME: what it does``) is its line in
+``glpma-fk --help``, and ``extra`` is the setup.py extra it needs.  This module imports none of
+them: ``--help`` reads the docstrings without importing the modules, and an installation
+without the extra lists the command with the pip command that installs it."""
 from __future__ import annotations
 
 import argparse
-import contextlib
+import ast
+import functools
+import importlib.machinery
+import importlib.metadata
+import importlib.util
 import json
 import math
 import os
+import re
 import sys
 
 import numpy as np
@@ -21,6 +34,12 @@ EXIT_BROKEN_PIPE = 141
 NO_BUDGET_S = 3600.0
 
 
+#: the entry-point group of glpma-fk's plug-in subcommands (see the module's docstring)
+COMMANDS = "glpma_fk.commands"
+#: the distribution whose extras the plug-ins name
+DISTRIBUTION = "glpma_ros"
+
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse, but a usage error is one line on stderr and exit status 2."""
 
@@ -31,6 +50,81 @@ class OneLineParser(argparse.ArgumentParser):
 def _fail(message: str) -> int:
     print(f"error: {message}", file=sys.stderr)
     return EXIT_BAD_INPUT
+
+
+def command_main(main):
+    """Decorator of a command's ``main(argv) -> exit status``, the one place where its outcomes
+    become exit statuses: argparse's exit (``--help``: 0; a :class:`OneLineParser` usage error,
+    already printed: 2), a :class:`~glpma_ros.errors.GlpmaError` (one line on stderr, 2) and
+    Ctrl-C (130)."""
+    @functools.wraps(main)
+    def run(argv=None) -> int:
+        try:
+            return int(main(argv) or 0)
+        except SystemExit as exc:
+            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else _fail(str(exc.code)))
+        except GlpmaError as exc:
+            return _fail(str(exc))
+        except KeyboardInterrupt:
+            return 130
+    return run
+
+
+# -- plug-in subcommands ------------------------------------------------------------------------
+def plugins() -> dict:
+    """name -> ``importlib.metadata.EntryPoint`` of every installed plug-in subcommand."""
+    return {ep.name: ep for ep in importlib.metadata.entry_points(group=COMMANDS)}
+
+
+def missing_requirements(extra: str) -> list[str]:
+    """The distributions the setup.py ``extra`` requires that are not installed."""
+    try:
+        requires = importlib.metadata.requires(DISTRIBUTION) or []
+    except importlib.metadata.PackageNotFoundError:
+        return []
+    marker = re.compile(rf"""extra\s*==\s*["']{re.escape(extra)}["']""")
+    missing = []
+    for requirement in requires:
+        name = re.match(r"[A-Za-z0-9._-]+", requirement).group(0)
+        if marker.search(requirement) and name not in missing:
+            try:
+                importlib.metadata.version(name)
+            except importlib.metadata.PackageNotFoundError:
+                missing.append(name)
+    return missing
+
+
+def _missing_extra(ep) -> tuple[str, list] | None:
+    """``(extra, its distributions not installed)`` of plug-in ``ep``, or None when it can run here."""
+    for extra in ep.extras:
+        missing = missing_requirements(extra)
+        if missing:
+            return extra, missing
+    return None
+
+
+def _summary(ep) -> str:
+    """The first line of the plug-in's module docstring, read without importing the module."""
+    try:
+        top, *parts = ep.module.split(".")
+        spec = importlib.util.find_spec(top)          # a top-level name is found, not imported
+        for part in parts:                            # nor are the packages on the way down
+            spec = importlib.machinery.PathFinder.find_spec(part, spec.submodule_search_locations)
+        with open(spec.origin, encoding="utf-8") as f:
+            doc = ast.get_docstring(ast.parse(f.read())) or ""
+    except (ImportError, AttributeError, TypeError, OSError, SyntaxError):
+        return ""
+    line = doc.strip().splitlines()[0] if doc.strip() else ""
+    return re.sub(r"^``[^`]*``:\s*|^glpma-fk \S+:\s*", "", line).replace("``", "").rstrip(".")
+
+
+def _run_plugin(ep, argv) -> int:
+    missing = _missing_extra(ep)
+    if missing is not None:
+        extra, names = missing
+        return _fail(f"glpma-fk {ep.name} needs {', '.join(names)}: pip install '{DISTRIBUTION}[{extra}]' "
+                     f"(in a checkout: pip install -e '.[{extra}]')")
+    return int(ep.load()(argv) or 0)
 
 
 def _number(kind, test, what):
@@ -50,20 +144,6 @@ def _number(kind, test, what):
 seed_type = _number(int, lambda v: 0 <= v < 2**63, "a non-negative integer")
 count_type = _number(int, lambda v: v >= 1, "at least 1")
 positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "a positive number")
-
-
-@contextlib.contextmanager
-def _one_line_usage_errors():
-    """A delegated subcommand's own argparse reports a usage error as one line, exit 2."""
-    original = argparse.ArgumentParser.error
-
-    def error(parser, message):
-        raise SystemExit(_fail(f"{parser.prog}: {message}"))
-    argparse.ArgumentParser.error = error
-    try:
-        yield
-    finally:
-        argparse.ArgumentParser.error = original
 
 
 def _load(config):
@@ -221,13 +301,13 @@ def build_parser() -> argparse.ArgumentParser:
     a.set_defaults(func=cmd_solve_all)
     _add_precompile(sub)
     _add_modes(sub)
-    for name, helptext in (("node", "run the estimator node (rclpy or Cyclone DDS)"),
-                           ("bench", "reproduce the papers' tables against peers; writes BENCHMARKS.md"),
-                           ("demo", "node + mock controller over DDS, live progress, summary and figure"),
-                           ("stress", "reliability: overload, burst, restarts, deadlines against a real node"),
-                           ("bag", "poses for a recorded rosbag2, offline: pose_estimate, /tf and ~/status added"),
-                           ("map", "workspace map: real assembly modes and singularity curves over a 2-D grid"),
-                           ("calibrate", "the real geometry (joints, leg offsets) from measured poses")):
+    # subcommands with parsers of their own (their options may start with ``--``)
+    delegated = {"node": "run the estimator node (rclpy or Cyclone DDS)"}
+    for name, ep in sorted(plugins().items()):
+        missing = _missing_extra(ep)
+        delegated.setdefault(name, _summary(ep) + (f" (not installed: pip install '{DISTRIBUTION}[{missing[0]}]')"
+                                                   if missing else ""))
+    for name, helptext in delegated.items():
         q = sub.add_parser(name, help=helptext, add_help=False)
         q.add_argument("rest", nargs=argparse.REMAINDER)
     return p
@@ -303,55 +383,27 @@ def cmd_modes(args) -> int:
     return modes_main(args)
 
 
-def _delegated(command: str):
-    """Subcommands with parsers of their own (their options may start with ``--``)."""
-    if command == "node":
-        from .node.entry import main
-    elif command == "bench":
-        from glpma_tools.bench import main
-    elif command == "demo":
-        from glpma_tools.demo import main
-    elif command == "stress":
-        from glpma_tools.stress import main
-    elif command == "bag":
-        from glpma_tools.bag import main
-    elif command == "map":
-        from glpma_tools.workspace_map import main
-    elif command == "calibrate":
-        from glpma_tools.calibrate import main
-    else:
-        return None
-    return main
-
-
 def _run(argv) -> int:
-    delegate = _delegated(argv[0]) if argv else None
-    if delegate is not None:
-        try:
-            with _one_line_usage_errors():
-                return int(delegate(argv[1:]) or 0)
-        except SystemExit as exc:  # a subcommand's own argparse (--help)
-            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
+    if argv and argv[0] == "node":
+        from .node.entry import main as node_main
+        return node_main(argv[1:])
+    plugin = plugins().get(argv[0]) if argv else None
+    if plugin is not None:
+        return _run_plugin(plugin, argv[1:])
+    args = build_parser().parse_args(argv)
     if args.command != "modes":     # everything else runs the compiled kernels
         from .compat import check_numba
         check_numba()
     return args.func(args)
 
 
+@command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         code = _run(argv)
         sys.stdout.flush()          # a closed pipe shows here, not at interpreter exit
         return code
-    except GlpmaError as exc:
-        return _fail(str(exc))
-    except KeyboardInterrupt:
-        return 130
     except BrokenPipeError:
         # the reader went away (| head -1): stop quietly; stdout goes nowhere from now on
         devnull = os.open(os.devnull, os.O_WRONLY)

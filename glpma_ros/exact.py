@@ -199,7 +199,7 @@ def rational(v: float) -> Fraction:
 
 
 # -- quaternions of polynomials (scalar first) ----------------------------------------------------
-def _qmul(p, q):
+def qmul(p, q):
     p0, p1, p2, p3 = p
     q0, q1, q2, q3 = q
     return (p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3,
@@ -252,7 +252,7 @@ def hexapod_system(model, legs, exclude_null=False) -> list:
     e, f = tuple(v[0:4]), tuple(v[4:8])
     ec = _qconj(e)
     D = _qdot(e, e)
-    f_ec = _qmul(f, ec)
+    f_ec = qmul(f, ec)
     a1 = [rational(t) for t in model.base[0]]
     b1 = [rational(t) for t in model.platform[0]]
     polys = []
@@ -260,8 +260,8 @@ def hexapod_system(model, legs, exclude_null=False) -> list:
         a = (0,) + tuple(rational(t) - o for t, o in zip(a_row, a1))
         b = (0,) + tuple(rational(t) - o for t, o in zip(b_row, b1))
         L = rational(L)
-        eb = _qmul(e, b)
-        ebe = _qmul(eb, ec)
+        eb = qmul(e, b)
+        ebe = qmul(eb, ec)
         const = sum(t * t for t in a) + sum(t * t for t in b) - L * L
         polys.append(const * D + 4 * _qdot(f, f) + 4 * _qdot(eb, f)
                      - 2 * _qdot(a, ebe) - 4 * _qdot(a, f_ec))
@@ -284,7 +284,7 @@ def hexapod_pose(model, root):
     e = np.asarray(root[0:4], dtype=float)
     f = np.asarray(root[4:8], dtype=float)
     D = float(e @ e)
-    t = np.array(_qmul(tuple(2.0 * f), _qconj(tuple(e)))[1:]) / D
+    t = np.array(qmul(tuple(2.0 * f), _qconj(tuple(e)))[1:]) / D
     q = np.array([e[1], e[2], e[3], e[0]]) / math.sqrt(D)
     R = matrix_from_quaternion(q)
     return q, model.base[0] + t - R @ model.platform[0]

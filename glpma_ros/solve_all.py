@@ -272,7 +272,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> 
                 break
     polish_rng = np.random.default_rng(seed)
     found = []
-    for x, h in zip(modes, hits):
+    for x in modes:
         t1 = time.perf_counter()
         xp, fp, nfev, _ = refine.polish(model, x, legs, polish_rng)
         evaluations += nfev

@@ -33,7 +33,7 @@ nothing aborts the run but an unreadable bag.  The output is written next to OUT
 and moved into place at the end: an interrupted run leaves no partial bag.
 
 This module is the command line (:func:`main`, :func:`run`); the run itself is
-:mod:`glpma_tools.bag_run`, the message types and CDR codecs :mod:`glpma_tools.bag_codec`.
+:mod:`glpma_tools.bag_run` (the messages' wire form: the node's codec, :mod:`glpma_ros.node.dds.cdr`).
 """
 from __future__ import annotations
 

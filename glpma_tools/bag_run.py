@@ -23,8 +23,17 @@ from glpma_ros.errors import InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
 from glpma_ros.node.diagnostics import ERROR, OK, WARN
 
-from .bag_codec import (DIAGNOSTIC_STATUS, FLOAT64_MULTI_ARRAY, INPUT_MSGTYPES, JOINT_STATE, POSE_STAMPED,
-                        TF_MESSAGE, decode_float64_multi_array, decode_joint_state, pose_stamped_codec, tf_codec)
+from glpma_ros.node.dds import cdr
+
+#: the ROS 2 types the tool reads and writes
+FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
+INPUT_MSGTYPES = {P.INPUT_FLOAT64_MULTI_ARRAY: FLOAT64_MULTI_ARRAY, P.INPUT_JOINT_STATE: JOINT_STATE}
+#: nanoseconds per second (builtin_interfaces/msg/Time)
+NS_PER_S = 1_000_000_000
 
 #: statuses of inputs the estimator never saw
 STATUS_INVALID, STATUS_UNDECODABLE, STATUS_INTERNAL = "invalid_input", "undecodable", "internal_error"
@@ -43,6 +52,24 @@ def _leg_values(est, service) -> tuple:
     names = service.joint_names
     legs = (("suspect_leg", est.suspect_leg), ("excluded_leg", est.excluded_leg))
     return tuple((key, names[leg]) for key, leg in legs if leg is not None)
+
+
+def decode_float64_multi_array(raw, typestore) -> np.ndarray:
+    """``data`` of a std_msgs/msg/Float64MultiArray: read by the node's codec (:mod:`glpma_ros.node.dds.cdr`)
+    when little-endian CDR, as rosbag2 records it; otherwise by ``rosbags``."""
+    if cdr.little_endian_cdr(raw):
+        return np.asarray(cdr.float64_multi_array_data(raw), dtype=float)
+    return np.asarray(typestore.deserialize_cdr(raw, FLOAT64_MULTI_ARRAY).data, dtype=float)
+
+
+def decode_joint_state(raw, typestore) -> tuple:
+    """``(names, positions, header.stamp in ns)`` of a sensor_msgs/msg/JointState (as above)."""
+    if cdr.little_endian_cdr(raw):
+        stamp_ns, names, positions, _ = cdr.joint_state_fields(raw)
+        return list(names), np.asarray(positions, dtype=float), stamp_ns
+    msg = typestore.deserialize_cdr(raw, JOINT_STATE)
+    stamp = msg.header.stamp
+    return list(msg.name), np.asarray(msg.position, dtype=float), stamp.sec * NS_PER_S + stamp.nanosec
 
 
 @dataclass
@@ -297,8 +324,8 @@ class BagRun:
         pose_conn, tf_conn, status_conn = outputs
         service, ts, summary = self.service, self.typestore, self.summary
         frame_id = service.frame_id
-        pose_codec = pose_stamped_codec(ts, frame_id)
-        tf_codec_ = tf_codec(ts, frame_id, self.child_frame_id) if tf_conn is not None else None
+        encode = cdr.Encoder()          # the node's: PoseStamped and TFMessage as rmw_cyclonedds_cpp writes them
+        child_frame_id = self.child_frame_id
         input_ids = {c.id for c in self.reader.connections if c.topic == self.topics["input"]}
         estimator = service.estimator
         watch = BranchWatch(self.model, estimator.last_x, estimator.last_legs)
@@ -336,10 +363,10 @@ class BagRun:
             if outcome.pose is not None:
                 summary.converged += 1
                 p = outcome.pose
-                values = (*p.position, *p.orientation)
-                write(pose_conn, t_log, pose_codec.encode(p.stamp_ns, values))
+                write(pose_conn, t_log, encode.pose_stamped(p.stamp_ns, frame_id, p.position, p.orientation))
                 if tf_conn is not None:
-                    write(tf_conn, t_log, tf_codec_.encode(p.stamp_ns, values))
+                    write(tf_conn, t_log, encode.tf_message(p.stamp_ns, frame_id, child_frame_id, p.position,
+                                                            p.orientation))
                 status = (("status", est.status), ("start", est.start)) + _leg_values(est, service)
                 if watch(est.x, service.estimator.last_legs):
                     summary.mode_changes += 1

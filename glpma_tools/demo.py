@@ -15,7 +15,7 @@ import json
 import sys
 from pathlib import Path
 
-from glpma_ros.cli import OneLineParser
+from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.config import config_dir
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import SOLVER_CHOICES
@@ -121,13 +121,11 @@ def _table(summary: dict, node_alive: bool) -> str:
     return table(None, [("  " + k, v) for k, v in rows], markdown=False)
 
 
+@command_main
 def main(argv=None) -> int:
     from tqdm import tqdm
 
-    try:
-        args = _parser().parse_args(argv)
-    except SystemExit as exc:
-        return 0 if exc.code in (0, None) else 2
+    args = _parser().parse_args(argv)
     if args.duration <= 0 or (args.rate is not None and args.rate <= 0):
         print("error: glpma-fk demo: --rate and --duration must be positive", file=sys.stderr)
         return 2

@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from glpma_ros.cli import OneLineParser
+from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
 from glpma_tools.sim.controller import Controller, counters, diff
@@ -221,11 +221,9 @@ def build_parser() -> OneLineParser:
     return p
 
 
+@command_main
 def main(argv=None) -> int:
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:
-        return 0 if exc.code in (0, None) else 2
+    args = build_parser().parse_args(argv)
     if args.rate <= 0 or args.duration <= 0:
         print("mock_controller: error: --rate and --duration must be positive", file=sys.stderr)
         return 2

@@ -149,7 +149,7 @@ def test_the_polynomial_systems_vanish_at_a_known_mode(rpr, rpr_solutions, hexap
     e = np.array([qw, qx, qy, qz])
     e = e / float(sum(float(k) * v for k, v in zip(exact.CHART, e)))
     t = P.position + R @ model.platform[0] - model.base[0]
-    f = 0.5 * np.array(exact._qmul((0.0, *t), tuple(e)))
+    f = 0.5 * np.array(exact.qmul((0.0, *t), tuple(e)))
     for p in exact.hexapod_system(model, legs):
         assert abs(_evaluate(p, (*e, *f))) < 1e-6 * max(1.0, max(abs(float(c)) for c in p.terms.values()))
     q, pos = exact.hexapod_pose(model, (*e, *f))
@@ -284,10 +284,10 @@ def test_cli_no_mode_exit_1_with_the_reason():
 
 def test_node_reply_says_how_many_starts():
     svc = FkService({"manipulator_config": str(HEX_YAML)})
-    svc.note_input([1.25] * 6, 0)
-    result = svc.assembly_modes(0)
+    svc.modes.note_input([1.25] * 6, 0)
+    result = svc.modes.compute(0)
     assert len(result.poses) == 16 and result.starts >= SA.STALL_MIN
-    svc.note_assembly_modes(result)
+    svc.modes.note(result)
     values = svc.diagnostics().as_dict()
     assert values["assembly modes last starts"] == str(result.starts)
     assert values["assembly modes last"].startswith("16 modes in ")

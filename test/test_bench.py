@@ -8,7 +8,8 @@ SECTIONS = ["## Summary", "## The papers' tables (001 Tables 5 and 8)", "### 3-R
             "## Success vs evaluations", "## Pure G3-PCX against peer implementations",
             "## Why the papers' pure G3-PCX figures do not reproduce", "## All real assembly modes",
             "## Warm tracking latency (solve only)", "## Warm solve against `scipy.optimize.least_squares`",
-            "## Deadline honouring", "## DDS end to end", "## Extra outputs and the transport path"]
+            "## Deadline honouring", "## DDS end to end", "## Extra outputs and the transport path",
+            "## Waits of an input for anything but its own solve"]
 
 
 @pytest.fixture(scope="module")
@@ -18,7 +19,8 @@ def report(tmp_path_factory):
     rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
                "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma", "--solve-all-runs", "20",
                "--dds-steps", "20", "--outputs-inputs", "5", "--outputs-seconds", "0.3", "--outputs-profile", "20",
-               "--outputs-rclpy-seconds", "0", "--no-progress", "--out", str(out), "--markdown", str(md),
+               "--outputs-rclpy-seconds", "0", "--waits-rounds", "1", "--waits-inputs", "300",
+               "--no-progress", "--out", str(out), "--markdown", str(md),
                "--reliability", str(out / "none.json"), "--save-data", str(out / "res.pkl"),
                # the hexapod's counts (unused with --only 3rpr, but parsed and checked) and the small ones
                "--hexapod-runs", "1", "--peer-hexapod-runs", "0", "--table2-runs", "2", "--track-budget-ms", "20"])
@@ -59,6 +61,9 @@ def test_markdown_has_every_table(report):
     assert "| plain NumPy Newton |" in text and "ours/row (p99)" in text
     assert "| 3-RPR | 20 | U[" in text                          # solve_all row: 20 runs
     assert "| 3-RPR, infeasible legs, default (polish) | glpma | 1 | 2 |" in text
+    waits = text.split("## Waits of an input")[1].split("\n## ")[0]
+    for setup in ("handle", "handle + reports", "node at 1 kHz"):
+        assert f"| {setup} | 300 |" in waits, setup
 
 
 def test_polished_rows_converge_and_figures_exist(report):

@@ -215,7 +215,7 @@ def test_hexapod_assembly_modes_while_streaming(start_node, dds_env, capsys):
 
     # every pose is right: it reproduces the 1250 mm legs (a pose per JointState stamp, none invented)
     model = load_manipulator(HEX_YAML)
-    for _, stamp, _, position, quaternion in listener.poses:
+    for _, _, _, position, quaternion in listener.poses:
         x = model.variables_from_pose(position / model.metres_per_unit, quaternion)
         np.testing.assert_allclose(model.inverse_kinematics(x) * model.metres_per_unit, legs_m, atol=1e-6)
     assert {stamp for _, stamp, *_ in listener.poses} <= set(sent)

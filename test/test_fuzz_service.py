@@ -122,7 +122,7 @@ def check_handle(service, legs, stamp) -> str:
     """What must hold for every input handed to the service; returns the kind of outcome."""
     st_ = service.stats
     before = (st_.handled, st_.published, st_.rejected)
-    warm_before, last_before = _copy(service._warm_x), _copy(service.estimator.last_x)
+    warm_before, last_before = _copy(service.warm_x), _copy(service.estimator.last_x)
 
     out = service.handle(legs, stamp)            # must not raise
 
@@ -134,7 +134,7 @@ def check_handle(service, legs, stamp) -> str:
         assert isinstance(out.reason, str) and out.reason.strip() and "\n" not in out.reason
         assert st_.rejected == before[2] + 1
         # state kept: a rejected input does not move the warm start
-        np.testing.assert_array_equal(service._warm_x, warm_before)
+        np.testing.assert_array_equal(service.warm_x, warm_before)
         np.testing.assert_array_equal(service.estimator.last_x, last_before)
         if want is not None:
             assert out.reason.startswith(want), (legs, out.reason)
@@ -154,7 +154,7 @@ def check_handle(service, legs, stamp) -> str:
     assert all(math.isfinite(v) for v in out.pose.position + out.pose.orientation)
     assert abs(math.fsum(v * v for v in out.pose.orientation) - 1.0) < 1e-9
     assert st_.published == before[1] + 1
-    np.testing.assert_array_equal(service._warm_x, out.estimate.x)
+    np.testing.assert_array_equal(service.warm_x, out.estimate.x)
     # the pose reproduces the legs it answers
     model = service.model
     legs_back = model.inverse_kinematics(out.estimate.x) * service.metres_per_unit
@@ -172,7 +172,7 @@ def test_after_the_fuzzing_the_service_reports_and_tracks(service):
     reasons = sum(int(v) for k, v in values.items() if k.startswith("rejected: "))
     assert reasons == st_.rejected
     # track on from wherever the fuzzing left the warm state
-    x = service._warm_x
+    x = service.warm_x
     legs = service.model.inverse_kinematics(x) * service.metres_per_unit * (1.0 + 1e-5)
     out = service.handle(legs, 1)
     assert out.pose is not None, out.reason

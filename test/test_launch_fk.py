@@ -9,7 +9,7 @@ import unittest
 
 import pytest
 
-launch_testing = pytest.importorskip(
+pytest.importorskip(
     "launch_testing", reason="launch_testing is not importable (ROS 2 Jazzy not sourced): the launch tests run "
                              "under colcon test on a real Jazzy; the node's logic is tested over Cyclone DDS")
 import launch_testing.actions  # noqa: E402
@@ -57,7 +57,7 @@ class TestTracking(unittest.TestCase):
             for _, stamp_ns, frame_id, position, q in c.poses[:POSES]:
                 self.assertEqual(frame_id, "base")
                 stamp = Time(nanoseconds=stamp_ns)
-                self.assertTrue(t.spin_until(lambda: buffer.can_transform("base", "platform", stamp), HANG_S))
+                self.assertTrue(t.spin_until(lambda stamp=stamp: buffer.can_transform("base", "platform", stamp), HANG_S))
                 tf = buffer.lookup_transform("base", "platform", stamp).transform
                 got = (tf.translation.x, tf.translation.y, tf.translation.z,
                        tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w)

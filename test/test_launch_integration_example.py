@@ -4,7 +4,7 @@ import unittest
 
 import pytest
 
-launch_testing = pytest.importorskip("launch_testing", reason="launch_testing is not importable (ROS 2 not sourced)")
+pytest.importorskip("launch_testing", reason="launch_testing is not importable (ROS 2 not sourced)")
 import launch_support  # noqa: E402,F401 - this repository only: a claimed ROS domain, loopback discovery
 
 # --- README example from here ---------------------------------------------------------------------

@@ -11,7 +11,7 @@ import unittest
 
 import pytest
 
-launch_testing = pytest.importorskip(
+pytest.importorskip(
     "launch_testing", reason="launch_testing is not importable (ROS 2 Jazzy not sourced): the launch tests run "
                              "under colcon test on a real Jazzy; the node's logic is tested over Cyclone DDS")
 import launch_testing.actions  # noqa: E402

@@ -14,7 +14,7 @@ import unittest
 
 import pytest
 
-launch_testing = pytest.importorskip(
+pytest.importorskip(
     "launch_testing", reason="launch_testing is not importable (ROS 2 Jazzy not sourced): the launch tests run "
                              "under colcon test on a real Jazzy")
 pytest.importorskip("sros2", reason="sros2 is not importable: the secured launch test needs a ROS 2 with security "

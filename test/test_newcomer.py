@@ -197,7 +197,8 @@ def test_a_closed_pipe_ends_quietly():
 
 
 def _subcommands():
-    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    # argparse lists its subcommands only in its (private) actions
+    sub = next(a for a in build_parser()._actions if a.dest == "command")  # noqa: SLF001
     return sorted(sub.choices)
 
 

@@ -86,7 +86,7 @@ def test_the_dds_node_refuses_a_bad_override_in_one_line(dds_env):
     assert "Traceback" not in r.stderr
 
 
-def test_the_dds_node_creates_its_endpoints_with_the_overrides(start_node, tmp_path):
+def test_the_dds_node_creates_its_endpoints_with_the_overrides(start_node, tmp_path):  # noqa: F811 - fixture
     """An independent participant reads the node's reader and writer QoS from DDS discovery."""
     pytest.importorskip("cyclonedds", reason="the Cyclone DDS Python binding is not installed")
     from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription

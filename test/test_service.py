@@ -248,7 +248,7 @@ def test_rejections_are_logged_once_per_second_per_reason(service):
 
     service.log = Log()
     now = [0.0]                     # the throttle's clock: the result does not depend on the machine's
-    service._throttle = LogThrottle(clock=lambda: now[0])
+    service.log_throttle = LogThrottle(clock=lambda: now[0])
     for _ in range(50):
         service.handle([1.0], 0)
     assert len(lines) == 1 and "expected 3 leg lengths" in lines[0]

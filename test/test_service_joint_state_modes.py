@@ -9,9 +9,7 @@ import pytest
 import yaml
 
 from glpma_ros.node import params as P
-from glpma_ros.node import ros_args
 from glpma_ros.node.ros_args import node_values
-from glpma_ros.node.dds.rihs import type_hash
 from glpma_ros.errors import InputError
 from glpma_ros.node.loops import AssemblyModesLoop, SolveLoop
 from glpma_ros.node.service import FkService, JointStateInput
@@ -147,23 +145,23 @@ def test_waiting_message_names_the_input_topic(service):
 
 def test_assembly_modes_of_the_last_input_in_metres(service):
     with pytest.raises(InputError, match="no input received yet on joint_states"):
-        service.assembly_modes(1)
-    service.note_input(JointStateInput(("j_c", "j_a", "j_b", "x"), (0.15, 0.1, 0.12, 4.0)), 33)
-    result = service.assembly_modes(1234)
+        service.modes.compute(1)
+    service.modes.note_input(JointStateInput(("j_c", "j_a", "j_b", "x"), (0.15, 0.1, 0.12, 4.0)), 33)
+    result = service.modes.compute(1234)
     assert result.stamp_ns == 1234 and result.input_stamp_ns == 33 and result.frame_id == "base"
     assert len(result.poses) == 2
     np.testing.assert_allclose(sorted(p[:2] for p, _ in result.poses), rpr_solutions_m(), atol=1e-9)
     for position, q in result.poses:
         assert position[2] == 0.0 and abs(np.linalg.norm(q) - 1.0) < 1e-12
-    service.note_input(JointStateInput(("j_a",), (0.1,)), 34)
+    service.modes.note_input(JointStateInput(("j_a",), (0.1,)), 34)
     with pytest.raises(InputError, match="the last input is invalid: joint_states has no joint 'j_b'"):
-        service.assembly_modes(1)
+        service.modes.compute(1)
 
 
 def test_assembly_modes_of_the_hexapod_example_are_sixteen():
     svc = FkService({"manipulator_config": str(HEX_YAML)})
-    svc.note_input([1.25] * 6, 0)
-    result = svc.assembly_modes(0)
+    svc.modes.note_input([1.25] * 6, 0)
+    result = svc.modes.compute(0)
     assert len(result.poses) == 16
     assert all(abs(p[2]) < 3.0 for p, _ in result.poses)          # metres
 
@@ -177,9 +175,9 @@ def test_assembly_modes_loop_with_the_worker_process(service):
         assert worker.pid is not None
         loop.request(10)                                   # nothing received yet
         deadline = time.monotonic() + WAIT_S
-        while service.stats.modes_failed == 0 and time.monotonic() < deadline:
+        while service.modes.failed == 0 and time.monotonic() < deadline:
             time.sleep(0.001)
-        service.note_input(JointStateInput(tuple(NAMES), tuple(SEED_LEGS_M)), 20)
+        service.modes.note_input(JointStateInput(tuple(NAMES), tuple(SEED_LEGS_M)), 20)
         loop.request(11)
         deadline = time.monotonic() + WAIT_S
         while not published and time.monotonic() < deadline:
@@ -192,11 +190,11 @@ def test_assembly_modes_loop_with_the_worker_process(service):
         assert values["assembly modes last failure"] == "no input received yet on joint_states"
         assert values["assembly modes last"].startswith("2 modes in ")
         # the worker's result is the in-process one
-        ours = service.assembly_modes(0, (list(SEED_LEGS_M), 0))
+        ours = service.modes.compute(0, (list(SEED_LEGS_M), 0))
         assert ours.poses == published[0].poses
     finally:
         loop.stop()
-    assert worker._proc is None                            # the child was stopped
+    assert worker.pid is None                             # the child was stopped
 
 
 def test_assembly_modes_requests_are_coalesced_while_one_waits(service):
@@ -210,12 +208,12 @@ def test_assembly_modes_requests_are_coalesced_while_one_waits(service):
     published = []
     loop = AssemblyModesLoop(service, published.append, solve=slow).start()
     try:
-        service.note_input(list(SEED_LEGS_M), 1)
+        service.modes.note_input(list(SEED_LEGS_M), 1)
         loop.request(1)
         deadline = time.monotonic() + WAIT_S
         while not calls and time.monotonic() < deadline:
             time.sleep(0.001)
-        service.note_input([0.1, 0.12, 0.1501], 2)
+        service.modes.note_input([0.1, 0.12, 0.1501], 2)
         loop.request(2)
         loop.request(3)                                    # replaces 2
         release.set()
@@ -232,7 +230,7 @@ def test_switching_to_a_baseline_solver_warms_it_up_first():
     svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X,
                      "time_budget_ms": GENEROUS_BUDGET_MS})
     assert svc.set_parameters({"solver": "de"}) == (True, "")
-    assert "de" in svc._warmed
+    assert "de" in svc.warmed_up
     out = svc.handle([0.1, 0.12, 0.1501], 0)
     assert out.pose is not None and out.estimate.solver == "de" and out.estimate.start == "warm"
 
@@ -248,18 +246,20 @@ CONTRACT_HASHES = {
 }
 
 
-def test_rihs01_computation_reproduces_the_contract_and_gives_empty():
-    for name, expected in CONTRACT_HASHES.items():
-        assert type_hash(name) == expected, name
-    assert type_hash("std_msgs/msg/Empty") == \
-        "RIHS01_20b625256f32d5dbc0d04fee44f43c41e51c70d3502f84b4a08e7a9c26a96312"
-
-
-def test_message_types_carry_the_computed_hashes():
+def test_the_type_hash_table_is_jazzys():
+    """The node's fixed table of RIHS01 hashes against an independent implementation (rosbags'
+    Jazzy type store, from the Jazzy .msg definitions) and the contract's."""
     pytest.importorskip("cyclonedds")
+    typesys = pytest.importorskip("rosbags.typesys")
     from glpma_ros.node.dds import messages
+    jazzy = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+    for name, expected in messages.TYPE_HASHES.items():
+        assert jazzy.hash_rihs01(name) == expected, name
+    for name, expected in CONTRACT_HASHES.items():
+        assert messages.TYPE_HASHES[name] == expected, name
+    assert set(messages.ROS_TYPE_NAMES.values()) <= set(messages.TYPE_HASHES)
     for msg_type, ros_name in messages.ROS_TYPE_NAMES.items():
-        assert messages.type_hash(msg_type) == type_hash(ros_name), ros_name
+        assert messages.type_hash(msg_type) == messages.TYPE_HASHES[ros_name], ros_name
     assert messages.Empty.__idl_typename__ == "std_msgs::msg::dds_::Empty_"
 
 

@@ -61,7 +61,7 @@ def test_warm_tracking_is_the_same_in_mm_cm_and_m(kind, rpr, rpr_solutions, hexa
         x0, *_ = polish(hexapod, hex_published[7], hexapod.example_leg_lengths, np.random.default_rng(0))
         truth_mm = variables_along(hexapod, x0, 100)
     runs = {}
-    for unit, f in PER_MM.items():
+    for unit in PER_MM:
         model = scaled(RPR_YAML if kind == "rpr" else HEX_YAML, unit)
         truth = truth_mm / in_mm(model, np.ones(model.n_vars))
         est = Estimator(model, initial_pose=truth[0], time_budget_s=10.0)

@@ -143,7 +143,7 @@ def _pct(a, b):
 
 def report(warm, faults, healthy, args, load_before, load_after, elapsed_s) -> str:
     cpu = platform.processor() or platform.machine()
-    lines = [f"### Gough-Stewart designs and redundant legs (`tools/bench_gough.py`, issue 21)", "",
+    lines = ["### Gough-Stewart designs and redundant legs (`tools/bench_gough.py`, issue 21)", "",
              f"Measured on {os.cpu_count()} cores ({cpu}), load average (1 min) {load_before:.1f} before and "
              f"{load_after:.1f} after the run ({elapsed_s:.0f} s), shared with other work; seed {args.seed}.", "",
              f"Warm solve along one loop of the demo's trajectory, {args.steps} inputs, `Estimator.estimate` per "

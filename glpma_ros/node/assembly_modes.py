@@ -1,10 +1,12 @@
 """Every assembly mode of the last input, on request (``~/request_assembly_modes`` ->
 ``~/assembly_modes``): the output record (:class:`PoseArrayOutput`) and the service side
-(:class:`AssemblyModesMixin`, a base of :class:`~glpma_ros.node.service.FkService`): the last input checked
-and converted to the config's unit, the modes solved by :func:`~glpma_ros.node.modes_worker.find_modes` or a
-:class:`~glpma_ros.node.modes_worker.ModesWorker` process, and the requests counted."""
+(:class:`AssemblyModes`, held by :class:`~glpma_ros.node.service.FkService` as ``modes``): the last input
+received, checked and converted to the config's unit, the modes solved by
+:func:`~glpma_ros.node.modes_worker.find_modes` or a :class:`~glpma_ros.node.modes_worker.ModesWorker`
+process, and the requests counted under a lock of its own."""
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
@@ -31,75 +33,113 @@ class PoseArrayOutput:
 
 
 
-class AssemblyModesMixin:
-    """The assembly-modes methods of :class:`~glpma_ros.node.service.FkService` (they use its ``model``,
-    ``params``, ``stats``, locks, ``_last_input`` and ``_config_unit``)."""
+class AssemblyModes:
+    """Every assembly mode of the last input received, on request, and the requests' counters.
 
-    def assembly_modes_input(self, last_input=CURRENT) -> tuple:
+    ``to_config_unit(input)``: an input (metres, or a JointState) as leg lengths in the config's unit,
+    :class:`InputError` when it cannot be; ``params()``: the service's current parameters (the
+    request's ``assembly_modes_runs``, ``seed``, ``frame_id``, ``input_type``)."""
+
+    def __init__(self, model, config_path, to_config_unit, params, warm_legs=None):
+        self.model = model
+        self.config_path = config_path
+        self.metres_per_unit = float(model.metres_per_unit)
+        self._to_config_unit = to_config_unit
+        self._params = params
+        self._warm_legs = warm_legs
+        self._last_input = None          # (input, stamp_ns) last received
+        self._lock = threading.Lock()    # the counters below
+        self._requests = self._published = self._failed = self._coalesced = self._period_failed = 0
+        self._last = self._last_failure = ""
+        self._last_starts = 0
+
+    def note_input(self, raw, stamp_ns: int) -> None:
+        """Remember the last input received (whatever becomes of it); one assignment, no lock."""
+        self._last_input = (raw, int(stamp_ns))
+
+    @property
+    def last_input(self):
+        """``(input, stamp_ns)`` of the last input received, None before the first."""
+        return self._last_input
+
+    def request_input(self, last_input=CURRENT) -> tuple:
         """``(legs in the config's unit, input stamp_ns, runs, seed)`` of the last input received
         (or of ``last_input`` = (input, stamp_ns), None = nothing received); :class:`InputError`
         when there is none or it is not a valid set of leg lengths."""
         last_input = self._last_input if last_input is CURRENT else last_input
+        params = self._params()
         if last_input is None:
-            source = "joint_states" if self.input_type == P.INPUT_JOINT_STATE else "leg_lengths"
+            source = "joint_states" if params["input_type"] == P.INPUT_JOINT_STATE else "leg_lengths"
             raise InputError(f"no input received yet on {source}")
         raw, stamp_ns = last_input
         try:
-            legs = self.model.check_legs(self._config_unit(raw))
-        except InputError as exc:
+            legs = self.model.check_legs(self._to_config_unit(raw))
+        except (InputError, TypeError, ValueError) as exc:
             raise InputError(f"the last input is invalid: {exc}") from None
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"the last input is invalid: {exc}") from None
-        with self._lock:
-            runs, seed = self.params["assembly_modes_runs"], self.params["seed"]
-        return legs, stamp_ns, runs, seed
+        return legs, stamp_ns, params["assembly_modes_runs"], params["seed"]
 
-    def assembly_modes(self, stamp_ns: int, last_input=CURRENT, solve=None) -> PoseArrayOutput:
+    def compute(self, stamp_ns: int, last_input=CURRENT, solve=None) -> PoseArrayOutput:
         """Every real assembly mode of the last input received (or ``last_input``), stamped
         ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed)`` returns the solver
         variables of each mode, as a list or a :class:`~glpma_ros.node.modes_worker.Modes` that also
         says how many starts it used (default: the multistart of
         :func:`~glpma_ros.node.modes_worker.find_modes` in this thread;
-        the node passes a :class:`~glpma_ros.node.modes_worker.ModesWorker`).  Does not hold the
-        service lock while solving.  :class:`InputError` with the reason on failure."""
+        the node passes a :class:`~glpma_ros.node.modes_worker.ModesWorker`).  Holds no lock of the
+        service while solving.  :class:`InputError` with the reason on failure."""
         t0 = time.perf_counter()
-        legs, input_stamp_ns, runs, seed = self.assembly_modes_input(last_input)
-        if solve is None:
-            solve = self._solve_all_here
-        xs = solve(legs, runs, seed)
+        legs, input_stamp_ns, runs, seed = self.request_input(last_input)
+        xs = (solve or self._solve_here)(legs, runs, seed)
         poses = []
         for x in xs:
             pose = self.model.pose(np.asarray(x, dtype=float))
             poses.append((tuple(float(v) * self.metres_per_unit for v in pose.position),
                           tuple(float(v) for v in pose.orientation)))
-        with self._lock:
-            frame_id = self.frame_id
-        return PoseArrayOutput(int(stamp_ns), frame_id, tuple(poses), int(input_stamp_ns),
+        return PoseArrayOutput(int(stamp_ns), self._params()["frame_id"], tuple(poses), int(input_stamp_ns),
                                time.perf_counter() - t0, int(getattr(xs, "starts", 0)))
 
-    def modes_worker(self):
+    def worker(self):
         """A :class:`~glpma_ros.node.modes_worker.ModesWorker` (not started) for this manipulator."""
         from .modes_worker import ModesWorker
-        return ModesWorker(self.config_path, warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
+        return ModesWorker(self.config_path, warm_legs=self._warm_legs)
 
-    def _solve_all_here(self, legs, runs, seed) -> list:
+    def _solve_here(self, legs, runs, seed) -> list:
         from .modes_worker import find_modes
         return find_modes(self.model, legs, runs, seed)
 
-    def note_assembly_modes(self, result: PoseArrayOutput | None = None, failure: str | None = None,
-                            coalesced: int = 0) -> None:
+    def note(self, result: PoseArrayOutput | None = None, failure: str | None = None, coalesced: int = 0) -> None:
         """Count a request: answered with ``result``, failed with ``failure``, or ``coalesced``
         requests merged into the next computation."""
-        with self._modes_lock:
-            st = self.stats
-            st.modes_coalesced += coalesced
+        with self._lock:
+            self._coalesced += coalesced
             if result is not None:
-                st.modes_requests += 1
-                st.modes_published += 1
-                st.modes_last = f"{len(result.poses)} modes in {result.elapsed_s:.3g} s"
-                st.modes_last_starts = result.starts
+                self._requests += 1
+                self._published += 1
+                self._last = f"{len(result.poses)} modes in {result.elapsed_s:.3g} s"
+                self._last_starts = result.starts
             elif failure is not None:
-                st.modes_requests += 1
-                st.modes_failed += 1
-                st.modes_last_failure = failure
-                st.period["modes_failed"] += 1
+                self._requests += 1
+                self._failed += 1
+                self._period_failed += 1
+                self._last_failure = failure
+
+    @property
+    def failed(self) -> int:
+        """Requests that failed since start."""
+        return self._failed
+
+    def snapshot(self, new_period: bool = False) -> tuple[list, int]:
+        """``([(key, value)] for /diagnostics, requests failed in the period)``; with ``new_period``
+        a new period starts."""
+        with self._lock:
+            values = [("assembly modes requests", self._requests),
+                      ("assembly modes published", self._published),
+                      ("assembly modes failed", self._failed),
+                      ("assembly modes coalesced", self._coalesced),
+                      ("assembly modes last", self._last or "none"),
+                      ("assembly modes last starts", self._last_starts)]
+            if self._last_failure:
+                values.append(("assembly modes last failure", self._last_failure))
+            failed = self._period_failed
+            if new_period:
+                self._period_failed = 0
+            return values, failed

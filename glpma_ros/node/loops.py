@@ -1,7 +1,8 @@
 """The threads both transports share: :class:`SolveLoop` solves the newest pending input (an
 input replaced before it was picked up counts as dropped) and publishes its pose;
 :class:`ExtrasLoop` builds and publishes the pose's TF, covariance, twist and markers after it,
-off the real-time path; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes``."""
+off the real-time path; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes``;
+:class:`ReportLoop` publishes ``/diagnostics`` from a thread of its own."""
 from __future__ import annotations
 
 import queue
@@ -48,7 +49,7 @@ class LatestInput:
 EXTRAS_BACKLOG = 100
 #: while poses keep coming, the extras thread looks for new ones every EXTRAS_POLL_S rather than
 #: being woken: waking a blocked thread costs the waking (solving) thread a futex call and an
-#: inter-processor interrupt, tens of microseconds on a virtual machine (BENCHMARKS.md)
+#: inter-processor interrupt (its cost: BENCHMARKS.md, "Extra outputs and the transport path")
 EXTRAS_POLL_S = 0.5e-3
 #: ... and goes back to a blocking wait (woken by the next hand-off) after this long without one
 EXTRAS_LINGER_S = 0.05
@@ -184,7 +185,7 @@ class SolveLoop:
         return self
 
     def _item(self, legs_m, stamp_ns: int, arrival: float | None):
-        self.service.note_input(legs_m, stamp_ns)
+        self.service.modes.note_input(legs_m, stamp_ns)
         return legs_m, int(stamp_ns), time.perf_counter() if arrival is None else arrival
 
     def submit(self, legs_m, stamp_ns: int) -> None:
@@ -283,7 +284,7 @@ class AssemblyModesLoop:
         self.service = service
         self.publish = publish
         self._owned = solve is None
-        self.solve = service.modes_worker() if solve is None else solve
+        self.solve = service.modes.worker() if solve is None else solve
         self.mailbox = LatestInput()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -296,27 +297,27 @@ class AssemblyModesLoop:
 
     def request(self, stamp_ns: int) -> None:
         """Called by the transport on arrival of a request, ``stamp_ns`` = its arrival time."""
-        if self.mailbox.put((int(stamp_ns), self.service._last_input)):
-            self.service.note_assembly_modes(coalesced=1)
+        if self.mailbox.put((int(stamp_ns), self.service.modes.last_input)):
+            self.service.modes.note(coalesced=1)
 
     def _run(self) -> None:
-        log = self.service.log
+        log, modes = self.service.log, self.service.modes
         while not self._stop.is_set():
             item = self.mailbox.get(timeout=0.1)
             if item is None:
                 continue
             stamp_ns, last_input = item
             try:
-                result = self.service.assembly_modes(stamp_ns, last_input, solve=self.solve)
+                result = modes.compute(stamp_ns, last_input, solve=self.solve)
             except InputError as exc:
-                self.service.note_assembly_modes(failure=str(exc))
+                modes.note(failure=str(exc))
                 log.warning(f"assembly modes not computed: {exc}")
                 continue
             except Exception as exc:  # noqa: BLE001 - the node must survive anything
-                self.service.note_assembly_modes(failure=f"internal error: {exc}")
+                modes.note(failure=f"internal error: {exc}")
                 log.error(f"assembly modes failed: {exc!r}")
                 continue
-            self.service.note_assembly_modes(result)
+            modes.note(result)
             log.info(f"assembly modes: {len(result.poses)} real assembly modes in {result.elapsed_s:.3f} s "
                      f"from {result.starts} starts")
             try:
@@ -330,3 +331,51 @@ class AssemblyModesLoop:
         if self._owned:
             self.solve.close()
         self._thread.join(timeout)
+
+
+#: the report thread's sleep between two stages of a report: it releases the interpreter, so that
+#: a solving thread waiting for it takes it (the thread otherwise keeps it until it blocks, or for
+#: up to ``sys.getswitchinterval()``, 5 ms); a report takes a few of these, once a period
+REPORT_PAUSE_S = 50e-6
+
+
+def pause_report() -> None:
+    """What the report thread does between two stages of a report: sleep :data:`REPORT_PAUSE_S`."""
+    time.sleep(REPORT_PAUSE_S)
+
+
+class ReportLoop:
+    """Publishes ``service.diagnostics()`` every ``period_s`` from a thread of its own, so that a
+    report -- taken from snapshots, its formatting and its message built outside every lock of
+    the service -- is never on the solving thread's path (in the rclpy node a timer would run it
+    in the executor's thread, between two inputs).  Between the stages of a report (and before
+    its message is built) the thread sleeps :data:`REPORT_PAUSE_S`: a solving thread waits at
+    most one stage for the interpreter."""
+
+    def __init__(self, service: FkService, publish, period_s: float, name: str = "glpma_fk-diagnostics"):
+        """``publish(DiagnosticReport)``: converts and writes the report (a failure is logged)."""
+        self.service = service
+        self.publish = publish
+        self.period_s = float(period_s)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> "ReportLoop":
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        next_report = time.monotonic()
+        while not self._stop.wait(max(0.0, next_report - time.monotonic())):
+            try:
+                report = self.service.diagnostics(pause=pause_report)
+                pause_report()
+                self.publish(report)
+            except Exception as exc:  # noqa: BLE001 - a failed report must not end the reports
+                self.service.log.warning(f"publishing diagnostics failed: {exc!r}")
+            next_report = max(next_report + self.period_s, time.monotonic())
+
+    def stop(self, timeout: float = 2.0) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout)

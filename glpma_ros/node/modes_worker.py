@@ -2,10 +2,9 @@
 
 :func:`~glpma_ros.solve_all.solve_all` (its multistart: hundreds of local solves, until many
 starts in a row find nothing new; ``runs`` = parameter ``assembly_modes_runs`` caps the starts)
-takes 0.05-1 s.  Compiled code holds the GIL while it runs, so in a thread of the node it would
-hold up the real-time solve loop (measured with the former G3-PCX solve_all: pose latency p99
-from 4 to 8 ms, max 12 ms, inputs dropped, for a hexapod solve_all next to a 3-RPR stream at
-200 Hz).  :class:`ModesWorker` runs them in a child process instead
+takes up to a second.  Compiled code holds the GIL while it runs, so in a thread of the node it
+would hold up the real-time solve loop (BENCHMARKS.md, "Design measurements").
+:class:`ModesWorker` runs them in a child process instead
 (a fresh interpreter, ``python -m glpma_ros.node.modes_worker``: nothing of the node is forked
 or re-imported), at a lower scheduling priority (``nice`` +5), so that on a multi-core
 machine the solve loop does not notice.

@@ -52,7 +52,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from . import params as P
 from . import qos
 from ..errors import GlpmaError
-from .loops import AssemblyModesLoop, SolveLoop
+from .loops import AssemblyModesLoop, ReportLoop, SolveLoop
 from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput
 
@@ -155,14 +155,14 @@ class FkEndpoints:
         else:
             self.input_sub = sub(Float64MultiArray, "leg_lengths", self._on_legs)
         self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
-        self.diag_timer = self.create_timer(values["diagnostics_period_s"], self._publish_diagnostics)
+        # /diagnostics from a thread of its own, off the executor's (ReportLoop)
+        self.reports = ReportLoop(service, self._publish_diagnostics, values["diagnostics_period_s"]).start()
 
     def _close(self) -> None:
         """Stop the loops (logging the summary) and destroy what :meth:`_open` created."""
         if self.service is None:
             return
         self.stop()
-        self.destroy_timer(self.diag_timer)
         for subscription in (self.input_sub, self.request_sub):
             self.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
@@ -287,10 +287,9 @@ class FkEndpoints:
         marker.color.r, marker.color.g, marker.color.b, marker.color.a = m.color
         return marker
 
-    def _publish_diagnostics(self) -> None:
+    def _publish_diagnostics(self, report) -> None:
         if not self._active:
             return
-        report = self.service.diagnostics()
         msg = DiagnosticArray()
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.status = [DiagnosticStatus(level=bytes([report.level]), name=report.name, message=report.message,
@@ -316,6 +315,7 @@ class FkEndpoints:
         if self._stopped:
             return
         self._stopped = True
+        self.reports.stop()
         self.loop.stop()
         self.modes.stop()
         self.get_logger().info(f"stopped: {self.service.summary()}")
@@ -326,6 +326,7 @@ class FkEndpoints:
                 self.stop()
             elif not self._stopped:     # the context is gone: no logging through rosout any more
                 self._stopped = True
+                self.reports.stop()
                 self.loop.stop()
                 self.modes.stop()
         return super().destroy_node()

@@ -3,10 +3,11 @@
 :class:`FkService` owns the :class:`~glpma_ros.estimator.Estimator` and does
 everything a transport should not have to know about: parameters and their
 runtime changes, unit conversion (metres on topics, the config's unit inside),
-input validation with a one-line reason, the publish decision (converged,
-or -- redundant legs -- inconsistent with the faulty leg left out), statistics
-(:mod:`.stats`), the diagnostics report (:mod:`.diagnostics`, with the legs' health
-of :mod:`.leg_health`) and the assembly modes on request (:mod:`.assembly_modes`).  The threads both
+input validation with a one-line reason, the publish decision (converged, or -- redundant legs --
+inconsistent with the faulty leg left out), and the collaborators it holds: the statistics
+(``stats``, :mod:`.stats`), the legs' health (``leg_health``, :mod:`.leg_health`), the diagnostics
+report built from their snapshots (:mod:`.diagnostics`) and the assembly modes on request
+(``modes``, :mod:`.assembly_modes`), each with its own lock.  The threads both
 transports share are in :mod:`.loops`.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
@@ -14,8 +15,8 @@ A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
 ``SolveLoop.offer(JointStateInput(...), msg.header.stamp)`` (``joint_state``) in,
 ``publish(PoseOutput)`` out -- then, from the extras thread,
 ``publish_extras(service.extras(outcome, ...))``: TF, covariance, twist and markers
-(:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s``, and
-``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
+(:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s`` from a
+:class:`~glpma_ros.node.loops.ReportLoop`, and ``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
 ``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
 received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
 (:mod:`glpma_ros.node.modes_worker`), so that the real-time solve loop keeps its latency.
@@ -38,8 +39,8 @@ from ..config import check_units, load_manipulator, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
 from ..precompile import COMPILED_S
-from .assembly_modes import AssemblyModesMixin
-from .diagnostics import DiagnosticsMixin
+from .assembly_modes import AssemblyModes
+from .diagnostics import DiagnosticReport, Diagnostics
 from .leg_health import LegHealth
 from .outputs import OUTPUT_PARAMS, OutputBuilder
 from .stats import LogThrottle, Statistics
@@ -84,7 +85,7 @@ class Outcome:
     leg_rates_m: np.ndarray | None = None  # their rates (m/s) from a JointState's velocities, if any
 
 
-class FkService(AssemblyModesMixin, DiagnosticsMixin):
+class FkService:
     """Leg lengths (metres) in, poses (metres) out, with the estimator's warm state in between."""
 
     def __init__(self, parameters: dict | None = None, *, logger=None, node_name: str = P.NODE_NAME):
@@ -110,12 +111,12 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         self._check_frames(values)
         self.leg_health = LegHealth(self.model)
         self.outputs = OutputBuilder(self.model)
-        self._throttle = LogThrottle()
-        self._lock = threading.RLock()          # estimator, parameters, statistics
-        self._drop_lock = threading.Lock()      # the dropped counters only
-        self._modes_lock = threading.Lock()     # the assembly-modes counters only
+        self.log_throttle = LogThrottle()    # one log line a second per rejection reason
+        self._lock = threading.RLock()          # estimator and parameters (statistics and modes: their own)
         self._warmed: set = set()               # solvers warm_up() has run
-        self._last_input = None                 # (input, stamp_ns) last received, for ~/assembly_modes
+        self.modes = AssemblyModes(self.model, self.config_path, self.to_config_unit, lambda: self.params,
+                                   warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
+        self._diagnostics = Diagnostics(self)
 
     # -- construction --------------------------------------------------------------------
     def _initial_variables(self, initial_pose):
@@ -152,6 +153,16 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
     @property
     def deadline_s(self) -> float:
         return (self.params["deadline_ms"] or self.params["time_budget_ms"]) * 1e-3
+
+    @property
+    def warm_x(self):
+        """The solver variables the next input starts from (None: a cold start)."""
+        return self._warm_x
+
+    @property
+    def warmed_up(self) -> frozenset:
+        """The solvers :meth:`warm_up` has run."""
+        return frozenset(self._warmed)
 
     @property
     def frame_id(self) -> str:
@@ -286,11 +297,7 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         :meth:`handle`."""
         return self.handle(JointStateInput(tuple(names), tuple(positions), tuple(velocities)), stamp_ns, arrival)
 
-    def note_input(self, legs_m, stamp_ns: int) -> None:
-        """Remember the last input received (whatever becomes of it), for ~/assembly_modes."""
-        self._last_input = (legs_m, int(stamp_ns))
-
-    def _config_unit(self, raw) -> np.ndarray:
+    def to_config_unit(self, raw) -> np.ndarray:
         """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit, with the
         config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for."""
         try:
@@ -311,32 +318,28 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         header.stamp of a JointState); ``arrival``: ``time.perf_counter()`` at arrival, for the
         latency and the deadline (default: now).  Never raises."""
         arrival = time.perf_counter() if arrival is None else arrival
+        st = self.stats
         with self._lock:
-            st = self.stats
-            st.handled += 1
+            st.record_handled()
             try:
-                legs = self._config_unit(legs_m)
+                legs = self.to_config_unit(legs_m)
                 estimate = self.estimator.estimate(legs)
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
             except Exception as exc:  # noqa: BLE001 - the node must survive anything
                 self.log.error(f"internal error while solving: {exc!r}")
                 return self._reject(f"internal error: {exc}", "internal error", None, arrival)
-            st.last_estimate = estimate
-            st.starts[estimate.start] += 1
-            st.solve_s.append(estimate.elapsed_s)
-            st.evaluations.append(estimate.evaluations)
+            st.record_estimate(estimate)
             self.leg_health.note(estimate)
             if not estimate.publishable:
                 return self._reject(f"{estimate.status}: {estimate.message}", estimate.status, estimate, arrival)
-            st.conditioning.append(estimate.conditioning)
-            st.residual_m.append(math.sqrt(estimate.fitness / self.model.n_res) * self.metres_per_unit)
+            st.record_published(estimate.conditioning,
+                                math.sqrt(estimate.fitness / self.model.n_res) * self.metres_per_unit)
             self._warm_x = np.array(estimate.x, dtype=float)
             pose = estimate.pose
             out = PoseOutput(int(stamp_ns), self.frame_id,
                              tuple(float(v) * self.metres_per_unit for v in pose.position),
                              tuple(float(v) for v in pose.orientation))
-            st.published += 1
             rates = self.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
             return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
 
@@ -366,33 +369,24 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
 
     def note_extras_time(self, seconds: float) -> None:
         """Time the extras thread spent on the extra outputs of one pose: building, converting, writing."""
-        with self._lock:
-            self.stats.extras_s.append(seconds)
+        self.stats.record_extras_time(seconds)
 
     def note_extras_handoff(self, seconds: float) -> None:
         """Time the solving thread spent handing a pose over to the extras thread."""
-        self.stats.extras_handoff_s.append(seconds)
+        self.stats.record_extras_handoff(seconds)
 
     def note_extras_dropped(self, count: int) -> None:
         """Poses whose extra outputs were dropped: the extras thread was ``EXTRAS_BACKLOG`` behind."""
-        with self._drop_lock:
-            self.stats.extras_dropped += count
+        self.stats.record_extras_dropped(count)
 
     def _finish(self, arrival: float) -> float:
         latency = time.perf_counter() - arrival
-        self.stats.latency_s.append(latency)
-        if latency > self.deadline_s:
-            self.stats.deadline_misses += 1
-            self.stats.period["deadline_misses"] += 1
+        self.stats.record_latency(latency, latency > self.deadline_s)
         return latency
 
     def _reject(self, reason: str, key: str, estimate, arrival: float) -> Outcome:
-        st = self.stats
-        st.rejected += 1
-        st.period["rejected"] += 1
-        st.count_reason(key)
-        st.last_reason = reason
-        suppressed = self._throttle(key)
+        self.stats.record_rejected(key, reason)
+        suppressed = self.log_throttle(key)
         if suppressed is not None:
             more = f" (+{suppressed} similar suppressed)" if suppressed else ""
             self.log.warning(f"input rejected: {reason}{more}")
@@ -401,8 +395,19 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
     def note_dropped(self, count: int = 1) -> None:
         """The transport replaced ``count`` pending inputs by newer ones before solving them.
         Does not wait for a solve in progress (the reader thread calls it)."""
-        with self._drop_lock:
-            self.stats.dropped += count
+        self.stats.record_dropped(count)
+
+    # -- reports --------------------------------------------------------------------------------
+    def diagnostics(self, pause=lambda: None) -> DiagnosticReport:
+        """The current statistics as a DiagnosticStatus (:class:`~glpma_ros.node.diagnostics.Diagnostics`);
+        starts a new reporting period.  Holds no lock of the service: call it from any thread;
+        ``pause()`` runs between the stages of the work (:class:`~glpma_ros.node.loops.ReportLoop`
+        sleeps there)."""
+        return self._diagnostics.report(pause)
+
+    def summary(self) -> str:
+        """One line of totals, for the log at shutdown."""
+        return self._diagnostics.summary()
 
     # -- parameters -----------------------------------------------------------------------------
     def set_parameters(self, changes: dict) -> tuple[bool, str]:

@@ -8,8 +8,7 @@ Generational.  Each generation:
   (floored at ``MIN_FITNESS``): the papers do not state their transform; the
   reciprocal keeps selection pressure while the fitness falls through twenty
   orders of magnitude (``1 / (1 + f)`` flattens to uniform selection below
-  f ~ 1 and stalls the search there -- measured: median 11 after 10,000
-  evaluations on the 3-RPR, against 7e-21 with ``1 / f``);
+  f ~ 1 and stalls the search there; BENCHMARKS.md, "Design measurements");
 * **Wright's heuristic crossover** (Wright 1991) with probability
   ``crossover_rate``: ``child = better + u (better - worse)``, ``u ~ U(0, 1)``;
   otherwise the child is a copy of the first parent;

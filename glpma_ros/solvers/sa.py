@@ -26,9 +26,8 @@ is used here:
   Boltzmann distribution ``exp(-f / T)`` in a quadratic basin scales as
   ``sqrt(T)``, so the proposals keep the size of the thermal fluctuations.
   A fixed ``b`` cannot both cross the initial box and land in the basin
-  ``f < 1e-4`` (measured on 004's protocol, 30 runs: ``b = 1`` fixed 0/30 within
-  6,000 chains, ``b = 0.1`` fixed 20/30 in ~3,750 chains; ``b0 sqrt(T/T0)``
-  with ``b0 = 10``: 30/30 in 1,163 +- 96 chains, against 004's 1,130 +- 31).
+  ``f < 1e-4`` (the three compared on 004's protocol: BENCHMARKS.md, "Design
+  measurements").
   Under a warm start the width is six standard deviations of the spread
   (:func:`rcga.mutation_width`), so ``b0`` is three of them.
 * The annealer remembers the **best point visited**; that is what it returns

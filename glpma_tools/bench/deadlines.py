@@ -55,7 +55,7 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRo
         for case, short, legs, polish in cases:
             for solver in names:
                 for b in budgets_ms:
-                    def call(seed, solver=solver, legs=legs, polish=polish, b=b):
+                    def call(seed, solver=solver, legs=legs, polish=polish, b=b, model=model):
                         solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3, max_evals=NO_CAP)
                     rows.append(_row(case, solver, b, short, call, n, progress))
         # the estimator, cold, on legs without a solution: every stage runs until the deadline
@@ -63,7 +63,7 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRo
         for b in budgets_ms:
             est = Estimator(model, time_budget_s=b / 1e3)
 
-            def call(_, est=est):
+            def call(_, est=est, infeasible=infeasible):
                 est.reset()
                 est.estimate(infeasible)
             rows.append(_row(case, "Estimator", b, f"{sc.label} infeasible, cold", call, n, progress))

@@ -25,7 +25,7 @@ and where the time between legs written and pose read goes over DDS.
    wall time), a Python thread wake-up round trip (``threading.Event`` ping-pong), decoding an
    input and encoding a pose.
 4. **The rclpy adapter** (:func:`rclpy_variants`, where ``rclpy`` imports): legs published by an
-   rclpy client process -> pose received, for the shipped executor set-up and two alternatives.
+   rclpy client process (:mod:`.rclpy_client`) -> pose received, for the shipped executor set-up and two alternatives.
 
 :func:`measure` runs them for the bench; :func:`section` renders the results (prose in
 ``templates/outputs.md``).  Timings are wall clock on a shared machine unless said CPU.
@@ -179,10 +179,10 @@ def output_costs(scenarios, n_inputs: int, domain: int, pace_s: float = PACE_S) 
                 def cpu(pairs):
                     return _us([c for c, _ in pairs])
                 rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, "published": st.published,
-                             "solve_us": _us(st.solve_s), "pose_cpu_us": cpu(pose),
+                             "solve_us": _us(st.solve_s.values()), "pose_cpu_us": cpu(pose),
                              "pose_us": _us([w for _, w in pose]),
-                             "handoff_cpu_us": cpu(handoff), "handoff_us": _us(st.extras_handoff_s),
-                             "extras_cpu_us": cpu(thread), "build_cpu_us": cpu(build), "extras_us": _us(st.extras_s),
+                             "handoff_cpu_us": cpu(handoff), "handoff_us": _us(st.extras_handoff_s.values()),
+                             "extras_cpu_us": cpu(thread), "build_cpu_us": cpu(build), "extras_us": _us(st.extras_s.values()),
                              "extras_dropped": st.extras_dropped})
     finally:
         sub.kill()
@@ -325,50 +325,6 @@ def micro_profile(sc, n: int, domain: int) -> dict:
 
 
 # -- part 4: the rclpy adapter ---------------------------------------------------------------------------
-RCLPY_CLIENT = r"""
-import sys, time, threading
-import numpy as np, rclpy
-from std_msgs.msg import Float64MultiArray
-from geometry_msgs.msg import PoseStamped
-from rclpy.executors import SingleThreadedExecutor
-from glpma_tools.sim.controller import Sent
-from glpma_tools.sim.matching import compare
-from glpma_tools.sim.trajectories import Plan
-config, rate, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
-plan = Plan(config)
-samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
-rclpy.init()
-node = rclpy.create_node("glpma_fk_bench_client")
-received = []
-
-
-def take(m):
-    p, q = m.pose.position, m.pose.orientation
-    received.append((time.time_ns(), m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec, m.header.frame_id,
-                     np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])))
-
-
-node.create_subscription(PoseStamped, "pose_estimate", take, 100)
-pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
-executor = SingleThreadedExecutor()
-executor.add_node(node)
-threading.Thread(target=executor.spin, daemon=True).start()
-while pub.get_subscription_count() == 0:
-    time.sleep(0.1)
-time.sleep(1.0)
-sent, t0 = [], time.perf_counter()
-for i, (legs, position, quaternion) in enumerate(samples):
-    delay = t0 + i / rate - time.perf_counter()
-    if delay > 0:
-        time.sleep(delay)
-    msg = Float64MultiArray(data=[float(v) for v in legs * plan.mpu])
-    sent.append(Sent(time.time_ns(), legs, position, quaternion))
-    pub.publish(msg)
-time.sleep(1.0)
-c = compare(plan.model, sent, list(received))
-print(len(sent), len(received), np.percentile(c.latency_ms, 50), np.percentile(c.latency_ms, 99),
-      len(c.unpaired) + int(np.sum(~c.on_truth)), flush=True)
-"""
 #: rclpy adapter variants of part 4: the shipped one, and two alternatives
 RCLPY_VARIANTS = (
     ("SingleThreadedExecutor, newest input solved in the callback (shipped)", "shipped"),
@@ -391,7 +347,7 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
     from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
     values = {**_params_file(sc.model.kind), "manipulator_config": sc.path}
     rows = []
-    for k, (label, variant) in enumerate(RCLPY_VARIANTS):
+    for label, variant in RCLPY_VARIANTS:
         env = node_environment(domain())
         rclpy.init()
         node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
@@ -409,7 +365,8 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
         spinner = threading.Thread(target=executor.spin, daemon=True)
         spinner.start()
         try:
-            out = subprocess.run([sys.executable, "-c", RCLPY_CLIENT, sc.path, str(rate_hz), str(seconds)], env=env,
+            out = subprocess.run([sys.executable, "-m", "glpma_tools.bench.rclpy_client", sc.path, str(rate_hz),
+                                  str(seconds)], env=env,
                                  capture_output=True, text=True, timeout=seconds + 300, cwd=PACKAGE_PARENT)
             sent, poses, p50, p99, wrong = out.stdout.split()
             st = node.service.stats
@@ -444,8 +401,8 @@ def _measure(scenarios, inputs, seconds, profile_samples, rclpy_seconds, say, do
         say(f"extra outputs: {inputs} inputs per configuration")
         res["costs"] = output_costs(scenarios, inputs, domain())
     if seconds > 0:
-        for k, sc in enumerate(scenarios):
-            for j, target in enumerate(TARGETS):
+        for sc in scenarios:
+            for target in TARGETS:
                 say(f"{sc.label}: legs written -> pose read, {target}, {seconds:g} s")
                 res["paths"].append(path_latency(sc, target, seconds, domain()))
     if profile_samples > 0:

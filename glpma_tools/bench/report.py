@@ -103,6 +103,7 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     from .modes import section as modes_section
     from .outputs import section as outputs_section
     from .reliability import reliability_section
+    from .waits import section as waits_section
     parts = header(res) + summary_section(res)
     if res["tables"]:
         parts += ["## The papers' tables (001 Tables 5 and 8)", ""]
@@ -127,7 +128,9 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     if res.get("dds") is not None:
         parts += s.dds_section(res)
     parts += outputs_section(res)
+    parts += waits_section(res)
     if res.get("offline") is not None:
         parts += s.offline_section(res)
     parts += reliability_section(reliability, reliability_source)
+    parts += ["## Design measurements", "", prose("design"), ""]
     return "\n".join(parts).rstrip() + "\n"

@@ -7,31 +7,38 @@ import tempfile
 import time
 from pathlib import Path
 
-from glpma_ros.cli import OneLineParser
+from glpma_ros.cli import OneLineParser, command_main
+from glpma_ros.errors import GlpmaError
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
-SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "offline")
+SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
+            "offline")
 
-#: default run counts: (full, --quick)
+#: run counts: option -> (full, --quick, type, what it counts); 0 skips what it counts
 DEFAULTS = {
-    "runs": (100, 10),                # ours, every row except pure hexapod
-    "hexapod_runs": (100, 5),         # ours, pure hexapod rows (up to 500,000 evaluations each)
-    "peer_runs": (100, 5),            # peers on the 3-RPR
-    "peer_hexapod_runs": (None, 0),   # peers on the hexapod: None = PEER_HEXAPOD_RUNS
-    "track_steps": (1000, 300),
-    "deadline_solves": (100, 20),
-    "solve_all_repeats": (5, 1),
-    "gap_runs": (100, 10),
-    "dds_steps": (60_000, 2000),     # inputs per DDS end-to-end run at 1 kHz (60 s)
-    "outputs_inputs": (3000, 200),    # inputs per output configuration of the extra outputs' cost
-    "outputs_seconds": (60, 2),       # seconds per legs written -> pose read run (node, outputs off, echo)
-    "outputs_profile": (5000, 500),   # writes and thread round trips of the micro-profile
-    "outputs_rclpy_seconds": (10, 2),  # seconds per rclpy executor variant (where rclpy imports)
-    "table2_runs": (50, 5),           # 004 Table II protocol (paper: 50)
-    "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
-    "modes_g3pcx_hexapods": (3, 0),
-    "bag_messages": (10_000, 1000),   # messages of the recorded run glpma-fk bag processes
-    "map_resolution": (24, 8),        # points per axis of the glpma-fk map grid   # of which hexapods also solved by 200 G3-PCX runs (up to ~2 min each)
+    "runs": (100, 10, int, "runs per configuration of ours, every row but the pure hexapod ones"),
+    "hexapod_runs": (100, 5, int, "runs per pure hexapod configuration (up to 500,000 evaluations each)"),
+    "peer_runs": (100, 5, int, "runs per peer on the 3-RPR"),
+    "peer_hexapod_runs": (None, 0, int, "runs per peer on the hexapod (default pypop7 10, pymoo 3)"),
+    "gap_runs": (100, 10, int, "runs of the larger-cap G3-PCX diagnostics"),
+    "track_steps": (1000, 300, int, "steps of each tracking trajectory"),
+    "deadline_solves": (100, 20, int, "solves per deadline cell"),
+    "solve_all_repeats": (5, 1, int, "solve_all repetitions with seeds 0.."),
+    "modes_cases": (None, 2, int, "random cases per manipulator of the multistart/msolve/G3-PCX comparison "
+                    "(default all stored)"),
+    "modes_g3pcx_hexapods": (3, 0, int, "hexapod cases of that comparison also solved by 200 G3-PCX runs"),
+    "dds_steps": (60_000, 2000, int, "inputs of each DDS end-to-end run at 1 kHz"),
+    "outputs_inputs": (3000, 200, int, "inputs per output configuration of the extra outputs' cost"),
+    "outputs_seconds": (60, 2, float, "seconds of each legs written -> pose read run of the outputs section: node, "
+                        "node with extra outputs off, echo"),
+    "outputs_profile": (5000, 500, int, "writes and thread round trips of the outputs section's micro-profile"),
+    "outputs_rclpy_seconds": (10, 2, float, "seconds per rclpy executor variant of the outputs section, where "
+                              "rclpy imports"),
+    "waits_rounds": (4, 1, int, "rounds per setup of the waits section"),
+    "waits_inputs": (5000, 1000, int, "inputs per round of the waits section"),
+    "bag_messages": (10_000, 1000, int, "inputs of the recorded run glpma-fk bag processes"),
+    "map_resolution": (24, 8, int, "points per axis of the glpma-fk map grid"),
+    "table2_runs": (50, 5, int, "runs per 004 Table II row (paper: 50)"),
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
@@ -54,41 +61,15 @@ def build_parser() -> OneLineParser:
                    help="restrict to these manipulators")
     p.add_argument("--sections", choices=SECTIONS, nargs="+", default=None,
                    help=f"run only these sections (default: all of {', '.join(SECTIONS)})")
-    p.add_argument("--runs", type=int, help="runs per configuration (default 100; --quick 10)")
-    p.add_argument("--hexapod-runs", type=int,
-                   help="runs per pure hexapod configuration (default 100; --quick 5)")
-    p.add_argument("--peer-runs", type=int, help="runs per peer on the 3-RPR (default 100; --quick 5)")
-    p.add_argument("--peer-hexapod-runs", type=int,
-                   help="runs per peer on the hexapod (default pypop7 10, pymoo 3; --quick 0 = skipped)")
-    p.add_argument("--gap-runs", type=int, help="runs of the larger-cap G3-PCX diagnostics (default 100)")
-    p.add_argument("--track-steps", type=int, help="steps of each tracking trajectory (default 1000)")
     p.add_argument("--track-budget-ms", type=float, default=20.0,
                    help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
-    p.add_argument("--deadline-solves", type=int, help="solves per deadline cell (default 100; --quick 20)")
     p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
     p.add_argument("--deadline-solvers", nargs="+", default=None, metavar="SOLVER",
                    help="solvers of the deadline section (default: every registered solver)")
     p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
-    p.add_argument("--solve-all-repeats", type=int, help="solve_all repetitions with seeds 0.. (default 5)")
-    p.add_argument("--modes-cases", type=int, help="random cases per manipulator of the multistart/msolve/G3-PCX "
-                   "comparison (default all stored; --quick 2)")
-    p.add_argument("--modes-g3pcx-hexapods", type=int,
-                   help="hexapod cases of that comparison also solved by 200 G3-PCX runs (default 3; --quick 0)")
-    p.add_argument("--dds-steps", type=int,
-                   help="inputs of each DDS end-to-end run at 1 kHz (default 60000, i.e. 60 s; --quick 2000)")
-    p.add_argument("--outputs-inputs", type=int, help="inputs per output configuration of the extra outputs' "
-                   "cost (default 3000; --quick 200; 0 = skipped)")
-    p.add_argument("--outputs-seconds", type=float, help="seconds of each legs written -> pose read run of the "
-                   "outputs section: node, node with extra outputs off, echo (default 60; --quick 2; 0 = skipped)")
-    p.add_argument("--outputs-profile", type=int, help="writes and thread round trips of the outputs section's "
-                   "micro-profile (default 5000; --quick 500; 0 = skipped)")
-    p.add_argument("--outputs-rclpy-seconds", type=float, help="seconds per rclpy executor variant of the outputs "
-                   "section, where rclpy imports (default 10; --quick 2; 0 = skipped)")
-    p.add_argument("--bag-messages", type=int, help="inputs of the recorded run glpma-fk bag processes "
-                   "(default 10000; --quick 1000)")
-    p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grid (default 24; "
-                   "--quick 8)")
-    p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
+    for name, (full, quick, kind, what) in DEFAULTS.items():
+        default = "" if full is None else f" (default {full:,}; --quick {quick:,})"
+        p.add_argument("--" + name.replace("_", "-"), type=kind, metavar="N", help=what + default)
     p.add_argument("--out", type=Path, default=None,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
                         "scratch directory)")
@@ -119,28 +100,23 @@ def _count(args, name):
     v = getattr(args, name)
     if v is not None:
         if v < 0:
-            raise SystemExit(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
+            raise GlpmaError(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
         return v
     return DEFAULTS[name][1 if args.quick else 0]
 
 
+@command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--"]:          # `glpma-fk bench -- --quick` (the CLI passes the rest through)
         argv = argv[1:]
-    try:
-        args = build_parser().parse_args(argv)
-        counts = {name: _count(args, name) for name in DEFAULTS}
-        from glpma_ros import solvers
-        unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
-        if unknown:
-            raise SystemExit(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
-                             f"choose from {', '.join(solvers.SOLVERS)}")
-    except SystemExit as exc:           # usage errors and --help: a status, not an exception
-        if isinstance(exc.code, str):
-            print(f"error: {exc.code}", file=sys.stderr)
-            return 2
-        return 0 if exc.code in (0, None) else 2
+    args = build_parser().parse_args(argv)
+    counts = {name: _count(args, name) for name in DEFAULTS}
+    from glpma_ros import solvers
+    unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
+    if unknown:
+        raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
+                         f"choose from {', '.join(solvers.SOLVERS)}")
     os.environ.setdefault("MPLBACKEND", "Agg")
     from . import dds, deadlines, experiments as ex, report, tracking
     from .scenarios import load
@@ -221,6 +197,11 @@ def main(argv=None) -> int:
         say("extra outputs and the transport path", "outputs")
         res["outputs"] = outputs.measure(list(scenarios.values()), counts["outputs_inputs"], counts["outputs_seconds"],
                                          counts["outputs_profile"], counts["outputs_rclpy_seconds"], say)
+
+    if "waits" in sections and counts["waits_rounds"] > 0:
+        from . import waits
+        say("waits of an input for anything but its own solve", "waits")
+        res["waits"] = waits.measure(counts["waits_rounds"], max(1, counts["waits_inputs"]))
 
     if "offline" in sections:
         from . import offline

@@ -93,9 +93,9 @@ def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
     m = min(WARM_UP_STEPS, len(trk.legs))
     for solver in solvers_:
         method, jac = solver.method, solver.jac
-        warm_up(lambda i: solver.solve(trk.starts[i % m], trk.legs[i % m]), trk.budget_ms)
-        calls = timed_calls(lambda k: solver.solve(trk.starts[k], trk.legs[k]), len(trk.legs), trk.budget_ms,
-                            f"{sc.label} {method}/{jac}", progress, stop_early=False)
+        warm_up(lambda i, solver=solver: solver.solve(trk.starts[i % m], trk.legs[i % m]), trk.budget_ms)
+        calls = timed_calls(lambda k, solver=solver: solver.solve(trk.starts[k], trk.legs[k]), len(trk.legs),
+                            trk.budget_ms, f"{sc.label} {method}/{jac}", progress, stop_early=False)
         res = [max_leg_residual(model, x, trk.legs[k]) for k, (x, _) in enumerate(calls.results)]
         out.append(ScipyRow(method, jac, calls.elapsed_s, np.array(res), np.array([n for _, n in calls.results]),
                             calls.preempted))

@@ -1,6 +1,7 @@
-"""``glpma-fk calibrate CONFIG DATA --out NEW.yaml``: the manipulator's real geometry -- base joints,
-platform joints, zero offsets of the leg sensors -- from leg readings paired with externally
-measured platform poses.
+"""``glpma-fk calibrate``: the real geometry (joints, leg offsets) from measured poses.
+
+``glpma-fk calibrate CONFIG DATA --out NEW.yaml``: the manipulator's base joints, platform joints and
+the zero offsets of the leg sensors, from leg readings paired with externally measured platform poses.
 
 Modules: :mod:`.identify` (the theory: least squares on the inverse-kinematic leg residuals,
 standard errors, identifiability), :mod:`.data` (the CSV and rosbag2 measurements),

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.cli import OneLineParser, seed_type
+from glpma_ros.cli import OneLineParser, command_main, seed_type
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
 
@@ -77,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+@command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:

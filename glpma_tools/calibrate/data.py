@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.errors import InputError
-from glpma_tools.bag_codec import (FLOAT64_MULTI_ARRAY, JOINT_STATE, NS_PER_S, POSE_STAMPED,
-                                   decode_float64_multi_array, decode_joint_state)
+from glpma_tools.bag_run import (FLOAT64_MULTI_ARRAY, JOINT_STATE, NS_PER_S, POSE_STAMPED,
+                                 decode_float64_multi_array, decode_joint_state)
 
 from .identify import Measurements
 from .simulate import pose_columns, rotations_from_values

@@ -365,7 +365,7 @@ def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float 
     r, J = _residuals_jacobian(geometry, meas, groups)
     cost = np.einsum("nm,nm->n", r, r)
     converged, iterations = False, 0
-    for iterations in range(1, MAX_ITERATIONS + 1):
+    for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 - the count is reported after the loop
         N, G = _normal(J, r, lay)
         spectra = _spectra(N, lay)
         Np, _ = _pinv(spectra, lay.size, max(float(s.max()) for _, s, _ in spectra))

@@ -282,11 +282,13 @@ class Controller:
         from cyclonedds.core import Entity
         self.listener.close()
         entities = [self.writer, self.listener.reader, self.listener.diag_reader, self.participant.dp]
-        refs = [e._ref for e in entities + (self.modes.endpoints if self.modes else [])]
+        # the binding keeps the handles and its registry of entities private; it deletes an entity only
+        # when the last Python reference goes, which a test's leftover reference would otherwise prevent
+        refs = [e._ref for e in entities + (self.modes.endpoints if self.modes else [])]  # noqa: SLF001
         self.writer = self.raw_writer = self.listener = self.participant = self.modes = None
         del entities
         gc.collect()
         for ref in refs:             # still referenced somewhere: delete explicitly
-            entity = Entity._entities.get(ref)
+            entity = Entity._entities.get(ref)  # noqa: SLF001
             if entity is not None:
                 entity.__del__()

@@ -1,6 +1,6 @@
 """A ``glpma_fk`` node as a child process over Cyclone DDS, for the demo, the
 stress tool and the benchmark: started with ``--ros-args``, ready when it prints
-its ``ready`` line, stopped with SIGINT, its RSS read from ``/proc``.  The same for a
+its ``ready`` line, stopped with SIGINT, its RSS and CPU time read with psutil.  The same for a
 stand-in that behaves so (:mod:`.echo_node`)."""
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import psutil
 
 from glpma_ros.config import config_dir
 
@@ -63,16 +65,13 @@ class NodeProcess:
         return self.proc is not None and self.proc.poll() is None
 
     def rss_kb(self) -> int:
-        """Resident set size (VmRSS) in kB."""
-        for line in Path(f"/proc/{self.pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-        raise RuntimeError("no VmRSS in /proc/<pid>/status")
+        """Resident set size in kB (psutil)."""
+        return psutil.Process(self.pid).memory_info().rss // 1024
 
     def cpu_s(self) -> float:
-        """CPU time (user + system) the process has used so far, in seconds."""
-        fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")   # utime, stime
+        """CPU time (user + system) the process has used so far, in seconds (psutil)."""
+        times = psutil.Process(self.pid).cpu_times()
+        return times.user + times.system
 
     def stop(self, timeout: float = 15.0) -> int | None:
         """SIGINT, as Ctrl-C; the exit status (None if it had to be killed)."""

@@ -1,4 +1,6 @@
-"""``glpma-fk stress``: the ``glpma_fk`` node under overload, bursts, restarts and deadlines.
+"""``glpma-fk stress``: reliability: overload, burst, restarts, deadlines against a real node.
+
+The ``glpma_fk`` node under overload, bursts, restarts and deadlines.
 
 Starts a real node process over Cyclone DDS (``python -m glpma_ros.node.dds.node``, cold start,
 ``/diagnostics`` every 0.2 s) and drives it from this process as a controller would, along the

@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from glpma_ros.cli import OneLineParser
+from glpma_ros.cli import OneLineParser, command_main
 from . import flood, restarts
 from .deadline import DEADLINE_BUDGETS_MS, deadlines
 from .report import format_table, to_json, write_json
@@ -124,12 +124,10 @@ def _usage_error(args) -> str | None:
     return None
 
 
+@command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:
-        return 0 if exc.code in (0, None) else 2
+    args = build_parser().parse_args(argv)
     problem = _usage_error(args)
     if problem:
         print(f"error: glpma-fk stress: {problem}", file=sys.stderr)

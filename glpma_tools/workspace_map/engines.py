@@ -133,19 +133,10 @@ class MapResult:
                 f"  {modes}")
 
 
-def available_memory() -> int | None:
-    """Bytes of memory available to a new process (Linux ``MemAvailable``; else the free pages), or None."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
+def available_memory() -> int:
+    """Bytes of memory available to a new process without swapping (psutil: Linux ``MemAvailable``)."""
+    import psutil
+    return psutil.virtual_memory().available
 
 
 def check_memory(n_points: int) -> None:

@@ -29,6 +29,8 @@ HEADER_SIZE = len(CDR_LE)
 SIZES = {"b": 1, "B": 1, "?": 1, "i": 4, "I": 4, "f": 4, "d": 8}
 #: take every sample, read or not
 ANY_STATE = SampleState.Any | ViewState.Any | InstanceState.Any
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
 
 
 class Layout:
@@ -154,14 +156,68 @@ class Encoder:
         return CDR_LE + st.pack(*values)
 
 
+class _Writer:
+    """Fields appended one by one with XCDR1 alignment, for messages whose strings change every time."""
+
+    def __init__(self):
+        self.parts: list = []
+        self.offset = 0
+
+    def raw(self, data: bytes) -> None:
+        """``data`` as it is (octets, or primitives already aligned)."""
+        self.parts.append(data)
+        self.offset += len(data)
+
+    def align(self, size: int) -> None:
+        pad = -self.offset % size
+        if pad:
+            self.raw(bytes(pad))
+
+    def u32(self, value: int) -> None:
+        self.align(4)
+        self.raw(_U32.pack(value))
+
+    def string(self, text: str) -> None:
+        data = text.encode()
+        self.u32(len(data) + 1)
+        self.raw(data + b"\0")
+
+    def payload(self) -> bytes:
+        self.align(4)                  # DataWriter.write pads the payload to a multiple of 4
+        return CDR_LE + b"".join(self.parts)
+
+
+#: values of a DiagnosticStatus encoded between two calls of ``pause`` (a few microseconds each)
+DIAGNOSTIC_CHUNK = 10
+
+
+def diagnostic_array(stamp_ns: int, report, pause=lambda: None) -> bytes:
+    """``diagnostic_msgs/DiagnosticArray`` with one ``DiagnosticStatus``: a
+    :class:`~glpma_ros.node.diagnostics.DiagnosticReport` (``level``, ``name``, ``message``,
+    ``hardware_id``, ``values`` as (key, value) strings); ``pause()`` runs after every
+    :data:`DIAGNOSTIC_CHUNK` values (the report thread lets a solve take the interpreter there)."""
+    w = _Writer()
+    w.raw(_STAMP.pack(*_split(stamp_ns)))
+    w.string("")                        # header.frame_id
+    w.u32(1)                            # one status
+    w.raw(bytes((report.level,)))       # level: byte
+    for text in (report.name, report.message, report.hardware_id):
+        w.string(text)
+    w.u32(len(report.values))
+    for k, (key, value) in enumerate(report.values, 1):
+        w.string(key)
+        w.string(value)
+        if k % DIAGNOSTIC_CHUNK == 0:
+            pause()
+    return w.payload()
+
+
 #: the fields of a Marker after ``colors``, empty: texture_resource, texture (header, format,
 #: data), uv_coordinates, text, mesh_resource, mesh_file (filename, data), mesh_use_embedded_materials
 _MARKER_TAIL = (1, b"", 0, 0, 1, b"", 1, b"", 0, 0, 1, b"", 1, b"", 1, b"", 0, False)
 
 
 # -- input ------------------------------------------------------------------------------------------
-_U32 = struct.Struct("<I")
-_STAMP = struct.Struct("<iI")
 
 
 def _string(buf, offset: int) -> tuple[str, int]:
@@ -217,7 +273,8 @@ class RawWriter:
 
     def __init__(self, writer):
         self.writer = writer
-        self._ref = writer._ref
+        # the entity's handle, which the binding keeps private: it has no public raw write
+        self._ref = writer._ref  # noqa: SLF001
 
     def write(self, data: bytes) -> None:
         ret = ddspy_write(self._ref, data)
@@ -225,17 +282,9 @@ class RawWriter:
             raise DDSException(ret, f"Occurred while writing sample in {self.writer!r}")
 
 
-def matched_readers(writer) -> int:
-    """How many readers ``writer`` is matched with now (``dds_get_matched_subscriptions``)."""
-    count = writer._get_matched_subscriptions(writer._ref, None, 0)
-    if count < 0:
-        raise DDSException(count, f"Occurred when counting the matched readers of {writer!r}")
-    return count
-
-
 def take_raw(reader, n: int) -> list:
     """Up to ``n`` samples of ``reader`` as ``(bytes, SampleInfo)``, not deserialized."""
-    ret = ddspy_take(reader._ref, ANY_STATE, n)
+    ret = ddspy_take(reader._ref, ANY_STATE, n)  # noqa: SLF001 - the binding has no public raw take
     if isinstance(ret, int):
         raise DDSException(ret, f"Occurred while taking data in {reader!r}")
     return ret

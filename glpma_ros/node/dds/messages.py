@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import array, byte, float32, float64, int32, sequence, uint8, uint32
 
-# RIHS01 type hashes of the Jazzy definitions, computed by rihs.py (the tests compare the two);
-# each was checked against the hash Jazzy's own rosidl_generator_type_description gives for the
-# Jazzy .msg files.  rmw_cyclonedds_cpp expects them in every endpoint's USER_DATA as
-# ``typehash=<hash>;``.
+# RIHS01 type hashes (REP 2011) of the Jazzy definitions, as Jazzy's rosidl_generator_type_description
+# writes them for the Jazzy .msg files and `ros2 topic info -v` reports them; the tests compare the
+# table with rosbags' independent implementation (Typestore.hash_rihs01).  rmw_cyclonedds_cpp
+# expects them in every endpoint's USER_DATA as ``typehash=<hash>;``.
 TYPE_HASHES = {
     "std_msgs/msg/Float64MultiArray":
         "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",

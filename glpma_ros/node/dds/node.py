@@ -16,8 +16,9 @@ still taken (and counted) at once.  TF, covariance, twist and markers of each po
 and written by the extras thread (:class:`~glpma_ros.node.loops.ExtrasLoop`), only for the
 topics some reader is matched with.  The hot messages are encoded and decoded by
 :mod:`.cdr` rather than by the binding's generic serializer.  The assembly-modes thread hands
-requests to its worker process and publishes the PoseArray; the main thread publishes
-``/diagnostics`` every ``diagnostics_period_s`` and handles signals (SIGINT and SIGTERM stop
+requests to its worker process and publishes the PoseArray; the report thread
+(:class:`~glpma_ros.node.loops.ReportLoop`) publishes ``/diagnostics`` every
+``diagnostics_period_s``; the main thread handles signals (SIGINT and SIGTERM stop
 the node, SIGHUP re-reads the ``--ros-args`` parameters, i.e. the params files, and applies
 the changed ones).
 
@@ -37,15 +38,14 @@ from cyclonedds.util import duration
 
 from .. import params as P
 from ...errors import GlpmaError, InputError
-from ..loops import AssemblyModesLoop, SolveLoop
+from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop, pause_report
 from ..ros_args import node_values, parse_ros_args, remapped, split_transport
 from ..security import check_dds_transport
 from ..service import FkService
 from ..service import JointStateInput
 from .. import qos
 from . import cdr, endpoints
-from .messages import (DiagnosticArray, DiagnosticStatus, Empty, Float64MultiArray, Header, JointState, KeyValue,
-                       MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
+from .messages import (DiagnosticArray, Empty, Float64MultiArray, Header, JointState, MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
                        TFMessage, Time, TwistStamped)
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
@@ -53,6 +53,8 @@ LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
 TAKE_BATCH = 256
 #: threads taking turns at reading and solving (one reads while the other solves)
 READER_THREADS = 2
+#: seconds between two looks of the main thread for a SIGHUP reload (a reload waits at most this)
+RELOAD_POLL_S = 0.25
 
 
 def pose_array_message(modes) -> PoseArray:
@@ -60,14 +62,6 @@ def pose_array_message(modes) -> PoseArray:
     return PoseArray(header=Header(stamp=Time.from_ns(modes.stamp_ns), frame_id=modes.frame_id),
                      poses=[Pose(position=Point(*position), orientation=Quaternion(*orientation))
                             for position, orientation in modes.poses])
-
-
-def diagnostic_message(report, stamp_ns: int) -> DiagnosticArray:
-    """:class:`~glpma_ros.node.diagnostics.DiagnosticReport` -> ``diagnostic_msgs/DiagnosticArray``."""
-    status = DiagnosticStatus(level=report.level, name=report.name, message=report.message,
-                              hardware_id=report.hardware_id,
-                              values=[KeyValue(key=k, value=v) for k, v in report.values])
-    return DiagnosticArray(header=Header(stamp=Time.from_ns(stamp_ns)), status=[status])
 
 
 class DdsNode:
@@ -111,6 +105,7 @@ class DdsNode:
                                        self.markers_writer))
         self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray,
                                               qos=pub(endpoints.DIAGNOSTICS))
+        self._raw_diag = cdr.RawWriter(self.diag_writer)
         # latched (by default: transient-local, keep-last 1): a late subscriber gets the last answer
         self.modes_writer = participant.writer(self.topics[endpoints.ASSEMBLY_MODES], PoseArray,
                                                qos=pub(endpoints.ASSEMBLY_MODES))
@@ -124,6 +119,7 @@ class DdsNode:
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed)
         self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
+        self.reports = ReportLoop(service, self._publish_report, service.params["diagnostics_period_s"])
         self._stop = threading.Event()
         self._waitset, self._guard = endpoints.reader_waitset(participant, [self.input_reader, self.request_reader])
         self._lead = threading.Lock()           # held by the thread that waits for input
@@ -136,6 +132,7 @@ class DdsNode:
 
     def start(self) -> "DdsNode":
         self.modes.start()
+        self.reports.start()
         for thread in self._reader_threads:
             thread.start()
         return self
@@ -193,7 +190,7 @@ class DdsNode:
             return
         if requests:
             if len(requests) > 1:
-                self.service.note_assembly_modes(coalesced=len(requests) - 1)
+                self.service.modes.note(coalesced=len(requests) - 1)
             self.modes.request(time.time_ns())
 
     def _publish_pose(self, pose) -> None:
@@ -202,7 +199,7 @@ class DdsNode:
 
     def _subscribed(self) -> set:
         """The extra outputs some reader is matched with (the others are not built)."""
-        return {name for name, writer in self._extra_writers if cdr.matched_readers(writer)}
+        return {name for name, writer in self._extra_writers if writer.get_matched_subscriptions()}
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
@@ -221,27 +218,22 @@ class DdsNode:
     def _publish_modes(self, modes) -> None:
         self.modes_writer.write(pose_array_message(modes))
 
+    def _publish_report(self, report) -> None:
+        """Encoded by :func:`cdr.diagnostic_array <glpma_ros.node.dds.cdr.diagnostic_array>` in chunks, with the
+        report thread's pauses between them (the binding's serializer takes ~0.1 ms in one piece)."""
+        self._raw_diag.write(cdr.diagnostic_array(time.time_ns(), report, pause=pause_report))
+
     def publish_diagnostics(self) -> None:
-        self.diag_writer.write(diagnostic_message(self.service.diagnostics(), time.time_ns()))
+        """Publish a report now (the report thread does every ``diagnostics_period_s``)."""
+        self._publish_report(self.service.diagnostics())
 
     # -- lifecycle -----------------------------------------------------------------------------
     def spin(self, stop: threading.Event, reload=None) -> None:
-        """Publish diagnostics periodically until ``stop`` is set; call ``reload()`` when
-        ``reload.requested`` (set by SIGHUP)."""
-        period = self.service.params["diagnostics_period_s"]
-        next_report = time.monotonic()
-        while not stop.is_set():
-            now = time.monotonic()
-            if now >= next_report:
-                try:
-                    self.publish_diagnostics()
-                except Exception as exc:  # noqa: BLE001
-                    self.service.log.warning(f"publishing diagnostics failed: {exc}")
-                next_report = max(next_report + period, now)
+        """Wait until ``stop`` is set; call ``reload()`` when ``reload.requested`` (set by SIGHUP)."""
+        while not stop.wait(RELOAD_POLL_S):
             if reload is not None and reload.requested.is_set():
                 reload.requested.clear()
                 reload()
-            stop.wait(max(0.0, min(next_report - time.monotonic(), 0.25)))
 
     def close(self) -> None:
         self._stop.set()
@@ -250,6 +242,7 @@ class DdsNode:
             thread.join(2.0)
         self.loop.stop()
         self.modes.stop()
+        self.reports.stop()
 
 
 def node_qos(service: FkService, remaps: dict, qos_overrides: dict) -> tuple[dict, list]:

@@ -1,0 +1,80 @@
+"""``glpma-fk``'s plug-in subcommands (entry-point group ``glpma_fk.commands``): the product's CLI
+imports no tool, ``--help`` lists every installed command, and a command whose extra is not
+installed is listed with, and refused with, the pip command that installs it."""
+from __future__ import annotations
+
+import importlib.metadata
+import subprocess
+import sys
+
+import pytest
+
+from glpma_ros import cli
+
+
+def _python(code: str) -> str:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                          timeout=120).stdout
+
+
+def test_the_product_cli_imports_no_tool():
+    """``import glpma_ros.cli`` and ``glpma-fk --help`` load no glpma_tools module (the help lines
+    are read from the tools' docstrings without importing them)."""
+    out = _python("import contextlib, io, sys\n"
+                  "import glpma_ros.cli as c\n"
+                  "before = sorted(m for m in sys.modules if m.startswith('glpma_tools'))\n"
+                  "with contextlib.redirect_stdout(io.StringIO()) as help_text:\n"
+                  "    code = c.main(['--help'])\n"
+                  "after = sorted(m for m in sys.modules if m.startswith('glpma_tools'))\n"
+                  "print(before, after, code, 'bench' in help_text.getvalue())")
+    assert out.split() == ["[]", "[]", "0", "True"], out
+
+
+def test_help_lists_every_installed_command(capsys):
+    installed = {ep.name for ep in importlib.metadata.entry_points(group=cli.COMMANDS)}
+    assert {"bag", "bench", "demo", "map", "stress"} <= installed
+    assert cli.main(["--help"]) == 0
+    text = capsys.readouterr().out
+    choices = text.split("{", 1)[1].split("}", 1)[0].split(",")
+    assert installed <= set(choices), (installed, choices)
+    for name in installed:           # each with its docstring's summary line
+        line = next(ln for ln in text.splitlines() if ln.strip().startswith(name + " "))
+        assert len(line.split(None, 1)) == 2, line
+
+
+@pytest.fixture
+def without_matplotlib(monkeypatch):
+    """As if matplotlib (every tool extra needs it) were not installed."""
+    version = importlib.metadata.version
+
+    def fake(name):
+        if name.lower() == "matplotlib":
+            raise importlib.metadata.PackageNotFoundError(name)
+        return version(name)
+    monkeypatch.setattr(importlib.metadata, "version", fake)
+
+
+def test_without_the_extra_help_names_it_and_the_command_says_how_to_install(without_matplotlib, capsys):
+    assert cli.missing_requirements("bench") == ["matplotlib"]
+    assert cli.missing_requirements("bag") == ["matplotlib"]     # rosbags, tqdm: installed with the tests
+    assert cli.main(["--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())          # argparse wraps the help lines
+    for name, extra in (("bench", "bench"), ("demo", "tools"), ("bag", "bag"), ("map", "map")):
+        assert f"pip install 'glpma_ros[{extra}]'" in text, (name, text)
+    assert cli.main(["bench", "--quick"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: glpma-fk bench needs matplotlib: pip install 'glpma_ros[bench]' "
+                   "(in a checkout: pip install -e '.[bench]')"], err
+
+
+def test_a_command_main_turns_exits_and_errors_into_statuses(capsys):
+    from glpma_ros.errors import GlpmaError
+
+    @cli.command_main
+    def main(argv):
+        if argv == ["fail"]:
+            raise GlpmaError("no such thing")
+        return cli.OneLineParser(prog="x").parse_args(argv) and 0
+    assert main(["--help"]) == 0
+    assert main(["--bogus"]) == 2 and "error: x: unrecognized arguments: --bogus" in capsys.readouterr().err
+    assert main(["fail"]) == 2 and capsys.readouterr().err == "error: no such thing\n"
