@@ -34,7 +34,9 @@ setup(
     # numba 0.58 is the oldest the compiled kernels work with (glpma_ros/compat.py says why); cyclonedds
     # 11.0.1 is the oldest release with a wheel for Python 3.11 (0.10.5 has none: it would build from
     # source against an installed Cyclone DDS C library).  tools/test-floor.sh tests exactly these floors.
-    install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=11.0.1"],
+    # scipy: the chi-square quantile of the redundant legs' consistency test (glpma_ros/redundancy.py);
+    # 1.10 is the oldest for numpy 1.24 with a wheel for Python 3.11 (Ubuntu 24.04 ships 1.11.4)
+    install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=11.0.1", "scipy>=1.10"],
     extras_require={
         "tools": TOOLS,
         # no benchmark peers here (the bench extra): tests that compare with them skip without them.

@@ -31,7 +31,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import chdtri
 
 from .solvers.local import LocalSolver
 
@@ -47,8 +46,12 @@ LEAVE_ONE_OUT_MAX_ITER = 50
 
 def chi2_limit(dof: int, level: float = CONSISTENCY_LEVEL) -> float:
     """The ``level`` quantile of the chi-square law with ``dof`` degrees of freedom (0 for ``dof`` 0:
-    an exactly determined pose has no residual to test)."""
-    return float(chdtri(dof, 1.0 - level)) if dof > 0 else 0.0
+    an exactly determined pose has no residual to test).  SciPy is imported only here: a manipulator
+    without redundant legs never needs it."""
+    if dof <= 0:
+        return 0.0
+    from scipy.special import chdtri
+    return float(chdtri(dof, 1.0 - level))
 
 
 @dataclass

@@ -7,7 +7,7 @@ ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 VENV="$ROOT/.venv-floor"
 PY="${PYTHON:-python3}"
 # exactly the floors of setup.py's install_requires (a test checks that they agree)
-FLOORS=(numpy==1.24.0 numba==0.58.0 PyYAML==6.0 cyclonedds==11.0.1)
+FLOORS=(numpy==1.24.0 numba==0.58.0 PyYAML==6.0 cyclonedds==11.0.1 scipy==1.10.0)
 #: the subset: models, estimator, statuses, units, the CLI, the DDS node's round trip
 SUBSET=(test/test_models.py test/test_estimator.py test/test_statuses.py test/test_units.py test/test_cli.py
         "test/test_dds_integration.py::test_independent_contract_participant_sees_the_poses")
