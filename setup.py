@@ -22,9 +22,8 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.xml") + glob("config/*.rviz")),
-        # SROS2 access-control policies (README, "Running secured") and the profiles they include
+        # SROS2 access-control policies (README, "Running secured")
         ("share/" + package_name + "/config/security", glob("config/security/*.xml")),
-        ("share/" + package_name + "/config/security/common", glob("config/security/common/*.xml")),
         ("share/" + package_name + "/launch", glob("launch/*.py")),
         ("share/" + package_name + "/msg_docs", glob("msg_docs/*.md")),
     ],

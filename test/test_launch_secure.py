@@ -34,13 +34,17 @@ MOCK_S = 6.0
 POSES = 60
 KEYSTORE = SCRATCH / "keystore"
 SECURITY = CONFIG / "security"
-#: an enclave that may run an rclpy node and read the pose, but not publish the legs
-INTRUDER_POLICY = f"""<?xml version="1.0" encoding="UTF-8"?>
-<policy version="0.2.0" xmlns:xi="http://www.w3.org/2001/XInclude"><enclaves><enclave path="/intruder"><profiles>
-  <profile ns="/" node="intruder">
-    <xi:include href="{SECURITY / 'common' / 'node.xml'}" xpointer="xpointer(/profile/*)"/>
-    <topics subscribe="ALLOW"><topic>pose_estimate</topic></topics>
-  </profile></profiles></enclave></enclaves></policy>
+#: an enclave that may run an rclpy node (what glpma_fk.policy.xml grants every node) and read the
+#: pose, but not publish the legs
+INTRUDER_POLICY = """<?xml version="1.0" encoding="UTF-8"?>
+<policy version="0.2.0"><enclaves><enclave path="/intruder"><profiles><profile ns="/" node="intruder">
+  <topics publish="ALLOW"><topic>rosout</topic></topics>
+  <topics publish="ALLOW" subscribe="ALLOW"><topic>/parameter_events</topic></topics>
+  <services reply="ALLOW"><service>~/describe_parameters</service><service>~/get_parameter_types</service>
+    <service>~/get_parameters</service><service>~/list_parameters</service><service>~/set_parameters</service>
+    <service>~/set_parameters_atomically</service><service>~/get_type_description</service></services>
+  <topics subscribe="ALLOW"><topic>pose_estimate</topic></topics>
+</profile></profiles></enclave></enclaves></policy>
 """
 #: a process that publishes 3-RPR legs (argv[1] seconds at 20 Hz), or exits 3 when it may not
 PUBLISHER = """

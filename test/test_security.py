@@ -44,22 +44,14 @@ def test_the_dds_node_refuses_to_start_under_ros_security_enable(dds_env, comman
 
 
 def _profile(path, node):
-    """{(kind, permission): names} of a profile of a policy file, its includes resolved."""
-    root = ET.parse(path).getroot()
-    profile = next(p for p in root.iter("profile") if p.get("node") == node)
+    """{(kind, permission): names} granted (ALLOW) by the profile of ``node`` in a policy file."""
+    profile = next(p for p in ET.parse(path).getroot().iter("profile") if p.get("node") == node)
     grants: dict = {}
-
-    def collect(element, base):
-        for child in element:
-            if child.tag.endswith("include"):
-                included = base / child.get("href")
-                collect(ET.parse(included).getroot(), included.parent)
-            elif child.tag in ("topics", "services"):
-                for permission, value in child.attrib.items():
-                    if value == "ALLOW":
-                        names = {e.text for e in child}
-                        grants.setdefault((child.tag, permission), set()).update(names)
-    collect(profile, path.parent)
+    for child in profile:
+        if child.tag in ("topics", "services"):
+            for permission, value in child.attrib.items():
+                if value == "ALLOW":
+                    grants.setdefault((child.tag, permission), set()).update(e.text for e in child)
     return grants
 
 

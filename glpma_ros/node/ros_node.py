@@ -299,6 +299,8 @@ class FkEndpoints:
 
     def _on_set_parameters(self, parameters) -> SetParametersResult:
         mine = [p for p in parameters if not p.name.startswith(qos.PREFIX)]    # QoS overrides: rclpy's, read-only
+        if not mine:
+            return SetParametersResult(successful=True)
         if self.service is None:        # not configured yet (lifecycle): checked now, applied at configure
             try:
                 for p in mine:
