@@ -317,3 +317,36 @@ def test_cli_solve_all_exact_refuses_redundant_legs(seven):
     r = subprocess.run([sys.executable, "-m", "glpma_ros", "solve-all", "hexapod_7legs", "--exact", "--legs",
                         *map(repr, seven.example_leg_lengths.tolist())], capture_output=True, text=True)
     assert r.returncode == 2 and "redundant legs" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_demo_and_mock_controller_take_the_new_configs(name):
+    """``demo --manipulator NAME`` (or a path) drives the node with the config's kind's params file, this
+    config and a warm start at the mock controller's start pose (the DDS run itself: test_demo.py)."""
+    from glpma_tools.demo import manipulator_spec
+    label, spec = manipulator_spec(name)
+    assert label == name and spec["params"] == "params_hexapod.yaml"
+    args = dict(a.split(":=", 1) for a in spec["extra_args"] if ":=" in a)
+    assert args["manipulator_config"] == str((CONFIG / f"{name}.yaml").resolve()) and args["joint_names"] == "[]"
+    plan = Plan(str(CONFIG / f"{name}.yaml"))                 # the mock controller's trajectory (a path)
+    model = plan.model
+    x_start = model.variables_from_pose(plan.start[0], quaternion_from_matrix(plan.start[1]))
+    assert np.allclose(yaml.safe_load(args["initial_pose"]), x_start, rtol=0, atol=1e-9 * model.scale)  # repr
+    legs = model.inverse_kinematics(x_start)
+    assert np.allclose(legs, model.example_leg_lengths, rtol=0, atol=1e-6 * model.scale)   # 9 decimals in the file
+
+
+def test_demo_refuses_an_unknown_manipulator_in_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--manipulator", str(tmp_path / "nope.yaml")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "nope.yaml" in r.stderr
+
+
+def test_package_functions_carry_the_digest_of_every_compiled_module():
+    """A change to one kernel file recompiles the compiled functions of other files that carry its code."""
+    from glpma_ros import numba_cache
+    from glpma_ros.models import kernels
+    from glpma_ros.solvers import g3pcx
+    for fn in (kernels.population_fitness, g3pcx.g3pcx_generations):
+        stamp = fn._cache._cache_file._source_stamp
+        assert isinstance(stamp, tuple) and stamp[1] == numba_cache.package_digest()
