@@ -350,3 +350,23 @@ def test_package_functions_carry_the_digest_of_every_compiled_module():
     for fn in (kernels.population_fitness, g3pcx.g3pcx_generations):
         stamp = fn._cache._cache_file._source_stamp
         assert isinstance(stamp, tuple) and stamp[1] == numba_cache.package_digest()
+
+
+def test_the_benchmark_keeps_the_section_measured_apart(tmp_path):
+    """``glpma-fk bench`` rewrites BENCHMARKS.md; the section tools/bench_gough.py wrote stays in it."""
+    from glpma_tools.bench.report import APART, measured_apart
+    section = tmp_path / APART[0]
+    section.parent.mkdir(parents=True)
+    section.write_text("## Gough-Stewart designs and redundant legs\n\nfigures\n")
+    assert measured_apart(str(tmp_path / "BENCHMARKS.md"))[0].startswith("## Gough-Stewart designs")
+    assert measured_apart(str(tmp_path / "elsewhere" / "BENCHMARKS.md")) == []
+
+
+def test_bench_gough_script_runs_and_reports_every_design(tmp_path):
+    out = tmp_path / "gough.md"
+    r = subprocess.run([sys.executable, str(CONFIG.parent / "tools" / "bench_gough.py"), "--steps", "20", "--loops",
+                        "1", "--markdown", str(out)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    for label in ("6-6", "6-3", "3-3", "7 legs", "10 x leg_noise_std", "1000 x leg_noise_std", "load average"):
+        assert label in text
