@@ -312,7 +312,7 @@ class Estimator:
             if self.exclude_faulty_leg:
                 e.x, e.pose, e.excluded_leg = r.x, Pose(r.position, r.orientation), iso.leg
                 e.conditioning, e.max_residual = r.conditioning, r.max_residual
-                e.fitness = float(model.fitness(r.x, legs)[0])
+                e.fitness = r.fitness          # the papers' fitness of the legs the pose used
                 e.message = (f"{head}; leg {iso.leg + 1} most likely at fault, left out: pose from the other "
                              f"{model.n_legs - 1} legs")
             else:

@@ -255,6 +255,29 @@ def test_the_node_names_a_corrupted_leg_and_keeps_publishing_correct_poses():
     assert after.as_dict()["failed legs"] == "none" and after.as_dict()["leg left out last"] == "none"
 
 
+def test_a_pose_without_a_leg_gets_the_covariance_of_the_other_legs(seven):
+    from glpma_ros.covariance import PoseJacobian
+    x0 = yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0]
+    svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"), "time_budget_ms": GENEROUS_BUDGET_MS,
+                     "initial_pose": x0})
+    legs_m = seven.example_leg_lengths * 1e-3
+    full = svc.extras(svc.handle(legs_m, 0))
+    bad = legs_m.copy()
+    bad[2] += 0.01                                        # 1000 sigma on leg 3
+    out = svc.handle(bad, 1)
+    assert out.estimate.excluded_leg == 2
+    without = svc.extras(out)
+    six = model_from_dict({"manipulator": "hexapod_66", "unit": "mm", "base": np.delete(seven.base, 2, 0).tolist(),
+                           "platform": np.delete(seven.platform, 2, 0).tolist()})
+    six.metres_per_unit = 1e-3
+    jac = PoseJacobian(six)
+    jac.solve(np.array(out.pose.position), np.array(out.pose.orientation), 1e-5)
+    # the same formula on the same six legs: equal to round-off relative to the largest variance
+    cov = np.array(without.covariance).reshape(6, 6)
+    assert np.allclose(cov, jac.covariance, rtol=0, atol=1e-9 * np.abs(jac.covariance).max())
+    assert np.trace(cov) > np.trace(np.array(full.covariance).reshape(6, 6))    # one leg fewer: larger
+
+
 def test_exclude_faulty_leg_off_publishes_nothing_and_says_why(seven):
     x0 = yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0]
     svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"), "time_budget_ms": GENEROUS_BUDGET_MS,
