@@ -124,11 +124,12 @@ class Estimate:
     solver: str
     message: str = ""
     max_residual: float = math.nan   # max |IK(x) - legs| over the legs (config unit)
-    # redundant legs (glpma_ros.redundancy); legs are numbered from 0 here
-    consistency: float = math.nan    # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
-    consistency_limit: float = math.nan   # its limit (inconsistent above)
-    suspect_leg: int | None = None   # inconsistent_legs: the leg most likely at fault
-    excluded_leg: int | None = None  # the leg left out of the pose (the pose is then from the others)
+    # redundant legs (glpma_ros.redundancy), set after construction; legs are numbered from 0 here.  Class
+    # attributes, not fields: the everyday estimate (exactly determined legs) does not pay for them
+    consistency = math.nan           # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
+    consistency_limit = math.nan     # its limit (inconsistent above)
+    suspect_leg = None               # inconsistent_legs: the leg most likely at fault
+    excluded_leg = None              # the leg left out of the pose (the pose is then from the others)
 
     @property
     def converged(self) -> bool:
@@ -255,11 +256,15 @@ class Estimator:
             x = out[:n]
             cond = info[lm.I_CONDITIONING]
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
-            how = "leg residuals at round-off" if self._isolator is None else "least-squares pose"
-            return self._accept(Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]),
-                                         info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
-                                         self.solver, f"warm start, {how}{note}", info[lm.I_MAX_RESIDUAL]),
-                                arr, info[lm.I_LEG_FITNESS], t0)
+            isolator = self._isolator
+            how = "leg residuals at round-off" if isolator is None else "least-squares pose"
+            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]), info[lm.I_FITNESS],
+                         int(info[lm.I_NFEV]), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
+                         info[lm.I_MAX_RESIDUAL])
+            if isolator is None:             # the everyday case, no call more than needed
+                self.last_x, self.last_legs = x, arr
+                return e
+            return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
         return self._search(arr, t0, solver.result(out))
 
     # -- redundant legs ---------------------------------------------------------------
