@@ -213,6 +213,7 @@ class Estimator:
         """Forget the warm-start state; ``initial_pose`` (solver variables) selects
         the assembly mode to start from."""
         self.prev_x = None                  # the estimate before last_x (redundant legs: the prediction)
+        self._inputs = self._advanced_at = 0    # redundant legs: inputs seen, and when last_x was set
         self.excluded = None                # the leg left out of the last pose (redundant legs)
         if initial_pose is None or len(initial_pose) == 0:
             self.last_x = self.last_legs = None
@@ -229,6 +230,8 @@ class Estimator:
         """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
         t0 = time.perf_counter()
         model = self.model
+        if self._isolator is not None:
+            self._inputs += 1
         if self.last_x is None or not self.polish:
             return self._search(np.array(model.check_legs(legs), dtype=float), t0, None)
         try:
@@ -275,6 +278,7 @@ class Estimator:
     def _advance(self, x, legs):
         """``x`` (for ``legs``) becomes the warm start of the next input."""
         self.prev_x, self.last_x, self.last_legs = self.last_x, x, legs
+        self._advanced_at = self._inputs
 
     def _accept(self, e: Estimate, legs, leg_fitness: float, t0: float) -> Estimate:
         """A converged estimate: the next warm start; with redundant legs, after the consistency test
@@ -297,7 +301,10 @@ class Estimator:
         model = self.model
         predicted, near = None, math.inf
         if self.last_x is not None:
-            predicted = self.last_x if self.prev_x is None else 2.0 * self.last_x - self.prev_x
+            # constant velocity per input from the last two estimates, over the inputs since the last one
+            # (an input that gave no pose leaves the history behind by one more step)
+            steps = max(self._inputs - self._advanced_at, 1)
+            predicted = self.last_x if self.prev_x is None else self.last_x + steps * (self.last_x - self.prev_x)
             near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
         iso = self._isolator.isolate(legs, self.last_x, self.leg_noise_std, predicted, near, first=self.excluded,
                                      starts=self._probe_starts)
