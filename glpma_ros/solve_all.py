@@ -41,7 +41,8 @@ Three methods (``solve_all(model, legs, method=...)``):
 Every mode returned is polished to round-off by the model's refinement
 (:func:`glpma_ros.solvers.refine.polish`).  With redundant legs (more than the degrees of freedom) a
 mode is a least-squares pose whose leg residuals pass the estimator's consistency test
-(:func:`consistent_fitness`: chi-square against the default leg noise); the exact method refuses them.  Plain Python + NumPy: no ROS import.
+(:func:`consistent_fitness`: chi-square against the default leg noise); the exact method refuses them.
+Plain Python + NumPy: no ROS import.
 """
 from __future__ import annotations
 

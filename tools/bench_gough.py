@@ -192,7 +192,8 @@ def report(warm, faults, healthy, args, load_before, load_after, elapsed_s) -> s
                  f"n/a | n/a | {_pct(h['published'], h['inputs'])} | {_pct(h['within'], h['inputs'])} |")
     lines += ["", "How to read it: compare the random geometries with each other for the cost of shared joints "
               "(the same model and kernels; the evaluations count the work), and the shipped symmetric 6-3 and 3-3 "
-              "with the 6-6 for what a symmetric design costs per evaluation. The consistency test flags a healthy input in 0.1 % of the inputs by design "
+              "with the 6-6 for what a symmetric design costs per evaluation. The consistency test flags a healthy "
+              "input in 0.1 % of the inputs by design "
               "(its level, 0.999); for six independent components at 3 sigma, 98.4 % of unbiased poses are within. "
               "With a single redundant leg, a step of a few sigma is at the edge of what the test sees (the "
               "least-squares pose absorbs part of it), and the poses without each leg differ by less than the "
