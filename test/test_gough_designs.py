@@ -393,3 +393,55 @@ def test_bench_gough_script_runs_and_reports_every_design(tmp_path):
     text = out.read_text()
     for label in ("6-6", "6-3", "3-3", "7 legs", "10 x leg_noise_std", "1000 x leg_noise_std", "load average"):
         assert label in text
+
+
+# -- a faulty sensor, live: the demo's node over DDS, the mock controller's --fault ---------------------------------
+@pytest.fixture
+def fault_domain():
+    """A DDS domain of this test's own: claimed (glpma_tools.sim.domains) where the tree has the claims,
+    otherwise the pid-derived id test_demo.py uses on this branch."""
+    try:
+        from glpma_tools.sim.domains import claim_domain
+    except ImportError:
+        yield 170 + __import__("os").getpid() % 20
+        return
+    with claim_domain() as claim:
+        yield claim.domain_id
+
+
+@pytest.mark.timing
+def test_demo_with_a_faulty_leg_publishes_right_poses_and_names_the_leg(tmp_path, fault_domain):
+    pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
+    import os
+    env = dict(os.environ, CYCLONEDDS_URI=(CONFIG / "cyclonedds-localhost.xml").as_uri())
+    r = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--manipulator", "hexapod_7legs", "--duration", "2",
+                        "--fault", "4", "0.01", "--out", str(tmp_path), "--domain-id", str(fault_domain)],
+                       cwd=CONFIG.parent, env=env, capture_output=True, text=True, timeout=400)
+    assert r.returncode == 0, r.stdout + r.stderr
+    s = json.loads((tmp_path / "demo_hexapod_7legs.json").read_text())
+    assert s["ok"] and s["poses_wrong"] == 0 and s["poses_received"] >= 1       # every pose right, fault or not
+    assert s["fault"] == {"leg": 4, "step_m": 0.01, "from_s": 1.0}
+    health = s["leg_health"]
+    if health["inputs with inconsistent legs"] not in (None, "0"):   # some faulty inputs were solved
+        assert health["legs left out"].startswith("leg_4: ") and health["leg left out last"] == "leg_4"
+
+
+def test_fault_options_refuse_bad_legs_in_one_line():
+    for argv in (["demo", "--manipulator", "hexapod_7legs", "--fault", "9", "0.01"],
+                 ["demo", "--manipulator", "hexapod_7legs", "--fault", "1.5", "0.01"]):
+        r = subprocess.run([sys.executable, "-m", "glpma_ros", *argv], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "--fault" in r.stderr, argv
+    r = subprocess.run([sys.executable, "-m", "glpma_tools.mock_controller", "--config", "hexapod_7legs", "--fault",
+                        "0.5", "0.01"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "--fault" in r.stderr
+
+
+def test_a_plan_with_a_fault_sends_the_step_and_keeps_the_truth():
+    plan = Plan("hexapod_7legs", fault=(3, 0.01, 1.0))
+    legs, position, q = plan.sample(0.5)
+    assert plan.measured(legs, 0.5) is legs                        # before the fault: the true legs
+    later = plan.sample(2.0)[0]
+    step = plan.measured(later, 2.0) - later
+    assert np.allclose(step, [0, 0, 0, 10.0, 0, 0, 0], rtol=0, atol=1e-9)   # 0.01 m in the config's mm
+    with pytest.raises(Exception, match="faulty leg must be 1 to 7"):
+        Plan("hexapod_7legs", fault=(7, 0.01, 1.0))
