@@ -445,3 +445,28 @@ def test_a_plan_with_a_fault_sends_the_step_and_keeps_the_truth():
     assert np.allclose(step, [0, 0, 0, 10.0, 0, 0, 0], rtol=0, atol=1e-9)   # 0.01 m in the config's mm
     with pytest.raises(Exception, match="faulty leg must be 1 to 7"):
         Plan("hexapod_7legs", fault=(7, 0.01, 1.0))
+
+
+def test_the_bag_status_names_the_faulty_leg(tmp_path, capsys):
+    pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
+    from test_bag import TS, read_bag, write_legs_bag
+    from glpma_tools import bag as B
+    from glpma_tools import bag_codec as C
+    plan = Plan("hexapod_7legs")
+    x0 = plan.start_variables()
+    legs_m = np.array([plan.sample(k / 100.0)[0] for k in range(40)]) * plan.mpu
+    legs_m[20:, 3] += 0.01                                             # leg 4 10 mm too long from input 20 on
+    src, dst = tmp_path / "in", tmp_path / "out"
+    write_legs_bag(src, "mcap", legs_m)
+    assert B.main([str(src), str(dst), "--no-progress", "--json", "--ros-args", "-p",
+                   f"manipulator_config:={CONFIG / 'hexapod_7legs.yaml'}", "-p",
+                   "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["converged"] == 40                                  # a pose for every input, faulty or not
+    out, _ = read_bag(dst)
+    statuses = [TS.deserialize_cdr(raw, C.DIAGNOSTIC_STATUS) for _, raw in out["/glpma_fk/status"]]
+    values = [dict((kv.key, kv.value) for kv in s.values) for s in statuses]
+    assert all(v["status"] == "converged" and s.level == 0 for s, v in zip(statuses[:20], values[:20]))
+    for s, v in zip(statuses[20:], values[20:]):
+        assert s.level == 1 and v["status"] == "inconsistent_legs" and "leg 4" in s.message
+        assert v["suspect_leg"] == v["excluded_leg"] == "leg_4"
