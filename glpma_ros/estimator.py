@@ -124,11 +124,12 @@ class Estimate:
     solver: str
     message: str = ""
     max_residual: float = math.nan   # max |IK(x) - legs| over the legs (config unit)
-    # redundant legs (glpma_ros.redundancy); legs are numbered from 0 here
-    consistency: float = math.nan    # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
-    consistency_limit: float = math.nan   # its limit (inconsistent above)
-    suspect_leg: int | None = None   # inconsistent_legs: the leg most likely at fault
-    excluded_leg: int | None = None  # the leg left out of the pose (the pose is then from the others)
+    # redundant legs (glpma_ros.redundancy), set after construction; legs are numbered from 0 here.  Class
+    # attributes, not fields: the everyday estimate (exactly determined legs) does not pay for them
+    consistency = math.nan           # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
+    consistency_limit = math.nan     # its limit (inconsistent above)
+    suspect_leg = None               # inconsistent_legs: the leg most likely at fault
+    excluded_leg = None              # the leg left out of the pose (the pose is then from the others)
 
     @property
     def converged(self) -> bool:
@@ -215,6 +216,7 @@ class Estimator:
         """Forget the warm-start state; ``initial_pose`` (solver variables) selects
         the assembly mode to start from."""
         self.prev_x = None                  # the estimate before last_x (redundant legs: the prediction)
+        self._inputs = self._advanced_at = 0    # redundant legs: inputs seen, and when last_x was set
         self.excluded = None                # the leg left out of the last pose (redundant legs)
         if initial_pose is None or len(initial_pose) == 0:
             self.last_x = self.last_legs = None
@@ -231,6 +233,8 @@ class Estimator:
         """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
         t0 = time.perf_counter()
         model = self.model
+        if self._isolator is not None:
+            self._inputs += 1
         if self.last_x is None or not self.polish:
             return self._search(np.array(model.check_legs(legs), dtype=float), t0, None)
         try:
@@ -258,11 +262,15 @@ class Estimator:
             x = out[:n]
             cond = info[lm.I_CONDITIONING]
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
-            how = "leg residuals at round-off" if self._isolator is None else "least-squares pose"
-            return self._accept(Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]),
-                                         info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond,
-                                         self.solver, f"warm start, {how}{note}", info[lm.I_MAX_RESIDUAL]),
-                                arr, info[lm.I_LEG_FITNESS], t0)
+            isolator = self._isolator
+            how = "leg residuals at round-off" if isolator is None else "least-squares pose"
+            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]), info[lm.I_FITNESS],
+                         int(info[lm.I_NFEV]), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
+                         info[lm.I_MAX_RESIDUAL])
+            if isolator is None:             # the everyday case, no call more than needed
+                self.last_x, self.last_legs = x, arr
+                return e
+            return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
         return self._search(arr, t0, solver.result(out))
 
     # -- redundant legs ---------------------------------------------------------------
@@ -273,6 +281,7 @@ class Estimator:
     def _advance(self, x, legs):
         """``x`` (for ``legs``) becomes the warm start of the next input."""
         self.prev_x, self.last_x, self.last_legs = self.last_x, x, legs
+        self._advanced_at = self._inputs
 
     def _accept(self, e: Estimate, legs, leg_fitness: float, t0: float) -> Estimate:
         """A converged estimate: the next warm start; with redundant legs, after the consistency test
@@ -295,7 +304,10 @@ class Estimator:
         model = self.model
         predicted, near = None, math.inf
         if self.last_x is not None:
-            predicted = self.last_x if self.prev_x is None else 2.0 * self.last_x - self.prev_x
+            # constant velocity per input from the last two estimates, over the inputs since the last one
+            # (an input that gave no pose leaves the history behind by one more step)
+            steps = max(self._inputs - self._advanced_at, 1)
+            predicted = self.last_x if self.prev_x is None else self.last_x + steps * (self.last_x - self.prev_x)
             near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
         iso = self._isolator.isolate(legs, self.last_x, self.leg_noise_std, predicted, near, first=self.excluded,
                                      starts=self._probe_starts)
@@ -315,7 +327,7 @@ class Estimator:
             if self.exclude_faulty_leg:
                 e.x, e.pose, e.excluded_leg = r.x, Pose(r.position, r.orientation), iso.leg
                 e.conditioning, e.max_residual = r.conditioning, r.max_residual
-                e.fitness = float(model.fitness(r.x, legs)[0])
+                e.fitness = r.fitness          # the papers' fitness of the legs the pose used
                 e.message = (f"{head}; leg {iso.leg + 1} most likely at fault, left out: pose from the other "
                              f"{model.n_legs - 1} legs")
             else:

@@ -3,12 +3,16 @@ few-by-few systems of the pose-space Levenberg-Marquardt (:mod:`glpma_ros.solver
 (:mod:`glpma_ros.models.pose_kernels`): the normal equations ``J^T J``, ``J^T r``; the damped solve
 ``(A + lam diag(A)) s = -g`` by Cholesky; the one-sided Jacobi SVD (Hestenes 1958).
 
-A leaf module (it imports nothing of the package), so that models and solvers can both use it."""
+A leaf module (of the package it imports only numba_cache), so that models and solvers can both use it."""
 from __future__ import annotations
 
 import math
 
 from numba import njit
+
+from . import numba_cache
+
+numba_cache.install()      # before the first compiled function (see numba_cache): this module may be imported first
 
 #: sweeps of the one-sided Jacobi SVD (it converges quadratically: 6x6 needs 5-7)
 JACOBI_SWEEPS = 30

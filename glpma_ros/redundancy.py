@@ -156,10 +156,10 @@ class FaultIsolator:
             return Isolation(None, False, None, math.nan, nfev,
                              "one redundant leg and no previous pose: the faulty leg cannot be told")
         dist = [m.distance(r.x, predicted) for _, r, _ in tried]
-        order = np.argsort(dist)
-        leg, r, T = tried[order[0]]
-        best = dist[order[0]]
-        second = dist[order[1]] if len(order) > 1 else math.inf
+        ranked = np.argsort(dist)
+        leg, r, T = tried[ranked[0]]
+        best = dist[ranked[0]]
+        second = dist[ranked[1]] if len(ranked) > 1 else math.inf
         ok = best <= near and second > ISOLATION_MARGIN * best
         why = "" if ok else "the poses without each leg are alike: the faulty leg is uncertain"
         return Isolation(leg, ok, r, T, nfev, why)

@@ -39,7 +39,10 @@ Three methods (``solve_all(model, legs, method=...)``):
   polished, and the number of complex solutions.
 
 Every mode returned is polished to round-off by the model's refinement
-(:func:`glpma_ros.solvers.refine.polish`).  Plain Python + NumPy: no ROS import.
+(:func:`glpma_ros.solvers.refine.polish`).  With redundant legs (more than the degrees of freedom) a
+mode is a least-squares pose whose leg residuals pass the estimator's consistency test
+(:func:`consistent_fitness`: chi-square against the default leg noise); the exact method refuses them.
+Plain Python + NumPy: no ROS import.
 """
 from __future__ import annotations
 
@@ -107,6 +110,21 @@ class AllSolutions:
     hits: tuple = ()                     # multistart: starts that converged to each mode (order of solutions)
 
 
+def consistent_fitness(model) -> float:
+    """Redundant legs: the largest sum of squared leg residuals (config unit squared) of a mode, the
+    estimator's consistency limit for the default leg noise; 0 without redundant legs."""
+    if not model.redundancy:
+        return 0.0
+    from .estimator import DEFAULT_LEG_NOISE_M
+    from .redundancy import chi2_limit
+    sigma = DEFAULT_LEG_NOISE_M / getattr(model, "metres_per_unit", 1e-3)
+    return chi2_limit(model.redundancy) * sigma * sigma
+
+
+def _leg_fitness(model, x, legs) -> float:
+    return float(np.sum((model.inverse_kinematics(x) - legs) ** 2))
+
+
 def wide_range(model, legs) -> tuple[float, float]:
     half = RANGE_FACTOR * max(model.scale, float(np.max(legs)))
     return -half, half
@@ -158,7 +176,7 @@ def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None) -> 
         r = solvers.solve(solver, model, legs, rng=rng, init_range=wide_range(model, legs), polish=True,
                           max_evals=max_evals)
         evaluations += r.nfev
-        if not r.success:
+        if not r.success or (model.redundancy and _leg_fitness(model, r.x, legs) > consistent_fitness(model)):
             continue
         if all(model.distance(r.x, s.x) > DEDUP_RELATIVE * model.scale for s in found):
             found.append(r)
@@ -239,7 +257,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> 
     t0 = time.perf_counter()
     deadline = None if budget_s is None else t0 + budget_s
     rng = np.random.default_rng(seed)
-    tolerance = (LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2
+    tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model))
     dedup = DEDUP_RELATIVE * model.scale
     sampler = StartSampler(model, legs)
     local = LocalSolver(model)

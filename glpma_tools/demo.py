@@ -64,6 +64,9 @@ def _parser() -> OneLineParser:
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, default="glpma", help="the node's solver parameter")
     p.add_argument("--budget-ms", type=float, default=None, help="the node's time_budget_ms")
+    p.add_argument("--fault", nargs=2, type=float, default=None, metavar=("LEG", "METRES"),
+                   help="a faulty sensor: from the middle of the run on, leg LEG (from 1) is sent METRES too long; "
+                        "with redundant legs (e.g. --manipulator hexapod_7legs) the node leaves it out")
     p.add_argument("--out", default="demo_out", help="directory of the figure and the JSON summary")
     p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: one this demo claims, that no other run on the host uses)")
     return p
@@ -129,11 +132,20 @@ def main(argv=None) -> int:
     if args.duration <= 0 or (args.rate is not None and args.rate <= 0):
         print("error: glpma-fk demo: --rate and --duration must be positive", file=sys.stderr)
         return 2
+    if args.fault is not None and not float(args.fault[0]).is_integer():
+        print("error: glpma-fk demo: --fault LEG must be a leg number", file=sys.stderr)
+        return 2
     try:
         label, spec = manipulator_spec(args.manipulator)
     except GlpmaError as exc:
         print(f"error: glpma-fk demo: --manipulator: {exc}", file=sys.stderr)
         return 2
+    if args.fault is not None:
+        from glpma_ros.config import load_manipulator, resolve_config
+        n_legs = load_manipulator(resolve_config(spec["config"])).n_legs
+        if not 1 <= args.fault[0] <= n_legs:
+            print(f"error: glpma-fk demo: --fault LEG must be 1 to {n_legs}, got {args.fault[0]:g}", file=sys.stderr)
+            return 2
     rate = args.rate or spec["rate"]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -161,8 +173,9 @@ def main(argv=None) -> int:
         bar.set_postfix_str(f"poses {partial['poses_received']}, latency p50 {partial['latency_p50_ms']:.2f} ms, "
                             f"error max {partial['position_error_max_m']:.1e} m")
     try:
-        summary = mock_controller.run(spec["config"], rate, args.duration, progress=progress, samples=True)
-    except TimeoutError as exc:
+        summary = mock_controller.run(spec["config"], rate, args.duration, progress=progress, samples=True,
+                                      fault=args.fault)
+    except (TimeoutError, GlpmaError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     else:

@@ -12,8 +12,13 @@ farther than 1e-6 m / 1e-6 rad from its input's true pose; the node's counters m
 machine is -- the node drops an input when a newer one arrives first -- so the share answered and
 the latency are reported, with what made the machine look busy, but do not fail the run.
 
+A faulty sensor (``--fault LEG METRES``, for a config with redundant legs): from the middle of the
+run on, leg LEG is sent that much too long; the true pose stays the truth, so the node must leave
+the leg out and go on publishing right poses, and the summary has what ``/diagnostics`` said of the
+legs (``leg_health``: the leg left out, failed legs).
+
 Command line: ``python -m glpma_tools.mock_controller --config planar_3rpr_seed --rate 200
---duration 5 [--input joint_state [--joint-names A B C]] [--json]``; exit status 0 when every
+--duration 5 [--input joint_state [--joint-names A B C]] [--fault LEG METRES] [--json]``; exit status 0 when every
 pose is right, 1 when a pose is wrong, no pose came back or no node answered, 2 for bad
 arguments.  As a library: :func:`run` returns the summary, :func:`verdict` judges it.
 """
@@ -38,13 +43,16 @@ from glpma_tools.tables import spread
 
 #: a 1-minute load average at or above this many runnable processes per core: the machine was busy
 BUSY_LOAD_PER_CORE = 1.0
+#: what /diagnostics says of redundant legs (glpma_ros.node.leg_health), kept in a faulty run's summary
+LEG_HEALTH_KEYS = ("inputs with inconsistent legs", "leg left out last", "legs left out", "failed legs")
 
 
 def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: float = 5.0, *,
         domain_id: int | None = None, qos_depth: int = 10, solution: int | None = None,
         amplitude: float = 1.0, connect_timeout_s: float = 30.0, settle_s: float = 0.3,
         tail_s: float = 1.0, diagnostics_wait_s: float = 5.0, progress=None, samples: bool = False,
-        input_type: str = INPUT_FLOAT64_MULTI_ARRAY, joint_names=None, modes_period_s: float | None = None) -> dict:
+        input_type: str = INPUT_FLOAT64_MULTI_ARRAY, joint_names=None, modes_period_s: float | None = None,
+        fault=None) -> dict:
     """Drive the node for ``duration_s`` at ``rate_hz`` and return the summary (a JSON-able dict).
 
     ``progress(i, n, summary_so_far)`` is called about once a second while sending, if given;
@@ -58,8 +66,10 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
     to ``tail_s`` for the last poses and up to ``diagnostics_wait_s`` for the node's
     ``/diagnostics`` to report it idle after the last input (``node_diagnostics``); the summary's
     ``node_counters`` are the differences over the run.
+    ``fault``: ``(leg from 1, metres)``, a step error on that leg from the middle of the run on.
     Raises :class:`TimeoutError` when no node answers within ``connect_timeout_s``."""
-    plan = Plan(config, solution, amplitude)
+    plan = Plan(config, solution, amplitude,
+                fault=None if fault is None else (int(fault[0]) - 1, float(fault[1]), 0.5 * duration_s))
     model = plan.model
     ctl = Controller(model, domain_id, qos_depth, max(qos_depth, 1000), input_type, joint_names,
                      modes=modes_period_s is not None)
@@ -126,6 +136,10 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         "load_average": list(os.getloadavg()),
         "cores": os.cpu_count(),
     }
+    if fault is not None:
+        values = (summary["node_diagnostics"] or {}).get("values") or {}
+        summary["fault"] = {"leg": int(fault[0]), "step_m": float(fault[1]), "from_s": 0.5 * duration_s}
+        summary["leg_health"] = {key: values.get(key) for key in LEG_HEALTH_KEYS}
     if modes is not None:
         busy = [lat for i, lat in zip(c.index, c.latency_ms) if modes.busy_at(sent[i].send_ns)]
         summary["assembly_modes"] = {"requests": modes.requested, "answers": len(modes.answers),
@@ -163,6 +177,10 @@ def verdict(s: dict) -> tuple[bool, list[str]]:
     if ok:
         lines.append(f"every pose right: {s['poses_matched']} of {s['inputs_sent']} inputs answered "
                      f"({100 * s['pose_ratio']:.1f} %), latency p50 / p99 / max {spread(s['latency_ms'])} ms")
+    if "fault" in s:
+        f, h = s["fault"], s["leg_health"]
+        lines.append(f"leg {f['leg']} sent {f['step_m']:g} m too long from {f['from_s']:g} s on: the node's "
+                     f"/diagnostics says " + ", ".join(f"{k} {h[k]}" for k in LEG_HEALTH_KEYS))
     busy = busy_signs(s)
     if busy:
         lines.append("the machine looked busy (" + "; ".join(busy) + "): the node answers the newest input "
@@ -216,6 +234,9 @@ def build_parser() -> OneLineParser:
                         "shuffled; run the node with input_type:=joint_state)")
     p.add_argument("--joint-names", nargs="+", default=None, metavar="NAME",
                    help="--input joint_state: the legs' joint names in leg order (default leg_1 .. leg_n)")
+    p.add_argument("--fault", nargs=2, type=float, default=None, metavar=("LEG", "METRES"),
+                   help="a faulty sensor: from the middle of the run on, leg LEG (from 1) is sent METRES too long "
+                        "(a config with redundant legs isolates it)")
     p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for the node")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     return p
@@ -227,6 +248,9 @@ def main(argv=None) -> int:
     if args.rate <= 0 or args.duration <= 0:
         print("mock_controller: error: --rate and --duration must be positive", file=sys.stderr)
         return 2
+    if args.fault is not None and not float(args.fault[0]).is_integer():
+        print("mock_controller: error: --fault LEG must be a leg number", file=sys.stderr)
+        return 2
 
     def progress(i, n, partial):
         print(f"sent {i}/{n}, poses received {partial['poses_received']}", file=sys.stderr, flush=True)
@@ -235,7 +259,7 @@ def main(argv=None) -> int:
         summary = run(args.config, args.rate, args.duration, solution=args.solution, amplitude=args.amplitude,
                       qos_depth=args.qos_depth, connect_timeout_s=args.timeout,
                       progress=None if args.json else progress, input_type=args.input,
-                      joint_names=args.joint_names)
+                      joint_names=args.joint_names, fault=args.fault)
     except (GlpmaError, TimeoutError, ValueError) as exc:
         print(f"mock_controller: error: {exc}", file=sys.stderr)
         return 1 if isinstance(exc, TimeoutError) else 2

@@ -255,6 +255,29 @@ def test_the_node_names_a_corrupted_leg_and_keeps_publishing_correct_poses():
     assert after.as_dict()["failed legs"] == "none" and after.as_dict()["leg left out last"] == "none"
 
 
+def test_a_pose_without_a_leg_gets_the_covariance_of_the_other_legs(seven):
+    from glpma_ros.covariance import PoseJacobian
+    x0 = yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0]
+    svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"), "time_budget_ms": GENEROUS_BUDGET_MS,
+                     "initial_pose": x0})
+    legs_m = seven.example_leg_lengths * 1e-3
+    full = svc.extras(svc.handle(legs_m, 0))
+    bad = legs_m.copy()
+    bad[2] += 0.01                                        # 1000 sigma on leg 3
+    out = svc.handle(bad, 1)
+    assert out.estimate.excluded_leg == 2
+    without = svc.extras(out)
+    six = model_from_dict({"manipulator": "hexapod_66", "unit": "mm", "base": np.delete(seven.base, 2, 0).tolist(),
+                           "platform": np.delete(seven.platform, 2, 0).tolist()})
+    six.metres_per_unit = 1e-3
+    jac = PoseJacobian(six)
+    jac.solve(np.array(out.pose.position), np.array(out.pose.orientation), 1e-5)
+    # the same formula on the same six legs: equal to round-off relative to the largest variance
+    cov = np.array(without.covariance).reshape(6, 6)
+    assert np.allclose(cov, jac.covariance, rtol=0, atol=1e-9 * np.abs(jac.covariance).max())
+    assert np.trace(cov) > np.trace(np.array(full.covariance).reshape(6, 6))    # one leg fewer: larger
+
+
 def test_exclude_faulty_leg_off_publishes_nothing_and_says_why(seven):
     x0 = yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0]
     svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"), "time_budget_ms": GENEROUS_BUDGET_MS,
@@ -317,3 +340,133 @@ def test_cli_solve_all_exact_refuses_redundant_legs(seven):
     r = subprocess.run([sys.executable, "-m", "glpma_ros", "solve-all", "hexapod_7legs", "--exact", "--legs",
                         *map(repr, seven.example_leg_lengths.tolist())], capture_output=True, text=True)
     assert r.returncode == 2 and "redundant legs" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_demo_and_mock_controller_take_the_new_configs(name):
+    """``demo --manipulator NAME`` (or a path) drives the node with the config's kind's params file, this
+    config and a warm start at the mock controller's start pose (the DDS run itself: test_demo.py)."""
+    from glpma_tools.demo import manipulator_spec
+    label, spec = manipulator_spec(name)
+    assert label == name and spec["params"] == "params_hexapod.yaml"
+    args = dict(a.split(":=", 1) for a in spec["extra_args"] if ":=" in a)
+    assert args["manipulator_config"] == str((CONFIG / f"{name}.yaml").resolve()) and args["joint_names"] == "[]"
+    plan = Plan(str(CONFIG / f"{name}.yaml"))                 # the mock controller's trajectory (a path)
+    model = plan.model
+    x_start = model.variables_from_pose(plan.start[0], quaternion_from_matrix(plan.start[1]))
+    assert np.allclose(yaml.safe_load(args["initial_pose"]), x_start, rtol=0, atol=1e-9 * model.scale)  # repr
+    legs = model.inverse_kinematics(x_start)
+    assert np.allclose(legs, model.example_leg_lengths, rtol=0, atol=1e-6 * model.scale)   # 9 decimals in the file
+
+
+def test_demo_refuses_an_unknown_manipulator_in_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--manipulator", str(tmp_path / "nope.yaml")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "nope.yaml" in r.stderr
+
+
+def test_package_functions_carry_the_digest_of_every_compiled_module():
+    """A change to one kernel file recompiles the compiled functions of other files that carry its code."""
+    from glpma_ros import numba_cache
+    from glpma_ros.models import kernels
+    from glpma_ros.solvers import g3pcx
+    for fn in (kernels.population_fitness, g3pcx.g3pcx_generations):
+        stamp = fn._cache._cache_file._source_stamp
+        assert isinstance(stamp, tuple) and stamp[1] == numba_cache.package_digest()
+
+
+def test_the_benchmark_keeps_the_section_measured_apart(tmp_path):
+    """``glpma-fk bench`` rewrites BENCHMARKS.md; the section tools/bench_gough.py wrote stays in it."""
+    from glpma_tools.bench.report import APART, measured_apart
+    section = tmp_path / APART[0]
+    section.parent.mkdir(parents=True)
+    section.write_text("## Gough-Stewart designs and redundant legs\n\nfigures\n")
+    assert measured_apart(str(tmp_path / "BENCHMARKS.md"))[0].startswith("## Gough-Stewart designs")
+    assert measured_apart(str(tmp_path / "elsewhere" / "BENCHMARKS.md")) == []
+
+
+def test_bench_gough_script_runs_and_reports_every_design(tmp_path):
+    out = tmp_path / "gough.md"
+    r = subprocess.run([sys.executable, str(CONFIG.parent / "tools" / "bench_gough.py"), "--steps", "20", "--loops",
+                        "1", "--markdown", str(out)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    for label in ("6-6", "6-3", "3-3", "7 legs", "10 x leg_noise_std", "1000 x leg_noise_std", "load average"):
+        assert label in text
+
+
+# -- a faulty sensor, live: the demo's node over DDS, the mock controller's --fault ---------------------------------
+@pytest.fixture
+def fault_domain():
+    """A DDS domain of this test's own: claimed (glpma_tools.sim.domains) where the tree has the claims,
+    otherwise the pid-derived id test_demo.py uses on this branch."""
+    try:
+        from glpma_tools.sim.domains import claim_domain
+    except ImportError:
+        yield 170 + __import__("os").getpid() % 20
+        return
+    with claim_domain() as claim:
+        yield claim.domain_id
+
+
+@pytest.mark.timing
+def test_demo_with_a_faulty_leg_publishes_right_poses_and_names_the_leg(tmp_path, fault_domain):
+    pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
+    import os
+    env = dict(os.environ, CYCLONEDDS_URI=(CONFIG / "cyclonedds-localhost.xml").as_uri())
+    r = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--manipulator", "hexapod_7legs", "--duration", "2",
+                        "--fault", "4", "0.01", "--out", str(tmp_path), "--domain-id", str(fault_domain)],
+                       cwd=CONFIG.parent, env=env, capture_output=True, text=True, timeout=400)
+    assert r.returncode == 0, r.stdout + r.stderr
+    s = json.loads((tmp_path / "demo_hexapod_7legs.json").read_text())
+    assert s["ok"] and s["poses_wrong"] == 0 and s["poses_received"] >= 1       # every pose right, fault or not
+    assert s["fault"] == {"leg": 4, "step_m": 0.01, "from_s": 1.0}
+    health = s["leg_health"]
+    if health["inputs with inconsistent legs"] not in (None, "0"):   # some faulty inputs were solved
+        assert health["legs left out"].startswith("leg_4: ") and health["leg left out last"] == "leg_4"
+
+
+def test_fault_options_refuse_bad_legs_in_one_line():
+    for argv in (["demo", "--manipulator", "hexapod_7legs", "--fault", "9", "0.01"],
+                 ["demo", "--manipulator", "hexapod_7legs", "--fault", "1.5", "0.01"]):
+        r = subprocess.run([sys.executable, "-m", "glpma_ros", *argv], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "--fault" in r.stderr, argv
+    r = subprocess.run([sys.executable, "-m", "glpma_tools.mock_controller", "--config", "hexapod_7legs", "--fault",
+                        "0.5", "0.01"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "--fault" in r.stderr
+
+
+def test_a_plan_with_a_fault_sends_the_step_and_keeps_the_truth():
+    plan = Plan("hexapod_7legs", fault=(3, 0.01, 1.0))
+    legs, position, q = plan.sample(0.5)
+    assert plan.measured(legs, 0.5) is legs                        # before the fault: the true legs
+    later = plan.sample(2.0)[0]
+    step = plan.measured(later, 2.0) - later
+    assert np.allclose(step, [0, 0, 0, 10.0, 0, 0, 0], rtol=0, atol=1e-9)   # 0.01 m in the config's mm
+    with pytest.raises(Exception, match="faulty leg must be 1 to 7"):
+        Plan("hexapod_7legs", fault=(7, 0.01, 1.0))
+
+
+def test_the_bag_status_names_the_faulty_leg(tmp_path, capsys):
+    pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
+    from test_bag import TS, read_bag, write_legs_bag
+    from glpma_tools import bag as B
+    from glpma_tools import bag_codec as C
+    plan = Plan("hexapod_7legs")
+    x0 = plan.start_variables()
+    legs_m = np.array([plan.sample(k / 100.0)[0] for k in range(40)]) * plan.mpu
+    legs_m[20:, 3] += 0.01                                             # leg 4 10 mm too long from input 20 on
+    src, dst = tmp_path / "in", tmp_path / "out"
+    write_legs_bag(src, "mcap", legs_m)
+    assert B.main([str(src), str(dst), "--no-progress", "--json", "--ros-args", "-p",
+                   f"manipulator_config:={CONFIG / 'hexapod_7legs.yaml'}", "-p",
+                   "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["converged"] == 40                                  # a pose for every input, faulty or not
+    out, _ = read_bag(dst)
+    statuses = [TS.deserialize_cdr(raw, C.DIAGNOSTIC_STATUS) for _, raw in out["/glpma_fk/status"]]
+    values = [dict((kv.key, kv.value) for kv in s.values) for s in statuses]
+    assert all(v["status"] == "converged" and s.level == 0 for s, v in zip(statuses[:20], values[:20]))
+    for s, v in zip(statuses[20:], values[20:]):
+        assert s.level == 1 and v["status"] == "inconsistent_legs" and "leg 4" in s.message
+        assert v["suspect_leg"] == v["excluded_leg"] == "leg_4"

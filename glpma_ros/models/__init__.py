@@ -1,11 +1,14 @@
 """Manipulator models: geometry, residuals, inverse kinematics, poses."""
 from .. import numba_cache
-from . import kernels
-from .base import Manipulator, Pose
-from .hexapod_66 import Hexapod66
-from .planar_3rpr import Planar3RPR
 
-numba_cache.install()      # before anything is compiled: processes compiling at once share the cache safely
+# before anything is defined or compiled: processes compiling at once share the cache safely, and a
+# change to any kernel recompiles the functions that carry its code
+numba_cache.install()
+
+from . import kernels  # noqa: E402
+from .base import Manipulator, Pose  # noqa: E402
+from .hexapod_66 import Hexapod66  # noqa: E402
+from .planar_3rpr import Planar3RPR  # noqa: E402
 
 MODELS = {Planar3RPR.kind: Planar3RPR, Hexapod66.kind: Hexapod66}
 

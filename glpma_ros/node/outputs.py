@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -110,6 +111,7 @@ class OutputBuilder:
         self.model = model
         self.metres_per_unit = float(model.metres_per_unit)
         self.jacobian = PoseJacobian(model)
+        self._without: dict = {}         # redundant legs: leg left out -> the Jacobian of the others
         self.size_m = float(model.scale) * self.metres_per_unit
         self.base_m = _as_3d(model.base) * self.metres_per_unit
         self.platform_m = _as_3d(model.platform) * self.metres_per_unit
@@ -140,15 +142,19 @@ class OutputBuilder:
         stamp_ns = pose.stamp_ns
         rates = outcome.leg_rates_m if params["publish_twist"] else None
         covariance = capped = None
+        left_out = getattr(estimate, "excluded_leg", None)
+        jacobian = self._jacobian_without(left_out)
+        if rates is not None and left_out is not None:
+            rates = np.delete(rates, left_out)
         if params["publish_covariance"] or rates is not None:
-            capped = self.jacobian.solve(estimate.pose.position, estimate.pose.orientation,
-                                         params["leg_noise_std"], rates, self.metres_per_unit)
+            capped = jacobian.solve(estimate.pose.position, estimate.pose.orientation,
+                                    params["leg_noise_std"], rates, self.metres_per_unit)
             if params["publish_covariance"]:
-                covariance = tuple(self.jacobian.covariance.ravel().tolist())
+                covariance = tuple(jacobian.covariance.ravel().tolist())
                 self.capped += bool(capped)
         twist = source = None
         if rates is not None:
-            t = self.jacobian.twist.tolist()
+            t = jacobian.twist.tolist()
             twist, source = (tuple(t[:3]), tuple(t[3:])), TWIST_FROM_VELOCITIES
         elif params["publish_twist"] and self._previous is not None:
             t0, p0, q0 = self._previous
@@ -166,6 +172,19 @@ class OutputBuilder:
         return ExtraOutputs(stamp_ns, pose.frame_id, pose.position, pose.orientation,
                             params["child_frame_id"] if params["publish_tf"] else None,
                             covariance, bool(capped), twist, source, markers)
+
+    def _jacobian_without(self, leg):
+        """The leg Jacobian of the legs a pose used: every leg, or all but ``leg`` (redundant legs, the
+        faulty one left out of the pose: its covariance and twist are those of the other legs)."""
+        if leg is None:
+            return self.jacobian
+        if leg not in self._without:
+            m = self.model
+            keep = [i for i in range(m.n_legs) if i != leg]
+            self._without[leg] = PoseJacobian(SimpleNamespace(base=m.base[keep], platform=m.platform[keep],
+                                                              metres_per_unit=self.metres_per_unit, scale=m.scale,
+                                                              n_legs=len(keep)))
+        return self._without[leg]
 
     def markers(self, position_m, orientation, legs_m) -> tuple:
         """Base joints, platform joints, the legs (coloured by length: blue = short, red = long,

@@ -133,4 +133,24 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
         parts += s.offline_section(res)
     parts += reliability_section(reliability, reliability_source)
     parts += ["## Design measurements", "", prose("design"), ""]
+    parts += measured_apart(md_path)
     return "\n".join(parts).rstrip() + "\n"
+
+
+#: sections measured by scripts of their own (``tools/bench_gough.py --markdown doc/bench/gough.md``), kept
+#: in BENCHMARKS.md when the benchmark rewrites it
+APART = ("doc/bench/gough.md",)
+
+
+def measured_apart(md_path) -> list[str]:
+    """The Markdown of :data:`APART` that exists beside ``md_path`` (the repository root's BENCHMARKS.md)."""
+    if md_path is None:
+        return []
+    root = os.path.dirname(os.path.abspath(md_path))
+    out = []
+    for name in APART:
+        path = os.path.join(root, name)
+        if os.path.isfile(path):
+            with open(path, encoding="utf-8") as f:
+                out += [f.read().rstrip(), ""]
+    return out

@@ -216,12 +216,13 @@ class Controller:
              each=None) -> tuple[list, int]:
         """Write ``n`` samples of ``plan`` (:class:`.trajectories.Plan`) from trajectory time ``t0``,
         ``dt`` apart, paced at ``rate_hz`` in wall time, or as fast as possible when ``rate_hz`` is
-        None (the messages are then prepared beforehand).  ``each(i, sent)`` is called after every
+        None (the messages are then prepared beforehand).  The messages carry ``plan.measured`` legs (a
+        faulty sensor's step, if any); the records keep the true legs.  ``each(i, sent)`` is called after every
         write, if given; ``stop`` ends the sending early.  Returns ([:class:`Sent`], late sends)."""
         sent, late = [], 0
         if rate_hz is None:
             samples = [plan.sample(t0 + i * dt) for i in range(n)]
-            prepared = [self.encoded(s[0]) for s in samples]
+            prepared = [self.encoded(plan.measured(s[0], t0 + i * dt)) for i, s in enumerate(samples)]
             for (legs, pos, q), (data, stamp_ns) in zip(samples, prepared):
                 send_ns = stamp_ns or time.time_ns()
                 self.raw_writer.write(data)
@@ -237,7 +238,7 @@ class Controller:
             elif delay < -1.0 / rate_hz:
                 late += 1
             legs, pos, q = plan.sample(t0 + i * dt)
-            data, stamp_ns = self.encoded(legs)
+            data, stamp_ns = self.encoded(plan.measured(legs, t0 + i * dt))
             send_ns = stamp_ns or time.time_ns()
             self.raw_writer.write(data)
             sent.append(Sent(send_ns, legs, pos, q))

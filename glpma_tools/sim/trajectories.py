@@ -115,9 +115,11 @@ def variables_along(model, x0, n: int, amplitude: float = 1.0) -> np.ndarray:
 
 
 class Plan:
-    """The loop around one known solution of a config, sampled at trajectory times."""
+    """The loop around one known solution of a config, sampled at trajectory times.  ``fault``: ``(leg,
+    step_m, t_start)`` -- from trajectory time ``t_start`` on, leg ``leg`` (from 0) is *measured*
+    ``step_m`` metres too long (a faulty sensor, :meth:`measured`); the true legs stay the truth."""
 
-    def __init__(self, config, solution: int | None = None, amplitude: float = 1.0):
+    def __init__(self, config, solution: int | None = None, amplitude: float = 1.0, fault=None):
         from glpma_ros.config import load_document, model_from_dict, resolve_config
         self.path = resolve_config(config)
         self.doc = load_document(self.path)
@@ -127,6 +129,9 @@ class Plan:
         self.amplitude = amplitude
         self.start = start_pose(self.model, self.doc, self.solution)
         self.pose_at = trajectory(self.model, *self.start, amplitude)
+        self.fault = fault
+        if fault is not None and not 0 <= int(fault[0]) < self.model.n_legs:
+            raise GlpmaError(f"the faulty leg must be 1 to {self.model.n_legs}, got {int(fault[0]) + 1}")
 
     def other_solution(self) -> int:
         """The index of another known solution (another assembly mode) of the config."""
@@ -142,3 +147,11 @@ class Plan:
         position, R = self.pose_at(t)
         q = quaternion_from_matrix(R)
         return legs_for(self.model, position, q), position * self.mpu, q
+
+    def measured(self, legs, t: float):
+        """The legs a controller sends at time ``t``: the true ``legs``, with the fault's step from its start."""
+        if self.fault is None or t < self.fault[2]:
+            return legs
+        out = np.array(legs, dtype=float)
+        out[int(self.fault[0])] += float(self.fault[1]) / self.mpu
+        return out

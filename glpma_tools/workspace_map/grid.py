@@ -87,7 +87,8 @@ def point_seed(seed: int, index: int) -> int:
 
 
 def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int]:
-    """(real assembly modes, conditioning, sign of det J) at grid point ``index``."""
+    """(real assembly modes, conditioning, sign of det J) at grid point ``index``; the sign is 0 with
+    redundant legs (a non-square J: the singularities are where the conditioning vanishes)."""
     from glpma_ros.solve_all import solve_all
     x = pose_variables(model, spec.coordinates(index))
     try:
@@ -96,7 +97,7 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int]:
         return OUTSIDE, math.nan, 0
     modes = solve_all(model, legs, runs=spec.runs, seed=point_seed(spec.seed, index))
     _, J = model.pose_residuals_jacobian(model.pose_state(x), legs)
-    sign = int(np.sign(np.linalg.det(J * model.pose_column_scale)))
+    sign = int(np.sign(np.linalg.det(J * model.pose_column_scale))) if J.shape[0] == J.shape[1] else 0
     return len(modes.solutions), float(model.conditioning(x, legs)), sign
 
 
