@@ -30,8 +30,10 @@ WARM_UP_LEG_STRETCH = 1.0 + 1e-3
 INFEASIBLE_SCALE = 0.05
 #: time budget of a warm-up solve (s): the evaluation cap, not the clock, ends it
 WARM_UP_BUDGET_S = 60.0
-#: solve_all runs of the warm-up of ``glpma-fk solve-all`` and of the node's assembly modes
+#: solve_all G3-PCX runs and multistart starts of the warm-up of ``glpma-fk solve-all``, ``map`` and of
+#: the node's assembly modes (one batch of the multistart runs every compiled path)
 SOLVE_ALL_RUNS = 2
+SOLVE_ALL_STARTS = 64
 #: a solver that took longer than this (s) was compiled rather than loaded from the cache
 COMPILED_S = 5.0
 
@@ -75,6 +77,7 @@ def exercise_solve_all(model) -> float:
     from .solve_all import solve_all
     t0 = time.perf_counter()
     solve_all(model, warm_up_legs(model), runs=SOLVE_ALL_RUNS, seed=0)
+    solve_all(model, warm_up_legs(model), method="multistart", max_starts=SOLVE_ALL_STARTS, seed=0)
     return time.perf_counter() - t0
 
 

@@ -12,7 +12,7 @@ import os
 import sys
 import time
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -117,20 +117,26 @@ class MapResult:
     chunks_reused: int
     elapsed_s: float
     engine: str
-    modes: dict              # count -> points
+    modes: dict              # count -> points (count OUTSIDE = -1: no valid legs)
+    method: str = ""         # how the modes were counted: "multistart" or "g3pcx (N runs)"
+    counts: np.ndarray = field(default=None, repr=False)   # the map (rows, columns), not in the summary
 
     def as_dict(self) -> dict:
-        d = asdict(self)
-        d.update(npz=str(self.npz), png=str(self.png), modes={str(k): v for k, v in self.modes.items()})
-        return d
+        """The JSON summary: ``modes`` maps a mode count to its points; the points without valid legs
+        (count -1 in the npz) are ``no_valid_legs``."""
+        return {"npz": str(self.npz), "png": str(self.png), "points": self.points, "computed": self.computed,
+                "chunks_computed": self.chunks_computed, "chunks_reused": self.chunks_reused,
+                "elapsed_s": self.elapsed_s, "engine": self.engine, "method": self.method,
+                "modes": {str(k): v for k, v in self.modes.items() if k != OUTSIDE},
+                "no_valid_legs": self.modes.get(OUTSIDE, 0)}
 
     def text(self) -> str:
         rate = self.computed / self.elapsed_s if self.elapsed_s > 0 else 0.0
         modes = ", ".join(f"{'no valid legs' if k == OUTSIDE else f'{k} modes'}: {v}"
                           for k, v in sorted(self.modes.items()))
         return (f"{self.npz} and {self.png}: {self.points} points ({self.computed} computed in {self.elapsed_s:.1f} s "
-                f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run)\n"
-                f"  {modes}")
+                f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run; "
+                f"modes counted by {self.method})\n  {modes}")
 
 
 def available_memory() -> int | None:
@@ -219,7 +225,7 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
     draw_map(png, data, spec, model, title=Path(source).name)
     modes = Counter(int(c) for c in counts)
     return MapResult(npz, png, spec.n_points, remaining, len(todo), len(chunks) - len(todo), elapsed, engine,
-                     dict(sorted(modes.items())))
+                     dict(sorted(modes.items())), spec.describe_method(), data["counts"])
 
 
 def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:
@@ -228,5 +234,5 @@ def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:
         np.savez(f, **data, axis_names=np.array(spec.axes), axis_0=spec.axis_values(0), axis_1=spec.axis_values(1),
                  fixed_names=np.array([n for n, _ in spec.fixed], dtype=str),
                  fixed_values=np.array([v for _, v in spec.fixed], dtype=float),
-                 runs=spec.runs, seed=spec.seed, config=np.array(config_text))
+                 method=np.array(spec.method), runs=spec.runs, seed=spec.seed, config=np.array(config_text))
     os.replace(tmp, path)
