@@ -129,7 +129,7 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
     return model
 
 
-def _plausible_band(model) -> tuple[float, float]:
+def plausible_band(model) -> tuple[float, float]:
     """Leg lengths (config unit) a set of legs should lie in: ``leg_limits``, or else the
     geometry's scale divided and multiplied by :data:`PLAUSIBLE_SCALE_FACTOR`."""
     if model.leg_limits is not None:
@@ -154,7 +154,7 @@ def unit_mistake(model, legs, given_unit: str | None = None) -> str | None:
     shortest, longest = float(arr.min()), float(arr.max())      # NaN in, NaN out: no hint
     if not (math.isfinite(shortest) and math.isfinite(longest)) or shortest <= 0.0:
         return None
-    lo, hi = _plausible_band(model)
+    lo, hi = plausible_band(model)
     if lo <= shortest and longest <= hi:
         return None
     best, best_distance = None, math.inf

@@ -21,6 +21,7 @@ import numpy as np
 from glpma_ros.node import params as P
 from glpma_ros.errors import InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
+from glpma_ros.models.pose_kernels import joint_distance
 from glpma_ros.node.diagnostics import ERROR, OK, WARN
 
 from .bag_codec import (DIAGNOSTIC_STATUS, FLOAT64_MULTI_ARRAY, INPUT_MSGTYPES, JOINT_STATE, POSE_STAMPED,
@@ -86,19 +87,26 @@ class Summary:
 class BranchWatch:
     """Counts assembly-mode changes: a converged pose farther from the previous one than
     the estimator's continuity bound (``CONTINUITY_FACTOR`` times the leg movement) jumped
-    to another branch instead of following the legs."""
+    to another branch instead of following the legs.  The distance is the compiled
+    ``Manipulator.distance`` (:func:`~glpma_ros.models.pose_kernels.joint_distance`): it runs
+    for every input of a bag."""
 
     def __init__(self, model, x=None, legs=None):
         self.model = model
-        self.x, self.legs = x, legs
+        self.kind, self.platform = int(model.kind_id), np.ascontiguousarray(model.platform, dtype=float)
+        self.floor = MIN_SPREAD * model.scale
+        self.x = None if x is None else np.array(x, dtype=float)
+        self.legs = None if legs is None else np.array(legs, dtype=float).tolist()
 
     def __call__(self, x, legs) -> bool:
+        x = np.array(x, dtype=float)
+        legs = np.asarray(legs, dtype=float).tolist()
         jumped = False
         if self.x is not None:
-            movement = float(np.max(np.abs(legs - self.legs)))
-            bound = max(CONTINUITY_FACTOR * movement, MIN_SPREAD * self.model.scale)
-            jumped = self.model.distance(x, self.x) > bound
-        self.x, self.legs = np.array(x, dtype=float), np.array(legs, dtype=float)
+            movement = max(abs(a - b) for a, b in zip(legs, self.legs))
+            bound = max(CONTINUITY_FACTOR * movement, self.floor)
+            jumped = joint_distance(self.kind, self.platform, x, self.x) > bound
+        self.x, self.legs = x, legs
         return jumped
 
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import gc
 import logging
 import math
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ import numpy as np
 
 from . import params as P
 from ..compat import check_numba
-from ..config import check_units, load_manipulator, resolve_config
+from ..config import check_units, load_manipulator, plausible_band, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
 from ..precompile import COMPILED_S
@@ -98,6 +99,8 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         self.config_path = resolve_config(values["manipulator_config"])
         self.model = load_manipulator(self.config_path)
         self.metres_per_unit = float(self.model.metres_per_unit)
+        #: leg lengths (m) below this divide by metres_per_unit without overflow
+        self._overflow_m = sys.float_info.max * min(self.metres_per_unit, 1.0)
         self._initial_x = self._initial_variables(values["initial_pose"])
         # the estimator's warm-start state, mirrored so that a rebuilt estimator can keep it
         self._warm_x = self._initial_x
@@ -288,6 +291,16 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             legs_m = np.asarray(self._legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise InputError("leg lengths are not numbers") from None
+        if legs_m.size == self.model.n_legs:
+            # the usual input, every leg within the plausible band (finite, no unit mistake possible):
+            # the checks below would pass; deciding it on Python floats saves their NumPy calls
+            given = legs_m.tolist()
+            if -self._overflow_m < min(given) and max(given) < self._overflow_m:
+                legs = legs_m / self.metres_per_unit
+                values = legs.tolist()
+                lo, hi = plausible_band(self.model)
+                if lo <= min(values) and max(values) <= hi:
+                    return legs
         with np.errstate(over="ignore", invalid="ignore"):
             legs = legs_m / self.metres_per_unit
         if legs.size == self.model.n_legs and np.all(np.isfinite(legs_m)) and not np.all(np.isfinite(legs)):
@@ -324,8 +337,8 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             self._warm_x = np.array(estimate.x, dtype=float)
             pose = estimate.pose
             out = PoseOutput(int(stamp_ns), self.frame_id,
-                             tuple(float(v) * self.metres_per_unit for v in pose.position),
-                             tuple(float(v) for v in pose.orientation))
+                             tuple((np.asarray(pose.position, dtype=float) * self.metres_per_unit).tolist()),
+                             tuple(np.asarray(pose.orientation, dtype=float).tolist()))
             st.published += 1
             rates = self.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
             return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
