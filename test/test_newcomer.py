@@ -322,3 +322,67 @@ def test_modes_asks_a_running_node(tmp_path):
             node.wait(15)
         except subprocess.TimeoutExpired:
             node.kill()
+
+
+# -- the demo's verdict says only what happened (issue 23, item 1) ---------------------------------------
+
+def _demo_summary(**kw):
+    s = {"inputs_sent": 500, "poses_received": 500, "poses_matched": 500, "poses_unpaired": 0, "poses_wrong": 0,
+         "pose_ratio": 1.0, "counters_add_up": True, "latency_ms": {"p50": 0.4, "p99": 1.0, "max": 2.0},
+         "load_average": [9.0, 9.0, 9.0], "cores": 2, "late_sends": 3, "lost_in_transport": 0,
+         "node_counters": {"received": 500, "solved": 500, "rejected": 0, "dropped": 0}, "node_diagnostics": None}
+    s.update(kw)
+    return s
+
+
+def test_demo_verdict_on_a_busy_machine_that_answered_everything():
+    from glpma_tools.mock_controller import verdict
+    ok, lines = verdict(_demo_summary())
+    text = "\n".join(lines)
+    assert ok and "500 of 500 inputs answered (100.0 %)" in text
+    assert "fewer" not in text and "got no pose" not in text
+    assert "the machine looked busy (load average 9.00 on 2 cores" in text and "every input got its pose" in text
+
+
+def test_demo_verdict_names_the_inputs_without_a_pose():
+    from glpma_tools.mock_controller import verdict
+    counters = {"received": 500, "solved": 401, "rejected": 0, "dropped": 99}
+    ok, lines = verdict(_demo_summary(poses_received=401, poses_matched=401, pose_ratio=0.802,
+                                      node_counters=counters))
+    text = "\n".join(lines)
+    assert ok and "99 of 500 inputs got no pose; the machine looked busy (" in text
+    assert "the node dropped 99 inputs for newer ones" in text
+    quiet = _demo_summary(poses_received=499, poses_matched=499, pose_ratio=0.998, load_average=[0.1] * 3,
+                          late_sends=0)
+    ok, lines = verdict(quiet)
+    assert lines[-1] == "1 of 500 inputs got no pose" and not any("busy" in line for line in lines)
+
+
+# -- solve-all names its columns (issue 23, item 3) --------------------------------------------------------
+
+#: a printed value has 6 decimals: legs recomputed from the printed pose agree to a few units of the
+#: last printed digit times the geometry's lever arms (the hexapod's platform joints sit ~1000 mm out)
+PRINTED_LEG_TOL = {"planar_3rpr": 1e-4, "hexapod_66": 1e-2}
+
+
+@pytest.mark.parametrize("config, legs", [(RPR_YAML, [100, 120, 150]), (HEX_YAML, [1250] * 6)])
+def test_solve_all_text_names_its_columns(config, legs, capsys):
+    from glpma_ros.cli import mode_columns
+    model = load_manipulator(config)
+    assert main(["solve-all", str(config), "--legs", *map(str, legs), "--max-starts", "2000"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    header = next(i for i, line in enumerate(out) if line.lstrip().startswith("#"))
+    names = mode_columns(model)
+    assert out[header].split()[1:] == " ".join(names).split()
+    rows = [line.split() for line in out[header + 1:]]
+    assert rows and all(len(r) == 1 + len(names) for r in rows)
+    for r in rows:                     # each row's pose answers the legs asked for
+        v = np.array(r[1:-1], dtype=float)
+        if model.kind == "planar_3rpr":
+            x = v
+        else:
+            x = model.variables_from_pose(v[:3], v[3:7])
+            assert np.allclose(v[7:], x, atol=PRINTED_LEG_TOL[model.kind])   # the variables are the pose's
+        assert np.allclose(model.inverse_kinematics(x), legs, atol=PRINTED_LEG_TOL[model.kind])
+    help_text = build_parser()._subparsers._group_actions[0].choices["solve-all"].format_help()
+    assert "px py pz" in help_text and "qx qy qz qw" in help_text and "theta [rad]" in help_text
