@@ -113,10 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out-dir", default=None, metavar="DIR",
                    help="several inputs: write the output bag of each INPUT as DIR/<its name> (created)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="--out-dir: bags processed at once in local worker processes (default: all cores, at most "
+                   help="with --out-dir: bags processed at once in local worker processes (default: all cores, at most "
                         "one per bag; 1 = one after the other in this process)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="--out-dir: run the bags on this Dask distributed scheduler instead (the workers need "
+                   help="with --out-dir: run the bags on this Dask distributed scheduler instead (the workers need "
                         "glpma_ros[bag] and the same paths: INPUT and DIR on a shared file system)")
     p.add_argument("--storage", choices=STORAGES, default=None, help="storage of OUTPUT (default: INPUT's)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUTPUT (refused by default)")

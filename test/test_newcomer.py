@@ -386,3 +386,36 @@ def test_solve_all_text_names_its_columns(config, legs, capsys):
         assert np.allclose(model.inverse_kinematics(x), legs, atol=PRINTED_LEG_TOL[model.kind])
     help_text = build_parser()._subparsers._group_actions[0].choices["solve-all"].format_help()
     assert "px py pz" in help_text and "qx qy qz qw" in help_text and "theta [rad]" in help_text
+
+
+# -- config errors name every problem, the parser's own words, the shipped names (issue 23, item 6) ------
+
+def test_a_config_with_several_problems_names_them_all():
+    doc = seed_doc()
+    doc["units"] = doc.pop("unit")
+    doc["platform"] = [[0, 0], [50, 0]]
+    doc["leg_limits"] = [5, 1]
+    with pytest.raises(ConfigError) as info:
+        model_from_dict(doc, "mine.yaml")
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("mine.yaml: 4 problems: ")
+    for words in ("unknown key 'units' (did you mean 'unit'?)", "missing key 'unit'",
+                  "'platform' must have 3 points of 2 coordinates", "'leg_limits' must satisfy 0 <= min < max"):
+        assert words in message
+
+
+def test_a_yaml_syntax_error_gives_the_parsers_message_and_position(tmp_path):
+    path = tmp_path / "unclosed.yaml"
+    path.write_text("manipulator: planar_3rpr\nunit: mm\nbase: [[0, 0], [200, 0], [0, 200]\n"   # no closing ]
+                    "platform: [[0, 0], [50, 0], [40, 40]]\n")
+    code, out, err = cli("solve", path, "--legs", 100, 120, 150)
+    line = one_line_error(err)
+    assert code == 2 and "invalid YAML: while parsing a flow sequence at line 3, column 7" in line
+    assert "expected ',' or ']'" in line and "at line 4, column 1" in line
+
+
+def test_an_unknown_config_name_lists_the_shipped_ones():
+    code, out, err = cli("solve", "planar_3rpr", "--legs", 100, 120, 150)
+    line = one_line_error(err)
+    assert code == 2 and "no such file" in line
+    assert "planar_3rpr_seed" in line and "hexapod_66_rolland" in line
