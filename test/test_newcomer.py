@@ -270,15 +270,6 @@ def test_numba_floor():
     check_numba()                            # the installed one
 
 
-def test_precompile_reports_each_step():
-    code, out, err = cli("precompile", "--solvers", "glpma")
-    assert code == 0 and out == ""
-    steps = re.findall(r"precompile: \[(\d+)/(\d+)\] (\w+) ([\w-]+): (compiled|loaded) in [\d.]+ s", err)
-    assert [(k, n) for k, n, *_ in steps] == [("1", "4"), ("2", "4"), ("3", "4"), ("4", "4")], err
-    assert {(kind, name) for _, _, kind, name, _ in steps} == {
-        ("planar_3rpr", "glpma"), ("hexapod_66", "glpma"), ("planar_3rpr", "solve-all"), ("hexapod_66", "solve-all")}
-
-
 # -- glpma-fk modes against a running node -----------------------------------------------------------------
 
 def test_modes_asks_a_running_node(tmp_path):
@@ -419,3 +410,28 @@ def test_an_unknown_config_name_lists_the_shipped_ones():
     line = one_line_error(err)
     assert code == 2 and "no such file" in line
     assert "planar_3rpr_seed" in line and "hexapod_66_rolland" in line
+
+
+# -- precompile says what it did, without guessing the time left (issue 23, item 9) -----------------------
+
+def test_precompile_counts_what_it_compiled_or_loaded():
+    """One line per step, saying what Numba compiled or loaded (counted), and no guessed time left."""
+    code, out, err = cli("precompile", "--solvers", "rcga")
+    assert code == 0 and out == "", err
+    steps = [line for line in err.splitlines() if re.match(r"precompile: \[\d+/\d+\]", line)]
+    assert len(steps) == 4 and not any("left" in line for line in err.splitlines())
+    assert [line.split()[2:4] for line in steps] == [["planar_3rpr", "rcga:"], ["hexapod_66", "rcga:"],
+                                                      ["planar_3rpr", "solve-all:"], ["hexapod_66", "solve-all:"]]
+    pattern = (r"precompile: \[\d/4\] (planar_3rpr|hexapod_66) (rcga|solve-all): (compiled \d+ functions?"
+               r"(, loaded \d+)?|loaded \d+ compiled functions? from the cache|nothing new to load) in [\d.]+ s$")
+    assert all(re.match(pattern, line) for line in steps), steps
+    first = steps[0]               # a fresh process: the first step compiles or loads something
+    assert "nothing new" not in first, first
+
+
+def test_cache_counts_words():
+    from glpma_ros.precompile import describe_cache_use
+    assert describe_cache_use(0, 3) == "compiled 3 functions"
+    assert describe_cache_use(2, 1) == "compiled 1 function, loaded 2"
+    assert describe_cache_use(5, 0) == "loaded 5 compiled functions from the cache"
+    assert describe_cache_use(0, 0) == "nothing new to load"

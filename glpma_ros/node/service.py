@@ -37,7 +37,7 @@ from ..compat import check_numba
 from ..config import check_units, load_manipulator, plausible_band, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
-from ..precompile import COMPILED_S
+from ..precompile import cache_counts, describe_cache_use
 from .assembly_modes import AssemblyModesMixin
 from .diagnostics import DiagnosticsMixin
 from .outputs import OUTPUT_PARAMS, OutputBuilder
@@ -201,6 +201,7 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
             legs = np.clip(legs, *self.model.leg_limits)
         for k, name in enumerate(solvers, 1):
             t_solver = time.perf_counter()
+            counts = cache_counts()
             for start in (None, x):
                 for polish in (True, False):
                     values = dict(params, solver=name, time_budget_ms=budget_ms, polish=polish)
@@ -214,7 +215,8 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
                         if time.perf_counter() - t < 3e-3 * budget_ms:
                             break
             self._warmed.add(name)
-            self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, time.perf_counter() - t0)
+            loaded, compiled = (after - before for after, before in zip(cache_counts(), counts))
+            self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, loaded, compiled)
         # everything loaded so far lives as long as the node: keep it out of the cyclic
         # collector's scans, whose pauses would otherwise land in the real-time path
         from ..covariance import warm_up as warm_up_covariance
@@ -223,12 +225,13 @@ class FkService(AssemblyModesMixin, DiagnosticsMixin):
         gc.freeze()
         return time.perf_counter() - t0
 
-    def _log_warm_up(self, name: str, k: int, n: int, took_s: float, so_far_s: float) -> None:
-        """One line per solver warmed up; a slow one was compiled (first start after an install)."""
-        left = "" if k == n else f", about {so_far_s / k * (n - k):.0f} s left"
-        how = "compiled (first start; `glpma-fk precompile` does this ahead)" if took_s > COMPILED_S \
-            else "loaded"
-        self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s{left}")
+    def _log_warm_up(self, name: str, k: int, n: int, took_s: float, loaded: int, compiled: int) -> None:
+        """One line per solver warmed up: what Numba compiled (first start after an install) or
+        loaded from its cache, counted (:func:`~glpma_ros.precompile.cache_counts`), not guessed."""
+        how = describe_cache_use(loaded, compiled)
+        if compiled:
+            how += " (first start; `glpma-fk precompile` does this ahead)"
+        self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s")
 
     # -- inputs -------------------------------------------------------------------------------
     def _leg_indices(self, names, positions) -> list:
