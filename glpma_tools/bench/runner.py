@@ -31,7 +31,7 @@ DEFAULTS = {
     "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
     "modes_g3pcx_hexapods": (3, 0),
     "bag_messages": (10_000, 1000),   # messages of the recorded run glpma-fk bag processes
-    "map_resolution": (24, 8),        # points per axis of the glpma-fk map grid   # of which hexapods also solved by 200 G3-PCX runs (up to ~2 min each)
+    "map_resolution": (101, 12),      # points per axis of the glpma-fk map grids (the command's default)
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
@@ -86,8 +86,8 @@ def build_parser() -> OneLineParser:
                    "section, where rclpy imports (default 10; --quick 2; 0 = skipped)")
     p.add_argument("--bag-messages", type=int, help="inputs of the recorded run glpma-fk bag processes "
                    "(default 10000; --quick 1000)")
-    p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grid (default 24; "
-                   "--quick 8)")
+    p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grids, 3-RPR and 6-6 "
+                   "slice (default 101, the command's; --quick 12)")
     p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
     p.add_argument("--out", type=Path, default=None,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
@@ -224,9 +224,8 @@ def main(argv=None) -> int:
 
     if "offline" in sections:
         from . import offline
-        say("offline: glpma-fk bag throughput, glpma-fk map speed-up", "offline")
-        res["offline"] = {"bag": offline.bag_throughput(counts["bag_messages"]),
-                          "map": offline.map_scaling(counts["map_resolution"])}
+        say("offline: glpma-fk bag throughput and fleet, glpma-fk map on each engine and against G3-PCX", "offline")
+        res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick)
 
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:
