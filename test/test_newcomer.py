@@ -177,6 +177,9 @@ def test_version_matches_the_package():
     code, out, _ = cli("--version")
     assert code == 0 and out.strip() == f"glpma-fk {__version__}"
     assert ET.parse(ROOT / "package.xml").getroot().findtext("version") == __version__
+    changelog = (ROOT / "README.md").read_text().split("## Changelog", 1)[1]
+    first = next(line for line in changelog.splitlines() if line.startswith("- "))
+    assert first.startswith(f"- {__version__} -- "), first       # the newest release is this version
 
 
 def test_a_closed_pipe_ends_quietly():
