@@ -291,22 +291,45 @@ class StartSampler:
         return np.concatenate(parts)
 
     def draw(self, rng, m) -> np.ndarray:
+        """``m`` starts (rows of solver variables): centres in reach, orientations uniform (the
+        random numbers from ``rng``, the arithmetic compiled)."""
         P = self.centres_in_reach(rng, m)
         if self.planar:
-            theta = rng.uniform(-math.pi, math.pi, size=m)
-            c, s = np.cos(theta), np.sin(theta)
-            cx, cy = self.centroid
-            origin = P - np.column_stack((c * cx - s * cy, s * cx + c * cy))
-            return np.column_stack((origin, theta))
-        q = rng.standard_normal((m, 4))
-        q /= np.linalg.norm(q, axis=1, keepdims=True)
-        x, y, z, w = q.T
-        R = np.empty((m, 3, 3))
-        R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
-        R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
-        R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
-        # platform joints B_k = P + R (b_k - c) for the model's three variable joints
-        return (P[:, None, :] + np.einsum("mij,kj->mki", R, self.model.platform[:3] - self.centroid)).reshape(m, -1)
+            return _planar_starts(P, rng.uniform(-math.pi, math.pi, size=m), self.centroid)
+        return _spatial_starts(P, rng.standard_normal((m, 4)), self.model.platform[:3] - self.centroid)
+
+
+@njit(cache=True, error_model="numpy")
+def _planar_starts(P, theta, centroid):
+    """3-RPR starts ``(x, y, theta)``: the platform's origin placed so that its joints' centroid,
+    rotated by ``theta``, is at ``P``."""
+    out = np.empty((P.shape[0], 3))
+    cx, cy = centroid[0], centroid[1]
+    for k in range(P.shape[0]):
+        c, s = math.cos(theta[k]), math.sin(theta[k])
+        out[k, 0] = P[k, 0] - (c * cx - s * cy)
+        out[k, 1] = P[k, 1] - (s * cx + c * cy)
+        out[k, 2] = theta[k]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _spatial_starts(P, q, arms):
+    """Hexapod starts ``(B1, B2, B3)``: ``B_k = P + R (b_k - c)`` with ``R`` the rotation of the
+    normalised 4-D Gaussian ``q`` (a uniform unit quaternion ``x, y, z, w``) and ``arms`` the
+    rows ``b_k - c``."""
+    out = np.empty((P.shape[0], 3 * arms.shape[0]))
+    R = np.empty((3, 3))
+    for k in range(P.shape[0]):
+        n = math.sqrt(q[k, 0] ** 2 + q[k, 1] ** 2 + q[k, 2] ** 2 + q[k, 3] ** 2)
+        x, y, z, w = q[k, 0] / n, q[k, 1] / n, q[k, 2] / n, q[k, 3] / n
+        R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+        R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+        R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+        for j in range(arms.shape[0]):
+            for a in range(3):
+                out[k, 3 * j + a] = P[k, a] + R[a, 0] * arms[j, 0] + R[a, 1] * arms[j, 1] + R[a, 2] * arms[j, 2]
+    return out
 
 
 def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True) -> AllSolutions:
@@ -349,7 +372,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
             reason = BUDGET_EXHAUSTED
     n_modes, starts_used = int(counters[C_MODES]), int(counters[C_STARTS])
     evaluations = int(counters[C_NFEV])
-    polish_rng = np.random.default_rng(seed)
+    polish_rng = np.random.default_rng(seed) if polish else None
     found = []
     for x in modes[:n_modes]:
         t1 = time.perf_counter()

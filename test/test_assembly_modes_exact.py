@@ -191,7 +191,7 @@ def test_limits_max_starts_budget_and_unreachable(rpr):
     res = solve_all(rpr, rpr.example_leg_lengths, max_starts=7)
     assert res.starts == 7 and res.stop_reason == SA.MAX_STARTS_REACHED
     res = solve_all(rpr, rpr.example_leg_lengths, budget_s=1e-9)
-    assert res.starts == 1 and res.stop_reason == SA.BUDGET_EXHAUSTED
+    assert res.starts == SA.BATCH and res.stop_reason == SA.BUDGET_EXHAUSTED    # checked after each batch
     res = solve_all(rpr, [1.0, 1.0, 1.0])                  # base joints 200 mm apart: out of reach
     assert res.stop_reason == SA.UNREACHABLE and res.solutions == [] and res.starts == 0
     with pytest.raises(GlpmaError, match="runs counts G3-PCX"):
