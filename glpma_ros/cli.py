@@ -238,7 +238,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "report the number of complex solutions")
     a.add_argument("--max-starts", type=count_type, default=None, help="multistart: cap on the starts (default 20000)")
     a.add_argument("--budget-s", type=float, default=None,
-                   help="multistart: wall-clock budget in seconds, checked after each batch of 64 starts "
+                   help="multistart: wall-clock budget in seconds, checked after each batch of 256 starts "
                    "(stop_reason budget_exhausted when it runs out)")
     a.add_argument("--runs", type=count_type, default=None, help="g3pcx: independent searches (default 200)")
     a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")

@@ -81,9 +81,11 @@ LOCAL_RESIDUAL_RELATIVE = 1e-9
 #: starts without a new mode, n_new = the start that found the last new one
 STALL_MIN = 150
 STALL_FACTOR = 2.0
-#: multistart: starts drawn (and solved) per batch; the stopping rule is checked per start, so the
-#: result does not depend on it
-BATCH = 64
+#: multistart: starts drawn per batch (one compiled call solves them until the stopping rule ends the
+#: search; the rule is checked per start, the budget per batch).  Large enough that the usual search
+#: (a few modes, stalled after about STALL_MIN starts) takes one batch: the Python around a batch costs
+#: as much as tens of local solves, and drawing a start that is never solved costs next to nothing
+BATCH = 256
 #: multistart: default cap on the number of starts
 MAX_STARTS = 20_000
 #: confidence of ``unseen_share_bound``

@@ -8,7 +8,9 @@ SECTIONS = ["## Summary", "## The papers' tables (001 Tables 5 and 8)", "### 3-R
             "## Success vs evaluations", "## Pure G3-PCX against peer implementations",
             "## Why the papers' pure G3-PCX figures do not reproduce", "## All real assembly modes",
             "## Warm tracking latency (solve only)", "## Warm solve against `scipy.optimize.least_squares`",
-            "## Deadline honouring", "## DDS end to end", "## Extra outputs and the transport path"]
+            "## Deadline honouring", "## DDS end to end", "## Extra outputs and the transport path",
+            "## Offline: bag processing and workspace maps", "| where the CPU time of one input goes | µs |",
+            "| counting methods, seed 3-RPR map 8 x 8 | value |"]
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +45,7 @@ def test_markdown_has_every_table(report):
     assert "| plain NumPy Newton |" in text and "ours/row (p99)" in text
     assert "| 3-RPR | 20 | U[" in text                          # solve_all row: 20 runs
     assert "| 3-RPR, infeasible legs, default (polish) | glpma | 1 | 2 |" in text
+    assert "Same statuses on every engine: yes." in text and "identical on every engine: NO" not in text
 
 
 def test_polished_rows_converge_and_figures_exist(report):

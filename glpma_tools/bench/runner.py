@@ -31,7 +31,7 @@ DEFAULTS = {
     "modes_cases": (None, 2),         # random cases per manipulator of the modes comparison (None = all)
     "modes_g3pcx_hexapods": (3, 0),
     "bag_messages": (10_000, 1000),   # messages of the recorded run glpma-fk bag processes
-    "map_resolution": (101, 12),      # points per axis of the glpma-fk map grids (the command's default)
+    "map_resolution": (101, 8),       # points per axis of the glpma-fk map grids (the command's default)
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
@@ -87,7 +87,7 @@ def build_parser() -> OneLineParser:
     p.add_argument("--bag-messages", type=int, help="inputs of the recorded run glpma-fk bag processes "
                    "(default 10000; --quick 1000)")
     p.add_argument("--map-resolution", type=int, help="points per axis of the glpma-fk map grids, 3-RPR and 6-6 "
-                   "slice (default 101, the command's; --quick 12)")
+                   "slice (default 101, the command's; --quick 8)")
     p.add_argument("--table2-runs", type=int, help="runs per 004 Table II row (default 50; --quick 5)")
     p.add_argument("--out", type=Path, default=None,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
