@@ -21,9 +21,9 @@ BAG_MESSAGES = 10_000
 #: the maps' grids (points per axis; the command's default) and the process counts they are timed with
 MAP_RESOLUTION = 101
 MAP_WORKERS = (1, 2)
-#: the comparison of the counting methods: grid, G3-PCX runs per point (the papers' way, the maps'
-#: default before the multistart) and the points certified by msolve (glpma-fk map --exact)
-COMPARE_RESOLUTION = 24
+#: the comparison of the counting methods: the default map's grid, G3-PCX runs per point (the papers'
+#: way, the maps' default before the multistart) and the points certified by msolve (glpma-fk map --exact)
+COMPARE_RESOLUTION = MAP_RESOLUTION
 COMPARE_RUNS = 50
 EXACT_POINTS = 50
 #: the fleet: bags and inputs per bag
@@ -257,9 +257,13 @@ def map_methods(resolution: int = COMPARE_RESOLUTION, runs: int = COMPARE_RUNS, 
         check = []
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
         wall_m, summary, m = _map_run("planar_3rpr_seed", [*options, *check], tmp)
+        with np.load(Path(tmp) / "assembly_modes.npz") as f:
+            axes = (f["axis_0"], f["axis_1"])
     out = {"grid": f"{resolution} x {resolution}", "g3pcx runs": runs, "g3pcx wall s": wall_g,
            "multistart wall s": wall_m, "points": int(m.size), "same count": int(np.sum(m == g)),
-           "multistart more": int(np.sum(m > g)), "multistart fewer": int(np.sum(m < g))}
+           "multistart more": int(np.sum(m > g)), "multistart fewer": int(np.sum(m < g)),
+           "where they differ (x, y: g3pcx, multistart)": "; ".join(
+               f"{x:g}, {y:g}: {g[r, c]}, {m[r, c]}" for (r, c), x, y in _differing(axes, g, m))}
     if check:
         e = summary["exact_check"]
         out.update({"certified points": len(e["points"]), "agree with msolve": e["agree"],
@@ -267,10 +271,15 @@ def map_methods(resolution: int = COMPARE_RESOLUTION, runs: int = COMPARE_RUNS, 
     return out
 
 
+def _differing(axes, a, b):
+    """``((row, column), x, y)`` of the grid points where the counts ``a`` and ``b`` differ."""
+    return [((r, c), float(axes[0][c]), float(axes[1][r])) for r, c in np.argwhere(a != b)]
+
+
 def measure(bag_messages: int, map_resolution: int, quick: bool = False) -> dict:
     """The offline section: the bag's breakdown and fleet, the two maps on each engine, the methods."""
     return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages),
             "map": map_scaling(map_resolution),
             "hexapod map": map_scaling(map_resolution, workers=(max(MAP_WORKERS),), config="hexapod_66_rolland"),
-            "methods": map_methods(8 if quick else COMPARE_RESOLUTION, 5 if quick else COMPARE_RUNS,
+            "methods": map_methods(map_resolution if quick else COMPARE_RESOLUTION, 5 if quick else COMPARE_RUNS,
                                    5 if quick else EXACT_POINTS)}
