@@ -254,14 +254,44 @@ def cmd_solve_all(args) -> int:
         if res.method == "multistart" and res.starts:
             print(f"  chance that one more start finds a new mode (Good-Turing): {res.miss_probability:.3g}; "
                   f"95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
-        for k, s in enumerate(res.solutions, 1):
-            print(f"  {k:2d}: " + " ".join(f"{v:12.6f}" for v in s.x) + f"   fitness {s.fun:.2e}")
+        for line in mode_table(model, res.solutions):
+            print(line)
         if load_s:
             print(f"  one-time load of the compiled solvers: {load_s:.2f} s (not part of the search time)")
     if not res.solutions:
         print(f"error: no real assembly mode found ({_no_mode_reason(res)})", file=sys.stderr)
         return 1
     return 0
+
+
+#: width of a number column of the solve-all text output
+MODE_COLUMN = 13
+
+
+def mode_columns(model) -> list:
+    """Column names of the solve-all text output: the pose (3-RPR: its solver variables x, y,
+    theta; hexapod: position and unit quaternion platform -> base), then the hexapod's solver
+    variables (the platform joints B1..B3), then the fitness."""
+    unit = model.unit
+    if model.kind == "planar_3rpr":
+        pose = [f"x [{unit}]", f"y [{unit}]", "theta [rad]"]
+        return pose + ["fitness"]
+    pose = [f"px [{unit}]", f"py [{unit}]", f"pz [{unit}]", "qx", "qy", "qz", "qw"]
+    return pose + [f"{n} [{unit}]" for n in model.variable_names] + ["fitness"]
+
+
+def mode_table(model, solutions) -> list:
+    """The modes as text lines under a header naming each column (:func:`mode_columns`)."""
+    names = mode_columns(model)
+    lines = ["   #" + "".join(n.rjust(MODE_COLUMN) for n in names)]
+    for k, s in enumerate(solutions, 1):
+        if model.kind == "planar_3rpr":
+            values = list(s.x)
+        else:
+            p = model.pose(s.x)
+            values = [*p.position, *p.orientation, *s.x]
+        lines.append(f"  {k:2d}" + "".join(f"{v:{MODE_COLUMN}.6f}" for v in values) + f"{s.fun:{MODE_COLUMN}.2e}")
+    return lines
 
 
 def _no_mode_reason(res) -> str:
@@ -280,7 +310,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     _add_solve(sub)
     a = sub.add_parser("solve-all", help="every distinct real assembly mode",
-                       description="Every distinct real assembly mode for the given leg lengths. Exit status 0 "
+                       description="Every distinct real assembly mode for the given leg lengths, one row each: "
+                       "3-RPR x, y [config unit], theta [rad] (the solver variables); hexapod the pose, position "
+                       "px py pz [config unit] and unit quaternion qx qy qz qw (platform -> base), beside the "
+                       "solver variables x1 .. z3 (the platform joints B1, B2, B3); then the fitness. Exit status 0 "
                        "when at least one is found, 1 when none is (with the reason on stderr), 2 on bad input "
                        "or when --exact cannot run (extra not installed, degenerate geometry).")
     a.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
@@ -294,7 +327,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "report the number of complex solutions")
     a.add_argument("--max-starts", type=count_type, default=None, help="multistart: cap on the starts (default 20000)")
     a.add_argument("--budget-s", type=float, default=None,
-                   help="multistart: wall-clock budget in seconds (stop_reason budget_exhausted when it runs out)")
+                   help="multistart: wall-clock budget in seconds, checked after each batch of 256 starts "
+                   "(stop_reason budget_exhausted when it runs out)")
     a.add_argument("--runs", type=count_type, default=None, help="g3pcx: independent searches (default 200)")
     a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")

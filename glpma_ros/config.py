@@ -117,46 +117,83 @@ def _check_joints(arr: np.ndarray, key: str, path: str, need_triangle: bool) -> 
             raise ConfigError(f"{path}: '{key}' joints 1, 2 and 3 are collinear")
 
 
-def _check_keys(doc: dict, path: str) -> None:
-    """Unknown keys are an error naming the key (and the known key it most resembles)."""
+def _unknown_keys(doc: dict) -> list:
+    """Every unknown key, each named (with the known key it most resembles)."""
     known = REQUIRED_KEYS + OPTIONAL_KEYS
+    problems = []
     for key in doc:
         if key not in known:
             close = difflib.get_close_matches(str(key), known, n=1)
             hint = f" (did you mean '{close[0]}'?)" if close else f"; known keys: {', '.join(known)}"
-            raise ConfigError(f"{path}: unknown key {str(key)!r}{hint}")
+            problems.append(f"unknown key {str(key)!r}{hint}")
+    return problems
+
+
+class _Problems:
+    """Collects the problems of one config, so that a file with several mistakes names them all."""
+
+    def __init__(self, path: str):
+        self.path, self.found = path, []
+
+    def check(self, fn, *args):
+        """``fn(*args)``, or None with its :class:`ConfigError` noted."""
+        try:
+            return fn(*args)
+        except ConfigError as exc:
+            self.found.append(str(exc).removeprefix(f"{self.path}: "))
+            return None
+
+    def raise_if_any(self) -> None:
+        if len(self.found) == 1:
+            raise ConfigError(f"{self.path}: {self.found[0]}")
+        if self.found:
+            raise ConfigError(f"{self.path}: {len(self.found)} problems: " + "; ".join(self.found))
+
+
+def _leg_limits(doc: dict, path: str):
+    limits = doc.get("leg_limits")
+    if limits is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in limits)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{path}: 'leg_limits' must be [min, max]") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo < hi):
+        raise ConfigError(f"{path}: 'leg_limits' must satisfy 0 <= min < max, got [{lo}, {hi}]")
+    return (lo, hi)
 
 
 def model_from_dict(doc, path: str = "config") -> Manipulator:
-    """Build and validate a model from a parsed YAML mapping."""
+    """Build and validate a model from a parsed YAML mapping.  Every problem found is named, in one
+    line (``N problems: a; b``); checks that need a valid ``manipulator`` or joints run once those are."""
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected a YAML mapping with keys {', '.join(REQUIRED_KEYS)}")
-    _check_keys(doc, path)
+    problems = _Problems(path)
+    problems.found += _unknown_keys(doc)
     kind = doc.get("manipulator")
     if kind not in MODELS:
-        raise ConfigError(f"{path}: 'manipulator' must be one of {', '.join(MODELS)}, got {kind!r}")
+        problems.found.append(f"'manipulator' must be one of {', '.join(MODELS)}, got {kind!r}")
+    unit = doc.get("unit")
     if "unit" not in doc:
-        raise ConfigError(f"{path}: missing key 'unit' (the unit of every length in the file: "
-                          f"{', '.join(UNIT_TO_METRES)})")
-    unit = doc["unit"]
-    if unit not in UNIT_TO_METRES:
-        raise ConfigError(f"{path}: 'unit' must be one of {', '.join(UNIT_TO_METRES)}, got {unit!r}")
-    base = _matrix(doc, "base", kind, path)
-    platform = _matrix(doc, "platform", kind, path, count=base.shape[0])
-    if kind == "hexapod_66":
-        _check_shared_joints(base, platform, path)
-    else:
-        _check_joints(base, "base", path, need_triangle=False)
-        _check_joints(platform, "platform", path, need_triangle=True)
-    limits = doc.get("leg_limits")
-    if limits is not None:
-        try:
-            lo, hi = (float(v) for v in limits)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{path}: 'leg_limits' must be [min, max]") from None
-        if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo < hi):
-            raise ConfigError(f"{path}: 'leg_limits' must satisfy 0 <= min < max, got [{lo}, {hi}]")
-        limits = (lo, hi)
+        problems.found.append(f"missing key 'unit' (the unit of every length in the file: "
+                              f"{', '.join(UNIT_TO_METRES)})")
+    elif unit not in UNIT_TO_METRES:
+        problems.found.append(f"'unit' must be one of {', '.join(UNIT_TO_METRES)}, got {unit!r}")
+    base = platform = None
+    if kind in MODELS:
+        base = problems.check(_matrix, doc, "base", kind, path)
+        count = None if base is None else base.shape[0]
+        platform = problems.check(_matrix, doc, "platform", kind, path, count)
+        if kind == "hexapod_66":
+            if base is not None and platform is not None:
+                problems.check(_check_shared_joints, base, platform, path)
+        else:
+            if base is not None:
+                problems.check(_check_joints, base, "base", path, False)
+            if platform is not None:
+                problems.check(_check_joints, platform, "platform", path, True)
+    limits = problems.check(_leg_limits, doc, path)
+    problems.raise_if_any()
     model = MODELS[kind](base, platform, unit=unit, leg_limits=limits)
     model.leg_offsets = _leg_offsets(doc, model, path)
     model.source = path
@@ -195,7 +232,7 @@ def _leg_offsets(doc: dict, model, path: str):
     return arr
 
 
-def _plausible_band(model) -> tuple[float, float]:
+def plausible_band(model) -> tuple[float, float]:
     """Leg lengths (config unit) a set of legs should lie in: ``leg_limits``, or else the
     geometry's scale divided and multiplied by :data:`PLAUSIBLE_SCALE_FACTOR`."""
     if model.leg_limits is not None:
@@ -220,7 +257,7 @@ def unit_mistake(model, legs, given_unit: str | None = None) -> str | None:
     shortest, longest = float(arr.min()), float(arr.max())      # NaN in, NaN out: no hint
     if not (math.isfinite(shortest) and math.isfinite(longest)) or shortest <= 0.0:
         return None
-    lo, hi = _plausible_band(model)
+    lo, hi = plausible_band(model)
     if lo <= shortest and longest <= hi:
         return None
     best, best_distance = None, math.inf
@@ -245,18 +282,36 @@ def check_units(model, legs, given_unit: str | None = None, where: str | None = 
         raise InputError(f"leg lengths look like {UNIT_NAMES[unit]}; {where}")
 
 
+def shipped_configs() -> list:
+    """Names of the shipped manipulator configs (the YAMLs beside the params files)."""
+    return sorted(p.stem for p in config_dir().glob("*.yaml") if not p.name.startswith("params_"))
+
+
+def yaml_error_text(exc: yaml.YAMLError) -> str:
+    """The YAML parser's own message in one line, each part with its line and column (1-based)."""
+    def at(mark):
+        return f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    context, problem = getattr(exc, "context", None), getattr(exc, "problem", None)
+    if problem is None:
+        return " ".join(str(exc).split())
+    parts = [f"{context}{at(exc.context_mark)}"] if context else []
+    parts.append(f"{problem}{at(exc.problem_mark)}")
+    return ": ".join(parts)
+
+
 def load_document(path) -> dict:
     p = Path(path)
     try:
         text = p.read_text()
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: cannot read manipulator config: no such file (give a YAML file, or the name "
+                          f"of a shipped one: {', '.join(shipped_configs())})") from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read manipulator config ({exc.strerror or exc})") from None
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{path}: invalid YAML{where}") from None
+        raise ConfigError(f"{path}: invalid YAML: {yaml_error_text(exc)}") from None
 
 
 def load_manipulator(path) -> Manipulator:

@@ -30,12 +30,10 @@ WARM_UP_LEG_STRETCH = 1.0 + 1e-3
 INFEASIBLE_SCALE = 0.05
 #: time budget of a warm-up solve (s): the evaluation cap, not the clock, ends it
 WARM_UP_BUDGET_S = 60.0
-#: solve_all G3-PCX runs and multistart starts of the warm-up of ``glpma-fk solve-all`` and of the
-#: node's assembly modes (every code path of both methods runs once)
+#: solve_all G3-PCX runs and multistart starts of the warm-up of ``glpma-fk solve-all``, ``map`` and of
+#: the node's assembly modes (one batch of the multistart runs every compiled path)
 SOLVE_ALL_RUNS = 2
-SOLVE_ALL_STARTS = 50
-#: a solver that took longer than this (s) was compiled rather than loaded from the cache
-COMPILED_S = 5.0
+SOLVE_ALL_STARTS = 64
 
 
 def warm_up_pose(model) -> np.ndarray:
@@ -86,30 +84,52 @@ def _say(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
+def cache_counts() -> tuple[int, int]:
+    """``(loaded, compiled)``: how many compiled functions of this package Numba has loaded from its
+    cache and how many it has compiled (cache misses) in this process so far, from each
+    dispatcher's own statistics (``Dispatcher.stats``)."""
+    from numba.core.registry import CPUDispatcher
+    seen, loaded, compiled = set(), 0, 0
+    for name, module in list(sys.modules.items()):
+        if not name.startswith(__package__) or module is None:
+            continue
+        for obj in list(vars(module).values()):
+            if isinstance(obj, CPUDispatcher) and id(obj) not in seen:
+                seen.add(id(obj))
+                loaded += sum(obj.stats.cache_hits.values())
+                compiled += sum(obj.stats.cache_misses.values())
+    return loaded, compiled
+
+
+def describe_cache_use(loaded: int, compiled: int) -> str:
+    """What :func:`cache_counts`' differences over a step say, in words."""
+    if compiled:
+        return f"compiled {compiled} function{'s' if compiled != 1 else ''}" + (f", loaded {loaded}" if loaded else "")
+    if loaded:
+        return f"loaded {loaded} compiled function{'s' if loaded != 1 else ''} from the cache"
+    return "nothing new to load"
+
+
 def precompile(configs=SHIPPED_CONFIGS, solver_names=None, say=_say) -> float:
     """Fill the compiled-code cache for every solver (default: all registered) on each config,
-    and for solve_all; ``say`` gets one progress line per step, with an estimate of the time
-    left.  Returns the seconds spent."""
+    and for solve_all; ``say`` gets one progress line per step: what Numba compiled or loaded in
+    it (counted by :func:`cache_counts`, not guessed from the time) and how long it took.  No
+    estimate of the time left: most of the compiled code is shared, so what a step still has to
+    compile is not known before it runs.  Returns the seconds spent."""
     names = list(solver_names or solvers.SOLVERS)
     models = [load_manipulator(resolve_config(c)) for c in configs]
     steps = [(m, n) for m in models for n in names] + [(m, "solve-all") for m in models]
     t0 = time.perf_counter()
     say(f"precompile: {len(steps)} steps ({len(names)} solvers and solve-all on {len(models)} manipulators); "
         f"a first run compiles (minutes on two cores), later runs load the cache (seconds)")
-    seen, compiled_s, loaded_s = set(), [], []
+    total_loaded = total_compiled = 0
     for k, (model, name) in enumerate(steps, 1):
+        loaded0, compiled0 = cache_counts()
         t = exercise_solve_all(model) if name == "solve-all" else exercise(model, name)
-        (compiled_s if t > COMPILED_S else loaded_s).append(t)
-        seen.add(name)
-        # the compiled code is shared by both manipulator kinds: a solver seen once only loads
-        # later; one not seen yet may compile (as long as the compiled ones took on average)
-        unseen = len({n for _, n in steps[k:]} - seen)
-        per_compile = sum(compiled_s) / len(compiled_s) if compiled_s else 0.0
-        per_load = sum(loaded_s) / len(loaded_s) if loaded_s else 0.0
-        left = unseen * per_compile + (len(steps) - k - unseen) * per_load
-        how = "compiled" if t > COMPILED_S else "loaded"
-        say(f"precompile: [{k}/{len(steps)}] {model.kind} {name}: {how} in {t:.1f} s"
-            + (f" (about {left:.0f} s left)" if k < len(steps) else ""))
+        loaded1, compiled1 = cache_counts()
+        loaded, compiled = loaded1 - loaded0, compiled1 - compiled0
+        total_loaded, total_compiled = total_loaded + loaded, total_compiled + compiled
+        say(f"precompile: [{k}/{len(steps)}] {model.kind} {name}: {describe_cache_use(loaded, compiled)} in {t:.1f} s")
     total = time.perf_counter() - t0
-    say(f"precompile: done in {total:.1f} s")
+    say(f"precompile: done in {total:.1f} s ({describe_cache_use(total_loaded, total_compiled)})")
     return total

@@ -9,15 +9,18 @@ Three methods (``solve_all(model, legs, method=...)``):
   the intersection of the balls around the base joints ``A_i`` of radius
   ``L_i + |b_i - c|`` (``c`` the centroid of the platform joints ``b_i``; any assembly has its
   centre there, so an empty intersection proves there is none).  From each start one
-  Levenberg-Marquardt solve in pose space (:func:`_local_solve`) with an iteration cap
-  ``LOCAL_MAX_ITER``: a start that has not converged by then is dropped.  A converged pose
+  Levenberg-Marquardt solve in pose space (the compiled iteration of
+  :mod:`glpma_ros.solvers.lm`) with an iteration cap ``LOCAL_MAX_ITER``: a start that has not
+  converged by then is dropped.  A converged pose
   farther than ``DEDUP_RELATIVE`` of the scale from every mode found so far is a new mode.
 
   Stopping rule: after ``n`` starts of which the last new mode was found at start ``n_new``,
   stop once ``n - n_new >= max(STALL_MIN, STALL_FACTOR * n_new)`` -- the search has gone on at
   least ``STALL_FACTOR`` times as long as it took to find everything seen, and at least
   ``STALL_MIN`` starts, without finding anything new -- or at ``max_starts`` starts, or when
-  ``budget_s`` runs out.  Reported with the result:
+  ``budget_s`` runs out (checked between batches of ``BATCH`` starts).  The solves, the
+  de-duplication and the stopping rule run compiled (:func:`_multistart_batch`), one call per
+  batch; the starts are drawn in NumPy per batch.  Reported with the result:
 
   * ``miss_probability``: the Good-Turing estimate of the probability that one more start
     would find a mode not yet seen, ``n1 / n`` with ``n1`` the number of modes found by
@@ -39,10 +42,11 @@ Three methods (``solve_all(model, legs, method=...)``):
   polished, and the number of complex solutions.
 
 Every mode returned is polished to round-off by the model's refinement
-(:func:`glpma_ros.solvers.refine.polish`).  With redundant legs (more than the degrees of freedom) a
-mode is a least-squares pose whose leg residuals pass the estimator's consistency test
-(:func:`consistent_fitness`: chi-square against the default leg noise); the exact method refuses them.
-Plain Python + NumPy: no ROS import.
+(:func:`glpma_ros.solvers.refine.polish`), unless the multistart is asked not to (``polish=False``:
+the modes as found, for counting them, e.g. ``glpma-fk map``).  With redundant legs (more than the
+degrees of freedom) a mode is a least-squares pose whose leg residuals pass the estimator's
+consistency test (:func:`consistent_fitness`: chi-square against the default leg noise); the exact
+method refuses them.  Plain Python + NumPy: no ROS import.
 """
 from __future__ import annotations
 
@@ -51,12 +55,15 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from . import solvers
 from .errors import GlpmaError
 from .solvers import refine
 from .solvers.common import CONVERGED, SolveResult
-from .solvers.local import LocalSolver
+from .models.pose_kernels import joint_distance
+from .solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
+from .solvers.local import LocalSolver, make_settings
 
 METHODS = ("multistart", "g3pcx", "exact")
 
@@ -77,15 +84,23 @@ LOCAL_RESIDUAL_RELATIVE = 1e-9
 #: starts without a new mode, n_new = the start that found the last new one
 STALL_MIN = 150
 STALL_FACTOR = 2.0
-#: multistart: starts drawn (and solved) per batch; the stopping rule is checked per start, so the
-#: result does not depend on it
-BATCH = 64
+#: multistart: starts drawn per batch (one compiled call solves them until the stopping rule ends the
+#: search; the rule is checked per start, the budget per batch).  Large enough that the usual search
+#: (a few modes, stalled after about STALL_MIN starts) takes one batch: the Python around a batch costs
+#: as much as tens of local solves, and drawing a start that is never solved costs next to nothing
+BATCH = 256
 #: multistart: default cap on the number of starts
 MAX_STARTS = 20_000
 #: confidence of ``unseen_share_bound``
 UNSEEN_CONFIDENCE = 0.95
 #: rejection sampling of the reachable region: candidate rounds before falling back to its bounding box
 REJECTION_ROUNDS = 20
+#: rejection sampling: candidates drawn per round = still needed / acceptance so far x this margin (one
+#: round usually suffices), at least MIN_CANDIDATES, the acceptance taken as at least MIN_ACCEPTANCE (a
+#: region that small of its box costs more rounds, not more memory)
+CANDIDATE_MARGIN = 1.25
+MIN_CANDIDATES = 16
+MIN_ACCEPTANCE = 1.0 / 64
 
 #: multistart stop reasons
 STALLED = "stalled"
@@ -131,22 +146,23 @@ def wide_range(model, legs) -> tuple[float, float]:
 
 
 def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", max_evals=None,
-              max_starts=None, budget_s=None) -> AllSolutions:
+              max_starts=None, budget_s=None, polish=True) -> AllSolutions:
     """Every distinct real assembly mode of ``model`` at ``legs`` (config unit) by ``method``
     (module docstring; default ``"multistart"``, or ``"g3pcx"`` when ``runs`` is given, as
     before the multistart existed).  ``runs``: G3-PCX runs (default ``G3PCX_RUNS``);
     ``solver``, ``max_evals``: of those runs; ``max_starts`` (default ``MAX_STARTS``) and
-    ``budget_s`` (seconds, default none): limits of the multistart; ``seed``: the random stream."""
+    ``budget_s`` (seconds, default none): limits of the multistart, ``polish=False``: its modes as
+    found (counting only); ``seed``: the random stream."""
     legs = model.check_legs(legs)
     if method is None:
         method = "g3pcx" if runs is not None else "multistart"
     if runs is not None and method != "g3pcx":
         raise GlpmaError(f"runs counts G3-PCX searches (method g3pcx); {method} does not take it")
-    if (max_starts is not None or budget_s is not None) and method != "multistart":
-        raise GlpmaError(f"max_starts and budget_s limit the multistart; {method} does not take them")
+    if (max_starts is not None or budget_s is not None or not polish) and method != "multistart":
+        raise GlpmaError(f"max_starts, budget_s and polish=False are the multistart's; {method} does not take them")
     if method == "multistart":
         return multistart(model, legs, seed=seed, max_starts=MAX_STARTS if max_starts is None else max_starts,
-                          budget_s=budget_s)
+                          budget_s=budget_s, polish=polish)
     if method == "g3pcx":
         return g3pcx_runs(model, legs, runs=G3PCX_RUNS if runs is None else runs, seed=seed, solver=solver,
                           max_evals=max_evals)
@@ -184,12 +200,72 @@ def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None) -> 
 
 
 # -- multistart -------------------------------------------------------------------------------------
-def _local_solve(local: LocalSolver, x0, legs, tolerance):
-    """The local solve of the multistart (one start): the compiled Levenberg-Marquardt in pose
-    space from solver variables ``x0``, at most ``LOCAL_MAX_ITER`` iterations.  Returns
-    ``(x, leg_fitness, nfev)``; converged when ``leg_fitness < tolerance``."""
-    r = local.solve(x0, legs, max_iter=LOCAL_MAX_ITER)
-    return r.x, r.leg_fitness, r.nfev
+#: codes of :func:`_multistart_batch`'s outcome (``counters[C_STOP]``)
+GOING, STALL_RULE, FULL = 0, 1, 2
+#: layout of the multistart's integer ``counters``
+C_MODES, C_STARTS, C_LAST_NEW, C_NFEV, C_STOP = range(5)
+#: modes the arrays hold at first (a 6-6 has at most 40 complex solutions; grown when a
+#: near-singular input yields more distinct converged poses)
+MODES_CAPACITY = 40
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, tolerance, dedup, modes, hits,
+                      counters, out, work):
+    """The multistart's inner loop over one batch of ``starts``, compiled: from each start one
+    Levenberg-Marquardt solve (:func:`~glpma_ros.solvers.lm.lm_kernel`'s iteration, the caps in
+    ``settings``); a solve whose leg fitness is below ``tolerance`` is a mode, the same as the
+    nearest one found so far when their platform joints are within ``dedup``
+    (``Manipulator.distance``), else a new one appended to ``modes``; then the stopping rule of the
+    module docstring, checked after every start.  ``counters`` (``C_*``) carry the state from batch
+    to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
+    (``GOING``: the batch is used up; ``STALL_RULE``; ``FULL``: ``modes`` has no room left)."""
+    n_vars = modes.shape[1]
+    info = n_vars + 7
+    counters[C_STOP] = GOING
+    for k in range(starts.shape[0]):
+        if counters[C_MODES] == modes.shape[0]:
+            counters[C_STOP] = FULL
+            return k
+        _solve_one(kind, data, platform, frame, legs, ref, starts[k], starts[k], settings, out, work, False)
+        counters[C_STARTS] += 1
+        counters[C_NFEV] += int(out[info + I_NFEV])
+        if out[info + I_LEG_FITNESS] < tolerance:
+            x = out[:n_vars]
+            nearest, d_nearest = -1, math.inf
+            for j in range(counters[C_MODES]):
+                d = joint_distance(kind, frame, x, modes[j])
+                if d < d_nearest:
+                    nearest, d_nearest = j, d
+            if nearest >= 0 and d_nearest <= dedup:
+                hits[nearest] += 1
+            else:
+                m = counters[C_MODES]
+                modes[m, :] = x
+                hits[m] = 1
+                counters[C_MODES] = m + 1
+                counters[C_LAST_NEW] = counters[C_STARTS]
+        stall = counters[C_STARTS] - counters[C_LAST_NEW]
+        if stall >= max(STALL_MIN, STALL_FACTOR * counters[C_LAST_NEW]):
+            counters[C_STOP] = STALL_RULE
+            return k + 1
+    return starts.shape[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _in_every_ball(P, centres, radii):
+    """Which rows of ``P`` lie in every ball (``centres[i]``, ``radii[i]``), compiled: the rejection
+    test of the start sampler, run on every candidate."""
+    inside = np.ones(P.shape[0], np.bool_)
+    for k in range(P.shape[0]):
+        for i in range(centres.shape[0]):
+            d2 = 0.0
+            for a in range(P.shape[1]):
+                d2 += (P[k, a] - centres[i, a]) ** 2
+            if d2 > radii[i] * radii[i]:
+                inside[k] = False
+                break
+    return inside
 
 
 class StartSampler:
@@ -206,50 +282,80 @@ class StartSampler:
         self.low = np.max(model.base - radius[:, None], axis=0)
         self.high = np.min(model.base + radius[:, None], axis=0)
         self.empty = bool(np.any(self.low > self.high))
+        self.tried = self.accepted = 0
+        self.acceptance = 1.0                # share of the box's candidates inside, as seen so far
 
     def _inside(self, P) -> np.ndarray:
-        d2 = ((P[:, None, :] - self.centres[None]) ** 2).sum(axis=2)
-        return np.all(d2 <= self.radii ** 2, axis=1)
+        return _in_every_ball(P, self.centres, self.radii)
 
     def centres_in_reach(self, rng, m) -> np.ndarray:
-        """``m`` platform centres uniform in the intersection of the balls (rejection from its
-        bounding box; after ``REJECTION_ROUNDS`` rounds the rest are taken from the box)."""
+        """``m`` platform centres uniform in the intersection of the balls: rejection from its
+        bounding box, each round drawing as many candidates as the acceptance seen so far says are
+        needed (times ``CANDIDATE_MARGIN``), so that one round usually suffices; after
+        ``REJECTION_ROUNDS`` rounds the rest are taken from the box."""
         dim = self.low.size
-        out = np.empty((0, dim))
+        parts, have = [], 0
         for _ in range(REJECTION_ROUNDS):
-            P = rng.uniform(self.low, self.high, size=(max(m, 16), dim))
-            out = np.vstack((out, P[self._inside(P)]))
-            if len(out) >= m:
-                return out[:m]
-        return np.vstack((out, rng.uniform(self.low, self.high, size=(m - len(out), dim))))
+            need = m - have
+            n = max(MIN_CANDIDATES, math.ceil(need * CANDIDATE_MARGIN / max(self.acceptance, MIN_ACCEPTANCE)))
+            P = rng.uniform(self.low, self.high, size=(n, dim))
+            inside = P[self._inside(P)]
+            self.tried += n
+            self.accepted += len(inside)
+            self.acceptance = self.accepted / self.tried
+            parts.append(inside[:need])
+            have += len(parts[-1])
+            if have >= m:
+                return np.concatenate(parts)
+        parts.append(rng.uniform(self.low, self.high, size=(m - have, dim)))
+        return np.concatenate(parts)
 
     def draw(self, rng, m) -> np.ndarray:
+        """``m`` starts (rows of solver variables): centres in reach, orientations uniform (the
+        random numbers from ``rng``, the arithmetic compiled)."""
         P = self.centres_in_reach(rng, m)
         if self.planar:
-            theta = rng.uniform(-math.pi, math.pi, size=m)
-            c, s = np.cos(theta), np.sin(theta)
-            cx, cy = self.centroid
-            origin = P - np.column_stack((c * cx - s * cy, s * cx + c * cy))
-            return np.column_stack((origin, theta))
-        q = rng.standard_normal((m, 4))
-        q /= np.linalg.norm(q, axis=1, keepdims=True)
-        x, y, z, w = q.T
-        R = np.empty((m, 3, 3))
-        R[:, 0, 0], R[:, 0, 1], R[:, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
-        R[:, 1, 0], R[:, 1, 1], R[:, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
-        R[:, 2, 0], R[:, 2, 1], R[:, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
-        # platform joints B_k = P + R (b_k - c) for the model's three frame joints (the variables)
-        return (P[:, None, :] + np.einsum("mij,kj->mki", R, self.model.frame - self.centroid)).reshape(m, -1)
+            return _planar_starts(P, rng.uniform(-math.pi, math.pi, size=m), self.centroid)
+        return _spatial_starts(P, rng.standard_normal((m, 4)), self.model.frame - self.centroid)
 
 
-def _signature(model, x) -> np.ndarray:
-    """The points ``model.distance`` compares (3-RPR: its first three joints; hexapod: the frame
-    joints, its variables)."""
-    return np.asarray(model.joints(x)[list(model.frame_joints)], dtype=float)
+@njit(cache=True, error_model="numpy")
+def _planar_starts(P, theta, centroid):
+    """3-RPR starts ``(x, y, theta)``: the platform's origin placed so that its joints' centroid,
+    rotated by ``theta``, is at ``P``."""
+    out = np.empty((P.shape[0], 3))
+    cx, cy = centroid[0], centroid[1]
+    for k in range(P.shape[0]):
+        c, s = math.cos(theta[k]), math.sin(theta[k])
+        out[k, 0] = P[k, 0] - (c * cx - s * cy)
+        out[k, 1] = P[k, 1] - (s * cx + c * cy)
+        out[k, 2] = theta[k]
+    return out
 
 
-def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> AllSolutions:
-    """The multistart of the module docstring (``legs`` already checked)."""
+@njit(cache=True, error_model="numpy")
+def _spatial_starts(P, q, arms):
+    """Hexapod starts ``(B1, B2, B3)``: ``B_k = P + R (b_k - c)`` with ``R`` the rotation of the
+    normalised 4-D Gaussian ``q`` (a uniform unit quaternion ``x, y, z, w``) and ``arms`` the
+    rows ``b_k - c``."""
+    out = np.empty((P.shape[0], 3 * arms.shape[0]))
+    R = np.empty((3, 3))
+    for k in range(P.shape[0]):
+        n = math.sqrt(q[k, 0] ** 2 + q[k, 1] ** 2 + q[k, 2] ** 2 + q[k, 3] ** 2)
+        x, y, z, w = q[k, 0] / n, q[k, 1] / n, q[k, 2] / n, q[k, 3] / n
+        R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
+        R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
+        R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
+        for j in range(arms.shape[0]):
+            for a in range(3):
+                out[k, 3 * j + a] = P[k, a] + R[a, 0] * arms[j, 0] + R[a, 1] * arms[j, 1] + R[a, 2] * arms[j, 2]
+    return out
+
+
+def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True) -> AllSolutions:
+    """The multistart of the module docstring (``legs`` already checked).  ``polish=False`` returns
+    each mode as its first local solve left it (leg residuals below ``LOCAL_RESIDUAL_RELATIVE`` of
+    the scale) instead of polished to round-off: what counting the modes needs."""
     if max_starts < 1:
         raise GlpmaError("max_starts must be at least 1")
     if budget_s is not None and not budget_s > 0:
@@ -257,53 +363,57 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None) -> 
     t0 = time.perf_counter()
     deadline = None if budget_s is None else t0 + budget_s
     rng = np.random.default_rng(seed)
+    # redundant legs: a consistent least-squares pose has a residual (the default leg noise's limit)
     tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model))
-    dedup = DEDUP_RELATIVE * model.scale
     sampler = StartSampler(model, legs)
     local = LocalSolver(model)
-    modes, signatures, hits = [], np.empty((0, 3, model.base.shape[1])), []
-    starts = evaluations = last_new = 0
+    settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
+    legs = np.ascontiguousarray(legs, dtype=float)
+    ref = max(model.scale, float(np.max(legs)))
+    modes = np.empty((MODES_CAPACITY, model.n_vars))
+    hits = np.zeros(MODES_CAPACITY, np.int64)
+    counters = np.zeros(5, np.int64)
+    out = np.empty(local.n_out)
     reason = UNREACHABLE if sampler.empty else ""
     while not reason:
-        for x0 in sampler.draw(rng, min(BATCH, max_starts - starts)):
-            x, f, nfev = _local_solve(local, np.ascontiguousarray(x0), legs, tolerance)
-            starts += 1
-            evaluations += nfev
-            if f < tolerance:
-                sig = _signature(model, x)
-                d = np.sqrt(((signatures - sig) ** 2).sum(axis=2)).max(axis=1) if len(modes) else np.empty(0)
-                j = int(np.argmin(d)) if d.size else -1
-                if j >= 0 and d[j] <= dedup:
-                    hits[j] += 1
-                else:
-                    modes.append(x)
-                    signatures = np.concatenate((signatures, sig[None]))
-                    hits.append(1)
-                    last_new = starts
-            if starts - last_new >= max(STALL_MIN, STALL_FACTOR * last_new):
-                reason = STALLED
-            elif starts >= max_starts:
-                reason = MAX_STARTS_REACHED
-            elif deadline is not None and time.perf_counter() >= deadline:
-                reason = BUDGET_EXHAUSTED
-            if reason:
+        starts = np.ascontiguousarray(sampler.draw(rng, min(BATCH, max_starts - int(counters[C_STARTS]))))
+        while True:
+            used = _multistart_batch(local.kind, local.data, local.platform, local.frame, legs, ref, starts,
+                                     settings, tolerance, DEDUP_RELATIVE * model.scale,
+                                     modes, hits, counters, out, local.work)
+            if counters[C_STOP] != FULL:
                 break
-    polish_rng = np.random.default_rng(seed)
+            modes = np.vstack((modes, np.empty_like(modes)))
+            hits = np.concatenate((hits, np.zeros_like(hits)))
+            starts = starts[used:]
+        if counters[C_STOP] == STALL_RULE:
+            reason = STALLED
+        elif counters[C_STARTS] >= max_starts:
+            reason = MAX_STARTS_REACHED
+        elif deadline is not None and time.perf_counter() >= deadline:
+            reason = BUDGET_EXHAUSTED
+    n_modes, starts_used = int(counters[C_MODES]), int(counters[C_STARTS])
+    evaluations = int(counters[C_NFEV])
+    polish_rng = np.random.default_rng(seed) if polish else None
     found = []
-    for x in modes:
+    for x in modes[:n_modes]:
         t1 = time.perf_counter()
-        xp, fp, nfev, _ = refine.polish(model, x, legs, polish_rng)
+        if polish:
+            xp, fp, nfev, _ = refine.polish(model, x, legs, polish_rng)
+        else:
+            xp, fp, nfev = x.copy(), float(model.fitness(x, legs)[0]), 1
         evaluations += nfev
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "multistart",
-                                 polished=True))
+                                 polished=polish))
     order = _order(model, found)
-    stall = starts - last_new
-    singletons = sum(1 for h in hits if h == 1)
-    return AllSolutions([found[k] for k in order], starts, time.perf_counter() - t0, evaluations,
-                        method="multistart", starts=starts,
-                        miss_probability=singletons / starts if starts else None,
+    stall = starts_used - int(counters[C_LAST_NEW])
+    hits = hits[:n_modes]
+    singletons = int(np.sum(hits == 1))
+    return AllSolutions([found[k] for k in order], starts_used, time.perf_counter() - t0, evaluations,
+                        method="multistart", starts=starts_used,
+                        miss_probability=singletons / starts_used if starts_used else None,
                         unseen_share_bound=1.0 - (1.0 - UNSEEN_CONFIDENCE) ** (1.0 / stall) if stall else 1.0,
-                        stop_reason=reason, stall=stall, hits=tuple(hits[k] for k in order))
+                        stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order))
 
 
 # -- certified ----------------------------------------------------------------------------------

@@ -8,6 +8,7 @@ the staged output into place; :class:`BranchWatch` counts assembly-mode changes;
 """
 from __future__ import annotations
 
+import logging
 import shutil
 import sys
 import tempfile
@@ -21,6 +22,7 @@ import numpy as np
 from glpma_ros.node import params as P
 from glpma_ros.errors import InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
+from glpma_ros.models.pose_kernels import joint_distance
 from glpma_ros.node.diagnostics import ERROR, OK, WARN
 
 from glpma_ros.node.dds import cdr
@@ -45,6 +47,9 @@ INFINITE_DURATION = (9223372036, 854775807)
 PROGRESS_EVERY = 500
 #: distinct status messages kept serialized (converged ones repeat; rejections rarely do)
 STATUS_CACHE_SIZE = 1024
+#: offline time budget per input: the largest the parameter accepts (ms), so that every status is
+#: decided by the work done
+OFFLINE_BUDGET_MS = P.SPECS["time_budget_ms"].range[1]
 
 
 def _leg_values(est, service) -> tuple:
@@ -106,12 +111,13 @@ class Summary:
                 "poses_per_s": self.poses_per_s}
 
     def text(self) -> str:
+        budget = (f"budget {self.budget_ms:g} ms per input, the parameter's maximum: statuses from the work done"
+                  if self.budget_ms >= OFFLINE_BUDGET_MS else f"budget {self.budget_ms:g} ms per input (--budget-ms)")
         lines = [f"{self.output} ({self.storage}): {self.messages} messages copied, {self.inputs} inputs on "
                  f"{self.input_topic}: {self.converged} converged, {sum(self.rejected.values())} rejected, "
                  f"{self.mode_changes} assembly-mode changes",
                  f"  {self.elapsed_s:.2f} s, CPU {self.cpu_s:.2f} s ({self.poses_per_s:,.0f} poses/s; solving "
-                 f"{self.solve_s:.2f} s, "
-                 f"warm-up {self.warm_up_s:.1f} s before; budget {self.budget_ms:g} ms per input)"]
+                 f"{self.solve_s:.2f} s, warm-up {self.warm_up_s:.1f} s before; {budget})"]
         lines += [f"  rejected {n}: {reason}" for reason, n in self.rejected.most_common()]
         lines += [f"  not copied: {topic}: {why}" for topic, why in self.skipped_topics.items()]
         return "\n".join(lines)
@@ -120,19 +126,26 @@ class Summary:
 class BranchWatch:
     """Counts assembly-mode changes: a converged pose farther from the previous one than
     the estimator's continuity bound (``CONTINUITY_FACTOR`` times the leg movement) jumped
-    to another branch instead of following the legs."""
+    to another branch instead of following the legs.  The distance is the compiled
+    ``Manipulator.distance`` (:func:`~glpma_ros.models.pose_kernels.joint_distance`): it runs
+    for every input of a bag."""
 
     def __init__(self, model, x=None, legs=None):
         self.model = model
-        self.x, self.legs = x, legs
+        self.kind, self.platform = int(model.kind_id), np.ascontiguousarray(model.platform, dtype=float)
+        self.floor = MIN_SPREAD * model.scale
+        self.x = None if x is None else np.array(x, dtype=float)
+        self.legs = None if legs is None else np.array(legs, dtype=float).tolist()
 
     def __call__(self, x, legs) -> bool:
+        x = np.array(x, dtype=float)
+        legs = np.asarray(legs, dtype=float).tolist()
         jumped = False
         if self.x is not None:
-            movement = float(np.max(np.abs(legs - self.legs)))
-            bound = max(CONTINUITY_FACTOR * movement, MIN_SPREAD * self.model.scale)
-            jumped = self.model.distance(x, self.x) > bound
-        self.x, self.legs = np.array(x, dtype=float), np.array(legs, dtype=float)
+            movement = max(abs(a - b) for a, b in zip(legs, self.legs))
+            bound = max(CONTINUITY_FACTOR * movement, self.floor)
+            jumped = joint_distance(self.kind, self.platform, x, self.x) > bound
+        self.x, self.legs = x, legs
         return jumped
 
 
@@ -385,3 +398,58 @@ class BagRun:
         bar.update(count % PROGRESS_EVERY)
         summary.messages = count
         summary.rejected = Counter(service.stats.reasons) + undecodable
+
+
+# -- one bag as a task (glpma-fk bag, one or several inputs) -----------------------------------------
+
+class _TqdmHandler(logging.Handler):
+    """Log lines that do not break the progress bar."""
+
+    def emit(self, record):
+        from tqdm import tqdm
+        tqdm.write(self.format(record), file=sys.stderr)
+
+
+def make_logger(node_name: str, level: int) -> logging.Logger:
+    """The run's logger: ``[LEVEL] [node.bag]: message`` on stderr, above a progress bar."""
+    log = logging.getLogger(f"{node_name}.bag")
+    log.propagate = False
+    handler = _TqdmHandler()
+    handler.setFormatter(logging.Formatter("[%(levelname)s] [%(name)s]: %(message)s"))
+    log.handlers[:] = [handler]
+    log.setLevel(level)
+    return log
+
+
+@dataclass(frozen=True)
+class BagJob:
+    """Everything a run needs besides its input and output paths (picklable: a worker process or a
+    Dask worker gets it once): the node's resolved parameters, the resolved topic names."""
+
+    values: dict
+    node_name: str
+    input_topic: str
+    pose_topic: str
+    tf_topic: str | None
+    status_topic: str
+    child_frame_id: str
+    storage: str | None
+    log_level: int = logging.WARNING
+
+    def service(self, log):
+        from glpma_ros.node.service import FkService
+        try:
+            return FkService(self.values, logger=log, node_name=self.node_name)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+
+
+def process_bag(job: BagJob, input_path: str, output_path: str, progress: bool = False, service=None) -> Summary:
+    """One bag with a service of its own (the warm start begins afresh with every bag): what
+    ``glpma-fk bag`` runs for each input, in this process or on a worker."""
+    log = make_logger(job.node_name, job.log_level)
+    service = job.service(log) if service is None else service
+    bag = BagRun(service, Path(input_path), Path(output_path), input_topic=job.input_topic,
+                 pose_topic=job.pose_topic, tf_topic=job.tf_topic, status_topic=job.status_topic,
+                 child_frame_id=job.child_frame_id, storage=job.storage, progress=progress, log=log)
+    return bag.run()

@@ -12,7 +12,9 @@ how busy the machine is: they are reported, with what made it look busy, not jud
 from __future__ import annotations
 
 import json
+import math
 import sys
+import time
 from pathlib import Path
 
 from glpma_ros.cli import OneLineParser, command_main
@@ -166,12 +168,17 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     n = int(round(rate * args.duration))
-    bar = tqdm(total=n, unit="input", desc="driving", dynamic_ncols=True)
+    # on stderr, and only on a terminal: a log file gets no carriage-return frames
+    bar = tqdm(total=n, unit="input", desc="driving", dynamic_ncols=True, file=sys.stderr, disable=None)
+
+    def show(sent, poses_received, latency_p50_ms, position_error_max_m):
+        bar.update(sent - bar.n)
+        bar.set_postfix_str(f"poses received {poses_received:,}, latency p50 {latency_p50_ms:.2f} ms, "
+                            f"error max {position_error_max_m:.1e} m")
 
     def progress(i, total, partial):
-        bar.update(i - bar.n)
-        bar.set_postfix_str(f"poses {partial['poses_received']}, latency p50 {partial['latency_p50_ms']:.2f} ms, "
-                            f"error max {partial['position_error_max_m']:.1e} m")
+        show(i, partial["poses_received"], partial["latency_p50_ms"], partial["position_error_max_m"])
+    t0 = time.perf_counter()
     try:
         summary = mock_controller.run(spec["config"], rate, args.duration, progress=progress, samples=True,
                                       fault=args.fault)
@@ -179,7 +186,10 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     else:
-        bar.update(n - bar.n)
+        # the bar ends on the summary's figures (the last poses arrive after the last input is sent)
+        p50, error = summary["latency_ms"]["p50"], summary["tracking_error"]["position_m"]["max"]
+        show(summary["inputs_sent"], summary["poses_received"], math.nan if p50 is None else p50,
+             math.nan if error is None else error)
     finally:
         bar.close()
         alive = node.alive()
@@ -194,6 +204,9 @@ def main(argv=None) -> int:
     _figure(summary, figure)
     summary.pop("samples")
     (out / f"demo_{label}.json").write_text(json.dumps(summary, indent=1))
+    print(f"\nsent {summary['inputs_sent']:,} inputs in {summary['sending_s']:.1f} s; the run took "
+          f"{time.perf_counter() - t0:.1f} s with connecting to the node before and collecting the last poses and "
+          f"the node's counters after")
     print("\nsummary")
     print(_table(summary, alive))
     print("\n" + "\n".join(lines))

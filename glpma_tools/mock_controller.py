@@ -93,7 +93,9 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
                                     "latency_p50_ms": float(np.median(c.latency_ms)) if c.latency_ms.size else math.nan,
                                     "position_error_max_m": float(c.position_error_m.max())
                                     if c.position_error_m.size else math.nan})
+        t_send = time.perf_counter()
         sent, late = ctl.send(plan, 0.0, n, rate_hz, 1.0 / rate_hz, each=each)
+        sending_s = time.perf_counter() - t_send
         deadline = time.monotonic() + tail_s
         while time.monotonic() < deadline and len(ctl.listener.poses) < len(sent):
             time.sleep(0.01)
@@ -116,6 +118,7 @@ def run(config: str = "planar_3rpr_seed", rate_hz: float = 200.0, duration_s: fl
         "input_type": input_type,
         "rate_hz": rate_hz,
         "duration_s": duration_s,
+        "sending_s": sending_s,
         "inputs_sent": len(sent),
         "poses_received": len(poses),
         "poses_matched": len(c.poses),
@@ -182,9 +185,14 @@ def verdict(s: dict) -> tuple[bool, list[str]]:
         lines.append(f"leg {f['leg']} sent {f['step_m']:g} m too long from {f['from_s']:g} s on: the node's "
                      f"/diagnostics says " + ", ".join(f"{k} {h[k]}" for k in LEG_HEALTH_KEYS))
     busy = busy_signs(s)
-    if busy:
-        lines.append("the machine looked busy (" + "; ".join(busy) + "): the node answers the newest input "
-                     "and drops the ones it had no time for, so fewer inputs got a pose")
+    unanswered = s["inputs_sent"] - s["poses_matched"]
+    if unanswered > 0 and s["poses_received"]:
+        # only what happened: the inputs without a pose, and what may explain them
+        why = ("; the machine looked busy (" + "; ".join(busy) + "): the node answers the newest input and drops "
+               "the ones it had no time for") if busy else ""
+        lines.append(f"{unanswered} of {s['inputs_sent']} inputs got no pose{why}")
+    elif busy:
+        lines.append("the machine looked busy (" + "; ".join(busy) + "), and every input got its pose")
     return ok, lines
 
 

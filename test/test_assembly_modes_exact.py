@@ -202,11 +202,13 @@ def test_stopping_rule_and_estimates_are_as_documented(hexapod):
                                                                                        res.solutions]
 
 
-def test_limits_max_starts_budget_and_unreachable(rpr):
+def test_limits_max_starts_budget_and_unreachable(rpr, monkeypatch):
     res = solve_all(rpr, rpr.example_leg_lengths, max_starts=7)
     assert res.starts == 7 and res.stop_reason == SA.MAX_STARTS_REACHED
+    monkeypatch.setattr(SA, "BATCH", 8)        # batches smaller than the stopping rule's least starts
     res = solve_all(rpr, rpr.example_leg_lengths, budget_s=1e-9)
-    assert res.starts == 1 and res.stop_reason == SA.BUDGET_EXHAUSTED
+    assert res.starts == 8 and res.stop_reason == SA.BUDGET_EXHAUSTED            # checked after each batch
+    monkeypatch.undo()
     res = solve_all(rpr, [1.0, 1.0, 1.0])                  # base joints 200 mm apart: out of reach
     assert res.stop_reason == SA.UNREACHABLE and res.solutions == [] and res.starts == 0
     with pytest.raises(GlpmaError, match="runs counts G3-PCX"):

@@ -269,9 +269,9 @@ def test_missing_extra_names_the_pip_command(monkeypatch, capsys):
 def test_help_describes_every_option():
     p = _cli("--help")
     assert p.returncode == 0
-    for option in ("--storage", "--overwrite", "--budget-ms", "--legs-topic", "--joint-states-topic",
-                   "--joint-names", "--pose-topic", "--tf-topic", "--status-topic", "--child-frame-id",
-                   "--ros-args", "time_budget_ms"):
+    for option in ("--out-dir", "--workers", "--scheduler", "--storage", "--overwrite", "--budget-ms",
+                   "--legs-topic", "--joint-states-topic", "--joint-names", "--pose-topic", "--tf-topic",
+                   "--status-topic", "--child-frame-id", "--ros-args", "time_budget_ms", "exit status"):
         assert option in p.stdout
 
 
@@ -289,3 +289,108 @@ def test_topic_and_frame_names_are_chosen(tmp_path, truth, capsys):
     assert TS.deserialize_cdr(out["/fk/tf"][0][1], C.TF_MESSAGE).transforms[0].child_frame_id == "tool"
     for (_, raw), x in zip(out["/fk/pose"], xs):
         assert abs(TS.deserialize_cdr(raw, C.POSE_STAMPED).pose.position.x - x[0] * 1e-3) < 1e-9
+# -- exit statuses, the budget's wording ---------------------------------------------------------------
+
+#: equal legs this short have no real assembly of the seed 3-RPR (README: `solve ... --legs 60 60 60`)
+NO_ASSEMBLY_M = 0.060
+
+
+def test_exit_1_when_no_input_converged(tmp_path, capsys):
+    src = tmp_path / "in"
+    write_legs_bag(src, "mcap", np.full((3, 3), NO_ASSEMBLY_M))
+    assert run_bag(src, tmp_path / "out", "--no-progress", "--budget-ms", 5000, "--ros-args", "--params-file",
+                   PARAMS) == 1
+    captured = capsys.readouterr()
+    assert "0 converged, 3 rejected" in captured.out and "budget 5000 ms per input (--budget-ms)" in captured.out
+    line = captured.err.strip().splitlines()[-1]      # after the service's log line of the first rejection
+    assert line.startswith("error: glpma-fk bag: no input of") and "3 no_solution" in line
+
+
+def test_default_budget_is_the_parameters_maximum_and_says_so(tmp_path, truth, capsys):
+    src = tmp_path / "in"
+    write_legs_bag(src, "mcap", truth[1][:3])
+    assert run_bag(src, tmp_path / "out", "--no-progress", "--ros-args", "--params-file", PARAMS) == 0
+    out = capsys.readouterr().out
+    assert f"budget {B.OFFLINE_BUDGET_MS:g} ms per input, the parameter's maximum: statuses from the work done" in out
+
+
+def one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+# -- a fleet's recordings ---------------------------------------------------------------------------------
+
+#: poses of the same bag computed by two engines: the same arithmetic, equal to round-off of a leg
+#: length in metres (about 1e-16 m); this bound leaves room for a different summation order
+SAME_POSE_M = 1e-12
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory, truth):
+    """Three recordings: two bag directories in a folder, one single MCAP file beside it."""
+    root = tmp_path_factory.mktemp("fleet")
+    legs_m = truth[1]
+    write_legs_bag(root / "runs" / "run_a", "mcap", legs_m[:40])
+    write_legs_bag(root / "runs" / "run_b", "sqlite3", legs_m[40:70], corrupt_at=10)
+    write_legs_bag(root / "run_c_dir", "mcap", legs_m[70:90])
+    mcap, = (root / "run_c_dir").glob("*.mcap")
+    single = root / "run_c.mcap"
+    single.write_bytes(mcap.read_bytes())
+    return root, [root / "runs", single]
+
+
+def _decoded(dst: Path) -> dict:
+    out, _ = read_bag(dst)
+    poses = [TS.deserialize_cdr(raw, C.POSE_STAMPED) for _, raw in out["/pose_estimate"]]
+    return {"stamps": [t for t, _ in out["/pose_estimate"]],
+            "poses": np.array([[m.pose.position.x, m.pose.position.y, m.pose.orientation.z, m.pose.orientation.w]
+                               for m in poses]),
+            "status": out["/glpma_fk/status"], "legs": out["/leg_lengths"]}
+
+
+def test_fleet_writes_one_bag_per_input_the_same_on_every_engine(tmp_path, fleet, capsys):
+    distributed = pytest.importorskip("distributed")
+    root, inputs = fleet
+    names = ["run_a", "run_b", "run_c"]
+    runs = {"serial": ["--workers", 1], "processes": ["--workers", 2]}
+    for engine, options in runs.items():
+        assert run_bag(*inputs, "--out-dir", tmp_path / engine, *options, "--no-progress", "--ros-args",
+                       "--params-file", PARAMS) == 0
+        text = capsys.readouterr().out
+        for name in names:
+            assert str(tmp_path / engine / name) in text
+        assert "total (3 bags)" in text and " 90 " in text.replace(",", "")        # 40 + 30 + 20 converged
+        assert sorted(p.name for p in (tmp_path / engine).iterdir()) == names
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        assert run_bag(*inputs, "--out-dir", tmp_path / "dask", "--scheduler", c.scheduler_address, "--json",
+                       "--no-progress", "--ros-args", "--params-file", PARAMS) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["engine"].startswith("Dask") and [Path(b["output"]).name for b in summary["bags"]] == names
+    assert [b["converged"] for b in summary["bags"]] == [40, 30, 20] and summary["total"]["rejected"] == 1
+    assert summary["bags"][1]["storage"] == "sqlite3"
+    for name in names:
+        reference = _decoded(tmp_path / "serial" / name)
+        for engine in ("processes", "dask"):
+            other = _decoded(tmp_path / engine / name)
+            assert other["stamps"] == reference["stamps"] and other["legs"] == reference["legs"]
+            assert other["status"] == reference["status"]          # statuses are words: the same bytes
+            assert np.allclose(other["poses"], reference["poses"], rtol=0.0, atol=SAME_POSE_M)
+
+
+def test_fleet_refuses_ambiguous_or_missing_inputs(tmp_path, fleet, small_bag):
+    root, _ = fleet
+    cases = [
+        ([small_bag, tmp_path / "o1", tmp_path / "o2"], "expected INPUT OUTPUT"),
+        ([small_bag, tmp_path / "o", "--workers", 2], "--out-dir"),
+        ([tmp_path / "empty", "--out-dir", tmp_path / "o"], "neither a bag nor a directory holding bags"),
+        ([root / "runs", root / "runs" / "run_a", "--out-dir", tmp_path / "o"], "would both write"),
+        ([root / "runs", "--out-dir", tmp_path / "o", "--workers", 0], "--workers"),
+    ]
+    (tmp_path / "empty").mkdir()
+    for args, words in cases:
+        p = _cli(*args)
+        assert p.returncode == 2, (args, p.stderr)
+        assert one_line(p.stderr).startswith("error: glpma-fk bag:") and words in p.stderr, p.stderr
+    assert not (tmp_path / "o").exists()

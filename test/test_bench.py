@@ -9,7 +9,9 @@ SECTIONS = ["## Summary", "## The papers' tables (001 Tables 5 and 8)", "### 3-R
             "## Why the papers' pure G3-PCX figures do not reproduce", "## All real assembly modes",
             "## Warm tracking latency (solve only)", "## Warm solve against `scipy.optimize.least_squares`",
             "## Deadline honouring", "## DDS end to end", "## Extra outputs and the transport path",
-            "## Waits of an input for anything but its own solve"]
+            "## Waits of an input for anything but its own solve",
+            "## Offline: bag processing and workspace maps", "| where the CPU time of one input goes | µs |",
+            "| counting methods, seed 3-RPR map 8 x 8 | value |", "Same statuses on every engine: yes."]
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +66,7 @@ def test_markdown_has_every_table(report):
     waits = text.split("## Waits of an input")[1].split("\n## ")[0]
     for setup in ("handle", "handle + reports", "node at 1 kHz"):
         assert f"| {setup} | 300 |" in waits, setup
+    assert "Same statuses on every engine: yes." in text and "identical on every engine: NO" not in text
 
 
 def test_polished_rows_converge_and_figures_exist(report):

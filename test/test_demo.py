@@ -20,6 +20,8 @@ def test_demo_tracks_and_writes_figure(tmp_path, dds_env, dds_domain):
                        cwd=ROOT, env=dds_env, capture_output=True, text=True, timeout=400)
     assert p.returncode == 0, p.stdout + p.stderr
     assert "every pose right" in p.stdout and "FAILED" not in p.stdout
+    assert "\r" not in p.stderr                        # no progress bar into a log file (stderr is a pipe here)
+    assert "inputs in" in p.stdout and "the run took" in p.stdout
     png = tmp_path / "demo_3rpr.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
     s = json.loads((tmp_path / "demo_3rpr.json").read_text())

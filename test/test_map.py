@@ -11,20 +11,28 @@ import yaml
 from conftest import HEX_YAML, ROOT, RPR_YAML
 from glpma_ros.models.hexapod_66 import quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solve_all import solve_all
+from matplotlib.colors import to_rgba
+
 from glpma_tools import workspace_map as W
+from glpma_tools.workspace_map.plot import count_colour, draw_map
 
 #: the published example: legs 100 120 150 mm, real_solutions[0] of the seed config
 EXAMPLE = yaml.safe_load(RPR_YAML.read_text())["real_solutions"][0]
 STEP = 25.0          # grid spacing (mm); the example's pose is the grid's centre node
 HALF = 4             # nodes on each side of the centre
-RUNS = W.DEFAULT_RUNS
-CHECK_RUNS = 300     # the independent check: more runs, other seeds
+CHECK_RUNS = 300     # the independent check: the papers' G3-PCX method, more runs, other seeds
+#: conditioning computed by two processes from the same pose: equal up to round-off of the SVD
+#: (relative to the value, which lies in (0, 1])
+CONDITIONING_RTOL = 1e-12
 
 
-def seed_spec(runs=RUNS):
+def seed_spec(runs=0, method=W.DEFAULT_METHOD):
+    """The grid around the published example; ``runs``: G3-PCX runs (method g3pcx) or the
+    multistart's cap on the starts (0 = solve_all's)."""
     n = 2 * HALF + 1
     limits = tuple((c - HALF * STEP, c + HALF * STEP) for c in (EXAMPLE["x"], EXAMPLE["y"]))
-    return W.MapSpec("planar_3rpr", ("x", "y"), limits, (n, n), (("theta", EXAMPLE["theta_deg"]),), runs, 0)
+    return W.MapSpec("planar_3rpr", ("x", "y"), limits, (n, n), (("theta", EXAMPLE["theta_deg"]),), runs, 0,
+                     method)
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +50,12 @@ def serial_map(tmp_path_factory, config_text):
 def _counts(out):
     with np.load(out / "assembly_modes.npz") as f:
         return f["counts"], f["conditioning"], f["jacobian_sign"]
+
+
+def assert_same_map(a, b):
+    """Counts and signs are integers; the conditioning agrees to round-off, NaN where no legs."""
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[2], b[2])
+    assert np.allclose(a[1], b[1], rtol=CONDITIONING_RTOL, atol=0.0, equal_nan=True)
 
 
 def test_published_example_has_two_modes(serial_map, rpr):
@@ -81,16 +95,11 @@ def test_same_map_on_local_processes_and_dask(serial_map, tmp_path, config_text)
                              chunk_size=7, progress=False)
     assert dask.engine.startswith("Dask") and dask.chunks_computed == math.ceil(spec.n_points / 7)
     for out in (tmp_path / "local", tmp_path / "dask"):
-        counts, cond, sign = _counts(out)
-        assert counts.tobytes() == reference[0].tobytes()
-        # the same points solved in other processes: the same figures to round-off (conditioning is a
-        # ratio of singular values, relative round-off ~1e-15; NaN where no mode was found)
-        np.testing.assert_allclose(cond, reference[1], rtol=1e-9, equal_nan=True)
-        assert np.array_equal(sign, reference[2])
+        assert_same_map(_counts(out), reference)
 
 
 def test_rerun_skips_finished_chunks(tmp_path, config_text):
-    spec = seed_spec(runs=3)
+    spec = seed_spec(runs=3, method="g3pcx")
     first = W.compute_map(config_text, str(RPR_YAML), spec, tmp_path, workers=1, progress=False)
     chunk_files = sorted((tmp_path / "chunks").glob("*/*.npz"))
     assert len(chunk_files) == spec.shape[1] and first.chunks_computed == spec.shape[1]
@@ -101,8 +110,11 @@ def test_rerun_skips_finished_chunks(tmp_path, config_text):
     assert again.chunks_computed == 2 and again.chunks_reused == spec.shape[1] - 2
     assert again.computed == 2 * spec.shape[0]
     assert _counts(tmp_path)[0].tobytes() == reference.tobytes()
-    other = W.compute_map(config_text, str(RPR_YAML), seed_spec(runs=4), tmp_path, workers=1, progress=False)
+    other = W.compute_map(config_text, str(RPR_YAML), seed_spec(runs=4, method="g3pcx"), tmp_path, workers=1,
+                          progress=False)
     assert other.chunks_reused == 0                      # another map: its own chunks
+    multistart = W.compute_map(config_text, str(RPR_YAML), seed_spec(), tmp_path, workers=1, progress=False)
+    assert multistart.chunks_reused == 0                 # another method: its own chunks too
 
 
 def test_hexapod_slice_poses(hexapod, tmp_path):
@@ -113,7 +125,7 @@ def test_hexapod_slice_poses(hexapod, tmp_path):
     q = W.quaternion_from_rpy(*np.radians([r, p, y]))
     assert np.allclose(q, quaternion_from_matrix(R), atol=1e-12)
     spec = W.MapSpec("hexapod_66", ("x", "z"), ((-100.0, 100.0), (800.0, 1000.0)), (2, 3),
-                     (("y", 50.0), ("roll", r), ("pitch", p), ("yaw", y)), 1, 0)
+                     (("y", 50.0), ("roll", r), ("pitch", p), ("yaw", y)), 0, 0)
     coords = spec.coordinates(5)
     assert coords["x"] == 100.0 and coords["z"] == 1000.0
     pose = hexapod.pose(W.pose_variables(hexapod, coords))
@@ -138,6 +150,10 @@ def _cli(*args):
     ([RPR_YAML, "--out", "{tmp}", "--limits", 5, 1, 0, 1], "LOW < HIGH"),
     ([RPR_YAML, "--out", "{tmp}", "--resolution", 1], "at least 2"),
     ([RPR_YAML, "--out", "{tmp}", "--runs", 0], "--runs"),
+    ([RPR_YAML, "--out", "{tmp}", "--method", "multistart", "--runs", 5], "--runs counts G3-PCX"),
+    ([RPR_YAML, "--out", "{tmp}", "--method", "g3pcx", "--max-starts", 5], "--max-starts"),
+    ([RPR_YAML, "--out", "{tmp}", "--max-starts", 0], "--max-starts"),
+    ([RPR_YAML, "--out", "{tmp}", "--exact", 0], "--exact"),
     ([RPR_YAML, "--out", "{tmp}", "--resolution", 3, "--scheduler", "tcp://127.0.0.1:9"], "Dask scheduler"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, words):
@@ -150,18 +166,21 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, args, words):
 
 def test_cli_writes_the_map(tmp_path):
     p = _cli(RPR_YAML, "--out", tmp_path, "--axes", "x", "y", "--limits", 20, 80, 50, 110, "--resolution", 3, 2,
-             "--runs", 2, "--workers", 1, "--chunk-size", 3, "--json", "--at", "theta=10")
+             "--workers", 1, "--chunk-size", 3, "--json", "--at", "theta=10", "--method", "multistart",
+             "--max-starts", 500)
     assert p.returncode == 0, p.stderr
     summary = json.loads(p.stdout)
     assert summary["points"] == 6 and summary["engine"] == "this process"
+    assert summary["method"] == "the multistart (at most 500 starts per point)"
     with np.load(tmp_path / "assembly_modes.npz") as f:
         assert f["counts"].shape == (2, 3) and list(f["fixed_names"]) == ["theta"] and f["fixed_values"][0] == 10
+        assert str(f["method"]) == "multistart" and int(f["runs"]) == 500
 
 
 def test_cli_on_a_dask_scheduler(tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
-        p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 2, "--runs", 2, "--scheduler", c.scheduler_address,
+        p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 2, "--max-starts", 200, "--scheduler", c.scheduler_address,
                  "--json")
     assert p.returncode == 0, p.stderr
     assert json.loads(p.stdout)["engine"].startswith("Dask")
@@ -170,6 +189,62 @@ def test_cli_on_a_dask_scheduler(tmp_path):
 def test_cli_help_describes_every_option():
     h = _cli("--help")
     assert h.returncode == 0
-    for option in ("--out", "--axes", "--limits", "--resolution", "--at", "--runs", "--seed", "--workers",
-                   "--scheduler", "--chunk-size", "--no-progress", "--json"):
+    for option in ("--out", "--axes", "--limits", "--resolution", "--at", "--method", "--runs", "--max-starts",
+                   "--exact", "--seed", "--workers", "--scheduler", "--chunk-size", "--no-progress", "--json"):
         assert option in h.stdout
+
+
+def test_cli_runs_the_papers_g3pcx_counts(tmp_path):
+    """--runs N (alone, or with --method g3pcx) keeps the papers' way; the summary says which."""
+    p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 2, "--workers", 1, "--json", "--runs", 2)
+    assert p.returncode == 0, p.stderr
+    summary = json.loads(p.stdout)
+    assert summary["method"] == "2 polished G3-PCX runs per point"
+    with np.load(tmp_path / "assembly_modes.npz") as f:
+        assert str(f["method"]) == "g3pcx" and int(f["runs"]) == 2
+
+
+def test_points_without_valid_legs_are_named_and_drawn_with_a_legend_entry(tmp_path, rpr):
+    """The JSON names them (no count "-1" among the mode counts); the figure gives every class drawn
+    a legend entry, each count in its fixed colour."""
+    limits = rpr.leg_limits[1] * 3       # the grid's corners are beyond the longest leg allowed
+    p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 3, "--workers", 1, "--json", "--limits", -limits, limits,
+             -limits, limits)
+    assert p.returncode == 0, p.stderr
+    summary = json.loads(p.stdout)
+    assert summary["no_valid_legs"] > 0 and "-1" not in summary["modes"]
+    assert summary["no_valid_legs"] + sum(summary["modes"].values()) == 9
+    with np.load(tmp_path / "assembly_modes.npz") as f:
+        data = {k: f[k] for k in ("counts", "conditioning", "jacobian_sign")}
+    spec = W.MapSpec("planar_3rpr", ("x", "y"), ((-limits, limits), (-limits, limits)), (3, 3), (("theta", 0.0),),
+                     0, 0)
+    legend = draw_map(tmp_path / "again.png", data, spec, rpr)
+    labels = [label for label, _ in legend]
+    classes = sorted(set(data["counts"].reshape(-1).tolist()))
+    assert labels[:len(classes)] == ["no valid legs" if c == W.OUTSIDE else
+                                     f"{c} real mode{'' if c == 1 else 's'}" for c in classes]
+    for (_, colour), c in zip(legend, classes):
+        assert np.allclose(colour, to_rgba(count_colour(c)))
+
+
+def test_a_mode_count_has_the_same_colour_in_every_map():
+    """Colours are fixed per count (not per map): distinct for the 41 counts a 6-6 can have
+    (0 .. 40, wrapping after the palette's 38), none of them the grey of the points without legs."""
+    colours = [to_rgba(count_colour(c)) for c in range(38)]
+    assert len({tuple(np.round(c, 6)) for c in colours}) == 38
+    grey = to_rgba(count_colour(W.OUTSIDE))
+    assert all(not np.allclose(c, grey) for c in colours)
+    assert np.allclose(to_rgba(count_colour(4)), to_rgba(count_colour(4 + 38)))
+
+
+def test_exact_spot_check_certifies_a_sample(tmp_path):
+    """--exact K: K points of the finished map certified by msolve; all agree on the seed 3-RPR."""
+    from glpma_ros.exact import ExactUnavailableError, msolve_executable
+    try:
+        msolve_executable()
+    except ExactUnavailableError:
+        pytest.skip("glpma-fk map --exact needs the optional msolve (glpma_ros[exact])")
+    p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 4, "--workers", 1, "--json", "--exact", 3)
+    assert p.returncode == 0, p.stderr
+    check = json.loads(p.stdout)["exact_check"]
+    assert len(check["points"]) == 3 and check["agree"] == 3 and check["disagree"] == []

@@ -177,6 +177,9 @@ def test_version_matches_the_package():
     code, out, _ = cli("--version")
     assert code == 0 and out.strip() == f"glpma-fk {__version__}"
     assert ET.parse(ROOT / "package.xml").getroot().findtext("version") == __version__
+    changelog = (ROOT / "README.md").read_text().split("## Changelog", 1)[1]
+    first = next(line for line in changelog.splitlines() if line.startswith("- "))
+    assert first.startswith(f"- {__version__} -- "), first       # the newest release is this version
 
 
 def test_a_closed_pipe_ends_quietly():
@@ -271,15 +274,6 @@ def test_numba_floor():
     check_numba()                            # the installed one
 
 
-def test_precompile_reports_each_step():
-    code, out, err = cli("precompile", "--solvers", "glpma")
-    assert code == 0 and out == ""
-    steps = re.findall(r"precompile: \[(\d+)/(\d+)\] (\w+) ([\w-]+): (compiled|loaded) in [\d.]+ s", err)
-    assert [(k, n) for k, n, *_ in steps] == [("1", "4"), ("2", "4"), ("3", "4"), ("4", "4")], err
-    assert {(kind, name) for _, _, kind, name, _ in steps} == {
-        ("planar_3rpr", "glpma"), ("hexapod_66", "glpma"), ("planar_3rpr", "solve-all"), ("hexapod_66", "solve-all")}
-
-
 # -- glpma-fk modes against a running node -----------------------------------------------------------------
 
 def test_modes_asks_a_running_node(tmp_path, dds_env):
@@ -322,3 +316,126 @@ def test_modes_asks_a_running_node(tmp_path, dds_env):
             node.wait(15)
         except subprocess.TimeoutExpired:
             node.kill()
+
+
+# -- the demo's verdict says only what happened (issue 23, item 1) ---------------------------------------
+
+def _demo_summary(**kw):
+    s = {"inputs_sent": 500, "poses_received": 500, "poses_matched": 500, "poses_unpaired": 0, "poses_wrong": 0,
+         "pose_ratio": 1.0, "counters_add_up": True, "latency_ms": {"p50": 0.4, "p99": 1.0, "max": 2.0},
+         "load_average": [9.0, 9.0, 9.0], "cores": 2, "late_sends": 3, "lost_in_transport": 0,
+         "node_counters": {"received": 500, "solved": 500, "rejected": 0, "dropped": 0}, "node_diagnostics": None}
+    s.update(kw)
+    return s
+
+
+def test_demo_verdict_on_a_busy_machine_that_answered_everything():
+    from glpma_tools.mock_controller import verdict
+    ok, lines = verdict(_demo_summary())
+    text = "\n".join(lines)
+    assert ok and "500 of 500 inputs answered (100.0 %)" in text
+    assert "fewer" not in text and "got no pose" not in text
+    assert "the machine looked busy (load average 9.00 on 2 cores" in text and "every input got its pose" in text
+
+
+def test_demo_verdict_names_the_inputs_without_a_pose():
+    from glpma_tools.mock_controller import verdict
+    counters = {"received": 500, "solved": 401, "rejected": 0, "dropped": 99}
+    ok, lines = verdict(_demo_summary(poses_received=401, poses_matched=401, pose_ratio=0.802,
+                                      node_counters=counters))
+    text = "\n".join(lines)
+    assert ok and "99 of 500 inputs got no pose; the machine looked busy (" in text
+    assert "the node dropped 99 inputs for newer ones" in text
+    quiet = _demo_summary(poses_received=499, poses_matched=499, pose_ratio=0.998, load_average=[0.1] * 3,
+                          late_sends=0)
+    ok, lines = verdict(quiet)
+    assert lines[-1] == "1 of 500 inputs got no pose" and not any("busy" in line for line in lines)
+
+
+# -- solve-all names its columns (issue 23, item 3) --------------------------------------------------------
+
+#: a printed value has 6 decimals: legs recomputed from the printed pose agree to a few units of the
+#: last printed digit times the geometry's lever arms (the hexapod's platform joints sit ~1000 mm out)
+PRINTED_LEG_TOL = {"planar_3rpr": 1e-4, "hexapod_66": 1e-2}
+
+
+@pytest.mark.parametrize("config, legs", [(RPR_YAML, [100, 120, 150]), (HEX_YAML, [1250] * 6)])
+def test_solve_all_text_names_its_columns(config, legs, capsys):
+    from glpma_ros.cli import mode_columns
+    model = load_manipulator(config)
+    assert main(["solve-all", str(config), "--legs", *map(str, legs), "--max-starts", "2000"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    header = next(i for i, line in enumerate(out) if line.lstrip().startswith("#"))
+    names = mode_columns(model)
+    assert out[header].split()[1:] == " ".join(names).split()
+    rows = [line.split() for line in out[header + 1:]]
+    assert rows and all(len(r) == 1 + len(names) for r in rows)
+    for r in rows:                     # each row's pose answers the legs asked for
+        v = np.array(r[1:-1], dtype=float)
+        if model.kind == "planar_3rpr":
+            x = v
+        else:
+            x = model.variables_from_pose(v[:3], v[3:7])
+            assert np.allclose(v[7:], x, atol=PRINTED_LEG_TOL[model.kind])   # the variables are the pose's
+        assert np.allclose(model.inverse_kinematics(x), legs, atol=PRINTED_LEG_TOL[model.kind])
+    help_text = subprocess.run([sys.executable, "-m", "glpma_ros", "solve-all", "--help"], capture_output=True,
+                               text=True, cwd=ROOT, timeout=600).stdout
+    assert "px py pz" in help_text and "qx qy qz qw" in help_text and "theta [rad]" in help_text
+
+
+# -- config errors name every problem, the parser's own words, the shipped names (issue 23, item 6) ------
+
+def test_a_config_with_several_problems_names_them_all():
+    doc = seed_doc()
+    doc["units"] = doc.pop("unit")
+    doc["platform"] = [[0, 0], [50, 0]]
+    doc["leg_limits"] = [5, 1]
+    with pytest.raises(ConfigError) as info:
+        model_from_dict(doc, "mine.yaml")
+    message = str(info.value)
+    assert "\n" not in message and message.startswith("mine.yaml: 4 problems: ")
+    for words in ("unknown key 'units' (did you mean 'unit'?)", "missing key 'unit'",
+                  "'platform' must have 3 points of 2 coordinates", "'leg_limits' must satisfy 0 <= min < max"):
+        assert words in message
+
+
+def test_a_yaml_syntax_error_gives_the_parsers_message_and_position(tmp_path):
+    path = tmp_path / "unclosed.yaml"
+    path.write_text("manipulator: planar_3rpr\nunit: mm\nbase: [[0, 0], [200, 0], [0, 200]\n"   # no closing ]
+                    "platform: [[0, 0], [50, 0], [40, 40]]\n")
+    code, out, err = cli("solve", path, "--legs", 100, 120, 150)
+    line = one_line_error(err)
+    assert code == 2 and "invalid YAML: while parsing a flow sequence at line 3, column 7" in line
+    assert "expected ',' or ']'" in line and "at line 4, column 1" in line
+
+
+def test_an_unknown_config_name_lists_the_shipped_ones():
+    code, out, err = cli("solve", "planar_3rpr", "--legs", 100, 120, 150)
+    line = one_line_error(err)
+    assert code == 2 and "no such file" in line
+    assert "planar_3rpr_seed" in line and "hexapod_66_rolland" in line
+
+
+# -- precompile says what it did, without guessing the time left (issue 23, item 9) -----------------------
+
+def test_precompile_counts_what_it_compiled_or_loaded():
+    """One line per step, saying what Numba compiled or loaded (counted), and no guessed time left."""
+    code, out, err = cli("precompile", "--solvers", "rcga")
+    assert code == 0 and out == "", err
+    steps = [line for line in err.splitlines() if re.match(r"precompile: \[\d+/\d+\]", line)]
+    assert len(steps) == 4 and not any("left" in line for line in err.splitlines())
+    assert [line.split()[2:4] for line in steps] == [["planar_3rpr", "rcga:"], ["hexapod_66", "rcga:"],
+                                                      ["planar_3rpr", "solve-all:"], ["hexapod_66", "solve-all:"]]
+    pattern = (r"precompile: \[\d/4\] (planar_3rpr|hexapod_66) (rcga|solve-all): (compiled \d+ functions?"
+               r"(, loaded \d+)?|loaded \d+ compiled functions? from the cache|nothing new to load) in [\d.]+ s$")
+    assert all(re.match(pattern, line) for line in steps), steps
+    first = steps[0]               # a fresh process: the first step compiles or loads something
+    assert "nothing new" not in first, first
+
+
+def test_cache_counts_words():
+    from glpma_ros.precompile import describe_cache_use
+    assert describe_cache_use(0, 3) == "compiled 3 functions"
+    assert describe_cache_use(2, 1) == "compiled 1 function, loaded 2"
+    assert describe_cache_use(5, 0) == "loaded 5 compiled functions from the cache"
+    assert describe_cache_use(0, 0) == "nothing new to load"

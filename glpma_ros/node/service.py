@@ -26,6 +26,7 @@ from __future__ import annotations
 import gc
 import logging
 import math
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -35,10 +36,10 @@ import numpy as np
 
 from . import params as P
 from ..compat import check_numba
-from ..config import check_units, load_manipulator, resolve_config
+from ..config import check_units, load_manipulator, plausible_band, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
-from ..precompile import COMPILED_S
+from ..precompile import cache_counts, describe_cache_use
 from .assembly_modes import AssemblyModes
 from .diagnostics import DiagnosticReport, Diagnostics
 from .leg_health import LegHealth
@@ -101,6 +102,8 @@ class FkService:
         self.config_path = resolve_config(values["manipulator_config"])
         self.model = load_manipulator(self.config_path)
         self.metres_per_unit = float(self.model.metres_per_unit)
+        #: leg lengths (m) below this divide by metres_per_unit without overflow
+        self._overflow_m = sys.float_info.max * min(self.metres_per_unit, 1.0)
         self._initial_x = self._initial_variables(values["initial_pose"])
         # the estimator's warm-start state, mirrored so that a rebuilt estimator can keep it
         self._warm_x = self._initial_x
@@ -217,6 +220,7 @@ class FkService:
             legs = np.clip(legs, *self.model.leg_limits)
         for k, name in enumerate(solvers, 1):
             t_solver = time.perf_counter()
+            counts = cache_counts()
             for start in (None, x):
                 for polish in (True, False):
                     values = dict(params, solver=name, time_budget_ms=budget_ms, polish=polish)
@@ -230,7 +234,8 @@ class FkService:
                         if time.perf_counter() - t < 3e-3 * budget_ms:
                             break
             self._warmed.add(name)
-            self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, time.perf_counter() - t0)
+            loaded, compiled = (after - before for after, before in zip(cache_counts(), counts))
+            self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, loaded, compiled)
         # everything loaded so far lives as long as the node: keep it out of the cyclic
         # collector's scans, whose pauses would otherwise land in the real-time path
         from ..covariance import warm_up as warm_up_covariance
@@ -239,12 +244,13 @@ class FkService:
         gc.freeze()
         return time.perf_counter() - t0
 
-    def _log_warm_up(self, name: str, k: int, n: int, took_s: float, so_far_s: float) -> None:
-        """One line per solver warmed up; a slow one was compiled (first start after an install)."""
-        left = "" if k == n else f", about {so_far_s / k * (n - k):.0f} s left"
-        how = "compiled (first start; `glpma-fk precompile` does this ahead)" if took_s > COMPILED_S \
-            else "loaded"
-        self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s{left}")
+    def _log_warm_up(self, name: str, k: int, n: int, took_s: float, loaded: int, compiled: int) -> None:
+        """One line per solver warmed up: what Numba compiled (first start after an install) or
+        loaded from its cache, counted (:func:`~glpma_ros.precompile.cache_counts`), not guessed."""
+        how = describe_cache_use(loaded, compiled)
+        if compiled:
+            how += " (first start; `glpma-fk precompile` does this ahead)"
+        self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s")
 
     # -- inputs -------------------------------------------------------------------------------
     def _leg_indices(self, names, positions) -> list:
@@ -304,6 +310,16 @@ class FkService:
             legs_m = np.asarray(self._legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise InputError("leg lengths are not numbers") from None
+        if legs_m.size == self.model.n_legs:
+            # the usual input, every leg within the plausible band (finite, no unit mistake possible):
+            # the checks below would pass; deciding it on Python floats saves their NumPy calls
+            given = legs_m.tolist()
+            if -self._overflow_m < min(given) and max(given) < self._overflow_m:
+                legs = legs_m / self.metres_per_unit
+                values = legs.tolist()
+                lo, hi = plausible_band(self.model)
+                if lo <= min(values) and max(values) <= hi:
+                    return self.model.legs_from_sensors(legs)      # the config's leg_offsets added
         with np.errstate(over="ignore", invalid="ignore"):
             legs = legs_m / self.metres_per_unit
         if legs.size == self.model.n_legs and np.all(np.isfinite(legs_m)) and not np.all(np.isfinite(legs)):
@@ -338,8 +354,8 @@ class FkService:
             self._warm_x = np.array(estimate.x, dtype=float)
             pose = estimate.pose
             out = PoseOutput(int(stamp_ns), self.frame_id,
-                             tuple(float(v) * self.metres_per_unit for v in pose.position),
-                             tuple(float(v) for v in pose.orientation))
+                             tuple((np.asarray(pose.position, dtype=float) * self.metres_per_unit).tolist()),
+                             tuple(np.asarray(pose.orientation, dtype=float).tolist()))
             rates = self.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
             return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
 

@@ -176,7 +176,7 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
     if ref < 0.0:
         out[:] = 0.0                          # I_INPUT_OK = 0: nothing solved
         return
-    _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work)
+    _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, True)
     if legs_ref.shape[0] == legs.shape[0]:
         mv = 0.0
         for i in range(legs.shape[0]):
@@ -204,7 +204,7 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
     nfev = 0.0
     nit = 0.0
     for k in range(starts.shape[0]):
-        _solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core)
+        _solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core, True)
         nfev += trial_out[base_info + I_NFEV]
         nit += trial_out[base_info + I_NIT]
         converged = trial_out[base_info + I_CONVERGED] == 1.0
@@ -219,8 +219,11 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work):
-    """The iteration of :func:`lm_kernel` for legs that passed the check (``ref``: reference length)."""
+def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, figures):
+    """The iteration of :func:`lm_kernel` for legs that passed the check (``ref``: reference length).
+    ``figures=False`` leaves out what only a decision on the pose needs -- the papers' fitness,
+    stationarity, conditioning and distance (left 0) -- for callers that keep the leg fitness alone
+    (solve_all's multistart)."""
     n_legs = legs.shape[0]
     n_vars = x0.shape[0]
     n_pose = settings.shape[0] - S_COL_SCALE
@@ -389,6 +392,16 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
         rmax = max(rmax, abs(r[i]))
     info[I_LEG_FITNESS] = f
     info[I_MAX_RESIDUAL] = rmax if math.isfinite(rmax) else math.inf
+    info[I_NFEV] = nfev
+    info[I_NIT] = nit
+    info[I_PROGRESS] = progress
+    lsq = False                       # redundant legs: converged at the least-squares pose (gtol > 0)
+    if gtol > 0.0 and f < math.inf:
+        normal_equations(J, r, A, g)
+        lsq = _least_squares_reached(A, g, f, col_scale, ref, gtol)
+    info[I_CONVERGED] = 1.0 if ((rmax <= rtol * ref or lsq) and f < ftol) else 0.0
+    if not figures:
+        return
     residuals_into(x_out, kind, data, legs, rm)
     fm = 0.0
     for k in range(rm.shape[0]):
@@ -416,11 +429,3 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
             smin = min(smin, sv[k])
         info[I_CONDITIONING] = smin / smax if smax > 0.0 else 0.0
     info[I_DISTANCE] = joint_distance(kind, frame, x_out, x_ref)
-    info[I_NFEV] = nfev
-    info[I_NIT] = nit
-    info[I_PROGRESS] = progress
-    lsq = False
-    if gtol > 0.0 and f < math.inf:
-        normal_equations(J, r, A, g)
-        lsq = _least_squares_reached(A, g, f, col_scale, ref, gtol)
-    info[I_CONVERGED] = 1.0 if ((rmax <= rtol * ref or lsq) and f < ftol) else 0.0

@@ -37,7 +37,8 @@ DEFAULTS = {
     "waits_rounds": (4, 1, int, "rounds per setup of the waits section"),
     "waits_inputs": (5000, 1000, int, "inputs per round of the waits section"),
     "bag_messages": (10_000, 1000, int, "inputs of the recorded run glpma-fk bag processes"),
-    "map_resolution": (24, 8, int, "points per axis of the glpma-fk map grid"),
+    "map_resolution": (101, 8, int, "points per axis of the glpma-fk map grids, 3-RPR and 6-6 slice "
+                       "(the command's default)"),
     "table2_runs": (50, 5, int, "runs per 004 Table II row (paper: 50)"),
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
@@ -205,10 +206,9 @@ def main(argv=None) -> int:
 
     if "offline" in sections:
         from . import offline
-        say("offline: glpma-fk bag throughput, glpma-fk map speed-up, glpma-fk calibrate", "offline")
-        res["offline"] = {"bag": offline.bag_throughput(counts["bag_messages"]),
-                          "map": offline.map_scaling(counts["map_resolution"]),
-                          "calibration": offline.calibration()}
+        say("offline: glpma-fk bag throughput and fleet, glpma-fk map on each engine and against G3-PCX, "
+            "glpma-fk calibrate", "offline")
+        res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick)
 
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:

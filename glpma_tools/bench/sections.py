@@ -340,16 +340,33 @@ def dds_section(res) -> list[str]:
 
 
 def offline_section(res) -> list[str]:
-    """``glpma-fk bag`` throughput and ``glpma-fk map`` speed-up (:mod:`.offline`)."""
+    """``glpma-fk bag``: throughput, where the time goes, a fleet on each engine; ``glpma-fk map``: the
+    default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
     o = res["offline"]
-    bag, mp = o["bag"], o["map"]
-    return ["## Offline: bag processing and workspace maps", "", prose("offline"), "",
-            table(["glpma-fk bag (3-RPR, MCAP)", "value"],
-                  [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag.items()]), "",
-            table([f"glpma-fk map ({mp['grid']}, seed 3-RPR)", "wall s", "speed-up"],
-                  [[f"{r['processes']} process(es)", fmt(r["wall s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
-            "", f"Mode counts identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.", ""] \
-        + (calibration_section(o["calibration"]) if o.get("calibration") else [])
+    bag, fleet, methods = o["bag"], o["fleet"], o["methods"]
+    run = bag["run"]
+    out = ["## Offline: bag processing and workspace maps", "", prose("offline"), "",
+           table(["glpma-fk bag (3-RPR, MCAP)", "value"],
+                 [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in run.items()]), "",
+           table(["where the CPU time of one input goes", "µs"],
+                 [[k, fmt(v)] for k, v in bag["CPU µs per input"].items()]
+                 + [["the whole run (the parts above plus the loop itself)", fmt(bag["whole run CPU µs per input"])]]),
+           "",
+           table([f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} inputs)", "wall s",
+                  "converged"], [[r["engine"], fmt(r["wall s"]), fmt(r["converged"])] for r in fleet["runs"]]),
+           "", f"Same statuses on every engine: {'yes' if fleet['same statuses on every engine'] else 'NO'}.", ""]
+    for key in ("map", "hexapod map"):
+        mp = o[key]
+        out += [table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})", "wall s",
+                       "points/s", "speed-up"],
+                      [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
+                "", "Mode counts (points per count, first engine): " + ", ".join(
+                    f"{k}: {v:,}" for k, v in mp["runs"][0]["modes"].items())
+                + f"; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.", ""]
+    out += [table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
+                  [[k, fmt(v) if isinstance(v, (int, float)) else str(v)] for k, v in methods.items()
+                   if k != "grid"]), ""]
+    return out + (calibration_section(o["calibration"]) if o.get("calibration") else [])
 
 
 def calibration_section(rows) -> list[str]:

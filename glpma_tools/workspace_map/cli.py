@@ -18,7 +18,8 @@ from glpma_ros.errors import GlpmaError, InputError
 
 from ..extras import require
 from .engines import EngineError, compute_map
-from .grid import ANGLES, COORDINATES, DEFAULT_RUNS, MapSpec
+from .exact_check import exact_check, require_exact
+from .grid import ANGLES, COORDINATES, DEFAULT_METHOD, DEFAULT_RUNS, METHODS, MapSpec
 
 PROG = "glpma-fk map"
 #: default half-margin of the x-y range around the base joints' bounding box, in units of the geometry's size
@@ -74,10 +75,20 @@ def make_spec(model, args) -> MapSpec:
     shape = (resolution[0], resolution[-1])
     if min(shape) < 2 or len(resolution) > 2:
         raise InputError("--resolution expects one or two numbers of points per axis, each at least 2")
-    if args.runs < 1:
+    method = args.method or ("g3pcx" if args.runs is not None else DEFAULT_METHOD)
+    if args.runs is not None and method != "g3pcx":
+        raise InputError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
+    if args.max_starts is not None and method != "multistart":
+        raise InputError("--max-starts limits --method multistart")
+    if args.runs is not None and args.runs < 1:
         raise InputError("--runs must be at least 1")
+    if args.max_starts is not None and args.max_starts < 1:
+        raise InputError("--max-starts must be at least 1")
+    if args.seed < 0:
+        raise InputError("--seed must be a non-negative integer")
+    per_point = (DEFAULT_RUNS if args.runs is None else args.runs) if method == "g3pcx" else (args.max_starts or 0)
     return MapSpec(model.kind, axes, limits, shape, tuple((n, float(fixed[n])) for n in names if n in fixed),
-                   int(args.runs), int(args.seed))
+                   int(per_point), int(args.seed), method)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -103,8 +114,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"points per axis: N, or N_A N_B (default {DEFAULT_RESOLUTION})")
     p.add_argument("--at", nargs="+", default=None, metavar="NAME=VALUE",
                    help="the fixed coordinates, e.g. --at theta=30 (3-RPR) or --at z=900 yaw=10 (hexapod)")
-    p.add_argument("--runs", type=int, default=DEFAULT_RUNS, metavar="N",
-                   help=f"solve_all searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="how the modes of a point are counted: multistart (default; solve_all's multistart of "
+                        "Levenberg-Marquardt solves with its stopping rule, as glpma-fk solve-all) or g3pcx (the "
+                        "papers' polished G3-PCX searches, --runs of them; default when --runs is given)")
+    p.add_argument("--runs", type=int, default=None, metavar="N",
+                   help=f"g3pcx: searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
+    p.add_argument("--max-starts", type=int, default=None, metavar="N",
+                   help="multistart: cap on the starts per point (default: solve_all's, 20000; the stopping "
+                        "rule ends it far earlier)")
+    p.add_argument("--exact", type=int, default=None, metavar="K",
+                   help="spot check: after the map, certify the counts of K grid points drawn at random (seeded "
+                        "by --seed) with msolve (glpma-fk solve-all --exact; pip install 'glpma_ros[exact]'); "
+                        "exit status 1 when a count differs")
     p.add_argument("--seed", type=int, default=0, metavar="N",
                    help="base seed; each point's seed derives from it and its index")
     p.add_argument("--workers", type=int, default=None, metavar="N",
@@ -134,15 +156,23 @@ def main(argv=None) -> int:
             raise InputError("--workers must be at least 1")
         if args.chunk_size is not None and args.chunk_size < 1:
             raise InputError("--chunk-size must be at least 1")
+        if args.exact is not None:
+            if args.exact < 1:
+                raise InputError("--exact needs at least 1 point")
+            require_exact()
         result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
                              chunk_size=args.chunk_size, progress=not args.no_progress)
+        check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact)
     except GlpmaError as exc:
         print(f"error: {PROG}: {exc}", file=sys.stderr)
         return 1 if isinstance(exc, EngineError) else 2
     except KeyboardInterrupt:
         return 130
-    print(json.dumps(result.as_dict()) if args.json else result.text())
-    return 0
+    if args.json:
+        print(json.dumps({**result.as_dict(), **({} if check is None else {"exact_check": check.as_dict()})}))
+    else:
+        print(result.text() + ("" if check is None else "\n" + check.text()))
+    return 1 if check is not None and check.disagree else 0
 
 
 if __name__ == "__main__":

@@ -2,7 +2,8 @@
 
 The grid is cut into chunks (:func:`plan`); each finished chunk is saved under
 ``DIR/chunks/<key>/`` and reused by a rerun; the chunks still to do run in this process,
-in local worker processes (spawned) or on a Dask distributed cluster; :func:`compute_map`
+in local worker processes (spawned) or on a Dask distributed cluster
+(:func:`glpma_tools.parallel.run_tasks`); :func:`compute_map`
 assembles them, writes ``assembly_modes.npz`` and draws ``assembly_modes.png``
 (:mod:`.plot`).
 """
@@ -12,15 +13,16 @@ import os
 import sys
 import time
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from glpma_ros.config import model_from_dict
-from glpma_ros.errors import GlpmaError, InputError
+from glpma_ros.errors import InputError
 
+from ..parallel import EngineError, engine_name, run_tasks
 from .grid import OUTSIDE, MapSpec, solve_chunk
 from .plot import draw_map
 
@@ -29,13 +31,6 @@ BYTES_PER_POINT = 96
 #: share of the available memory a map may take
 MEMORY_SHARE = 0.5
 OUTPUT_NAME = "assembly_modes"
-#: how long to try to reach a Dask scheduler
-DASK_CONNECT_TIMEOUT = "5s"
-
-
-class EngineError(GlpmaError):
-    """A worker failed (exit status 1: not the user's input)."""
-
 
 
 # -- chunks on disk ---------------------------------------------------------------------------------
@@ -66,45 +61,6 @@ def save_chunk(path: Path, chunk: dict) -> None:
     os.replace(tmp, path)
 
 
-# -- engines ------------------------------------------------------------------------------------------
-
-def run_serial(tasks, args, done) -> None:
-    for start, stop in tasks:
-        done(solve_chunk(*args, start, stop))
-
-
-def run_processes(tasks, args, done, workers: int) -> None:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    # spawn: a clean interpreter per worker (no forked threads); Numba loads its cache there
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(solve_chunk, *args, start, stop) for start, stop in tasks]
-        try:
-            for future in as_completed(futures):
-                done(future.result())
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            raise
-
-
-def run_dask(tasks, args, done, scheduler: str) -> None:
-    from dask.distributed import Client, as_completed
-    try:
-        client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError(f"cannot reach the Dask scheduler {scheduler}: {str(exc).splitlines()[0]}") from None
-    with client:
-        config = client.scatter(args[0], broadcast=True)
-        futures = [client.submit(solve_chunk, config, *args[1:], start, stop, pure=False) for start, stop in tasks]
-        try:
-            for future in as_completed(futures):
-                done(future.result())
-        except BaseException:
-            client.cancel(futures)
-            raise
-
-
 # -- the map --------------------------------------------------------------------------------------------
 
 @dataclass
@@ -117,20 +73,26 @@ class MapResult:
     chunks_reused: int
     elapsed_s: float
     engine: str
-    modes: dict              # count -> points
+    modes: dict              # count -> points (count OUTSIDE = -1: no valid legs)
+    method: str = ""         # how the modes were counted: "multistart" or "g3pcx (N runs)"
+    counts: np.ndarray = field(default=None, repr=False)   # the map (rows, columns), not in the summary
 
     def as_dict(self) -> dict:
-        d = asdict(self)
-        d.update(npz=str(self.npz), png=str(self.png), modes={str(k): v for k, v in self.modes.items()})
-        return d
+        """The JSON summary: ``modes`` maps a mode count to its points; the points without valid legs
+        (count -1 in the npz) are ``no_valid_legs``."""
+        return {"npz": str(self.npz), "png": str(self.png), "points": self.points, "computed": self.computed,
+                "chunks_computed": self.chunks_computed, "chunks_reused": self.chunks_reused,
+                "elapsed_s": self.elapsed_s, "engine": self.engine, "method": self.method,
+                "modes": {str(k): v for k, v in self.modes.items() if k != OUTSIDE},
+                "no_valid_legs": self.modes.get(OUTSIDE, 0)}
 
     def text(self) -> str:
         rate = self.computed / self.elapsed_s if self.elapsed_s > 0 else 0.0
         modes = ", ".join(f"{'no valid legs' if k == OUTSIDE else f'{k} modes'}: {v}"
                           for k, v in sorted(self.modes.items()))
         return (f"{self.npz} and {self.png}: {self.points} points ({self.computed} computed in {self.elapsed_s:.1f} s "
-                f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run)\n"
-                f"  {modes}")
+                f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run; "
+                f"modes counted by {self.method})\n  {modes}")
 
 
 def available_memory() -> int:
@@ -175,7 +137,7 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
             todo.append((start, stop))
         else:
             store(start, stop, chunk)
-    engine = (f"Dask {scheduler}" if scheduler else "this process" if workers == 1 else f"{workers} processes")
+    engine = engine_name(workers, scheduler)
     t0 = time.perf_counter()
     remaining = sum(b - a for a, b in todo)
     with tqdm(total=spec.n_points, initial=spec.n_points - remaining, unit="pt", file=sys.stderr,
@@ -186,20 +148,11 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
             store(start, stop, chunk)
             bar.update(stop - start)
 
-        args = (config_text, source, spec)
         try:
-            if not todo:
-                pass
-            elif scheduler:
-                run_dask(todo, args, done, scheduler)
-            elif workers == 1 or len(todo) == 1:
-                run_serial(todo, args, done)
-            else:
-                run_processes(todo, args, done, min(workers, len(todo)))
-        except (GlpmaError, KeyboardInterrupt):
-            raise
-        except Exception as exc:  # noqa: BLE001 - a worker's failure, reported in one line
-            raise EngineError(f"computing the map failed on {engine}: {type(exc).__name__}: {exc}") from None
+            run_tasks(solve_chunk, todo, done, shared=(config_text, source, spec), workers=workers,
+                      scheduler=scheduler)
+        except EngineError as exc:
+            raise EngineError(f"computing the map failed on {exc}") from None
     elapsed = time.perf_counter() - t0
     shape = (spec.shape[1], spec.shape[0])           # rows, columns
     data = {"counts": counts.reshape(shape), "conditioning": cond.reshape(shape),
@@ -210,7 +163,7 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
     draw_map(png, data, spec, model, title=Path(source).name)
     modes = Counter(int(c) for c in counts)
     return MapResult(npz, png, spec.n_points, remaining, len(todo), len(chunks) - len(todo), elapsed, engine,
-                     dict(sorted(modes.items())))
+                     dict(sorted(modes.items())), spec.describe_method(), data["counts"])
 
 
 def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:
@@ -219,5 +172,5 @@ def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:
         np.savez(f, **data, axis_names=np.array(spec.axes), axis_0=spec.axis_values(0), axis_1=spec.axis_values(1),
                  fixed_names=np.array([n for n, _ in spec.fixed], dtype=str),
                  fixed_values=np.array([v for _, v in spec.fixed], dtype=float),
-                 runs=spec.runs, seed=spec.seed, config=np.array(config_text))
+                 method=np.array(spec.method), runs=spec.runs, seed=spec.seed, config=np.array(config_text))
     os.replace(tmp, path)

@@ -2,8 +2,9 @@
 
 :class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each
 point is solved; :func:`solve_point` gives the number of real assembly modes
-(:func:`glpma_ros.solve_all.solve_all`, seeded from the point's index by
-:func:`point_seed`), the conditioning and the sign of det J of one point;
+(:func:`glpma_ros.solve_all.solve_all`: by default its multistart, counted without polishing
+the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX searches; seeded from the
+point's index by :func:`point_seed`), the conditioning and the sign of det J of one point;
 :func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
 """
 from __future__ import annotations
@@ -22,7 +23,10 @@ from glpma_ros.errors import InputError
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
 COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
 ANGLES = ("theta", "roll", "pitch", "yaw")
-#: independent searches of solve_all per grid point
+#: how the modes of a point are counted: solve_all's multistart (default) or the papers' G3-PCX runs
+METHODS = ("multistart", "g3pcx")
+DEFAULT_METHOD = "multistart"
+#: independent G3-PCX searches per grid point with method g3pcx (what the maps used before the multistart)
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
 OUTSIDE = -1
@@ -37,8 +41,9 @@ class MapSpec:
     limits: tuple          # ((low, high), (low, high)), config unit or degrees
     shape: tuple           # (columns, rows)
     fixed: tuple           # ((name, value), ...) every coordinate not on the grid
-    runs: int
+    runs: int              # method g3pcx: searches per point; multistart: cap on the starts (0 = solve_all's)
     seed: int
+    method: str = DEFAULT_METHOD
 
     @property
     def n_points(self) -> int:
@@ -54,6 +59,12 @@ class MapSpec:
         coords[self.axes[0]] = float(self.axis_values(0)[col])
         coords[self.axes[1]] = float(self.axis_values(1)[row])
         return coords
+
+    def describe_method(self) -> str:
+        """How the modes of a point are counted, in words (summary, figure title)."""
+        if self.method == "g3pcx":
+            return f"{self.runs} polished G3-PCX runs per point"
+        return "the multistart" + (f" (at most {self.runs} starts per point)" if self.runs else "")
 
     def key(self, config_text: str) -> str:
         """Identifies the chunks of this map of this configuration."""
@@ -95,7 +106,11 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int]:
         legs = model.check_legs(model.inverse_kinematics(x))
     except InputError:                       # a leg of length 0 or outside the leg limits: no such pose
         return OUTSIDE, math.nan, 0
-    modes = solve_all(model, legs, runs=spec.runs, seed=point_seed(spec.seed, index))
+    seed = point_seed(spec.seed, index)
+    if spec.method == "g3pcx":
+        modes = solve_all(model, legs, method="g3pcx", runs=spec.runs, seed=seed)
+    else:
+        modes = solve_all(model, legs, method="multistart", seed=seed, max_starts=spec.runs or None, polish=False)
     _, J = model.pose_residuals_jacobian(model.pose_state(x), legs)
     sign = int(np.sign(np.linalg.det(J * model.pose_column_scale))) if J.shape[0] == J.shape[1] else 0
     return len(modes.solutions), float(model.conditioning(x, legs)), sign

@@ -6,40 +6,64 @@ from pathlib import Path
 
 import numpy as np
 
-from .grid import ANGLES, MapSpec
+from .grid import ANGLES, OUTSIDE, MapSpec
+
+#: qualitative palettes whose colours, in order and without their greys, are those of the mode counts
+#: (count k gets the k-th colour in every map): tab20 without its greys (14, 15), then tab20b
+MODE_PALETTES = (("tab20", tuple(range(14)) + (16, 17, 18, 19)), ("tab20b", tuple(range(20))))
+#: colour of the points without valid legs
+OUTSIDE_COLOUR = "0.85"
 
 
 def _label(name: str, unit: str) -> str:
     return f"{name} [{'deg' if name in ANGLES else unit}]"
 
 
-def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> None:
-    """Assembly-mode count regions, and the singularity curves (zero contour of the signed conditioning)."""
+def count_colour(count: int):
+    """The fixed colour of a mode count, the same in every map: the ``MODE_PALETTES`` colours
+    indexed by the count (38 colours; a 6-6 has at most 40 modes, counts beyond wrap), light grey
+    (``OUTSIDE_COLOUR``) for a point without valid legs."""
+    from matplotlib import colormaps
+    if count == OUTSIDE:
+        return OUTSIDE_COLOUR
+    colours = [colormaps[name](k) for name, picks in MODE_PALETTES for k in picks]
+    return colours[count % len(colours)]
+
+
+def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> list:
+    """Assembly-mode count regions (a fixed colour per count, :func:`count_colour`; a legend entry for
+    every class drawn, points without valid legs included) and the singularity curves (zero contour of
+    the signed conditioning).  Returns the legend's ``(label, colour)`` entries."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
-    counts = np.ma.masked_less(data["counts"], 0)
-    levels = sorted(int(c) for c in np.unique(counts.compressed())) or [0]
-    cmap = ListedColormap([f"C{k % 10}" for k in range(len(levels))]).with_extremes(bad="0.85")
-    norm = BoundaryNorm([levels[0] - 0.5] + [c + 0.5 for c in levels], cmap.N)
+    from matplotlib.patches import Patch
+    counts = np.asarray(data["counts"])
+    classes = sorted(int(c) for c in np.unique(counts))
+    # each class drawn is an index into a colour list holding exactly the classes present
+    index = np.searchsorted(classes, counts)
+    cmap = ListedColormap([count_colour(c) for c in classes])
     v0, v1 = spec.axis_values(0), spec.axis_values(1)
     h0, h1 = (v0[1] - v0[0]) / 2, (v1[1] - v1[0]) / 2
     fig = Figure(figsize=(7.5, 6.0))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    image = ax.imshow(counts, origin="lower",
-                      extent=(v0[0] - h0, v0[-1] + h0, v1[0] - h1, v1[-1] + h1), cmap=cmap, norm=norm,
-                      interpolation="nearest", aspect="equal" if not set(spec.axes) & set(ANGLES) else "auto")
-    bar = fig.colorbar(image, ax=ax, ticks=levels)
-    bar.set_label("real assembly modes")
+    ax.imshow(index, origin="lower", extent=(v0[0] - h0, v0[-1] + h0, v1[0] - h1, v1[-1] + h1), cmap=cmap,
+              vmin=-0.5, vmax=len(classes) - 0.5, interpolation="nearest",
+              aspect="equal" if not set(spec.axes) & set(ANGLES) else "auto")
+    handles = [Patch(facecolor=count_colour(c), edgecolor="0.3",
+                     label="no valid legs" if c == OUTSIDE else f"{c} real mode{'' if c == 1 else 's'}")
+               for c in classes]
     signed = np.where(np.isfinite(data["conditioning"]), data["jacobian_sign"] * data["conditioning"], np.nan)
     if np.nanmin(signed, initial=np.inf) < 0 < np.nanmax(signed, initial=-np.inf):
         ax.contour(v0, v1, signed, levels=[0.0], colors="k", linewidths=1.2)
-    ax.legend(handles=[Line2D([], [], color="k", lw=1.2, label="singularity (det J = 0)")], loc="upper right",
-              fontsize="small")
+        handles.append(Line2D([], [], color="k", lw=1.2, label="singularity (det J = 0)"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small", borderaxespad=0.0)
     ax.set_xlabel(_label(spec.axes[0], model.unit))
     ax.set_ylabel(_label(spec.axes[1], model.unit))
     fixed = ", ".join(f"{n} = {v:g}{' deg' if n in ANGLES else ' ' + model.unit}" for n, v in spec.fixed)
-    ax.set_title(f"{title}: {fixed}\n{spec.runs} solve_all runs per point", fontsize="medium")
+    ax.set_title(f"{title}: {fixed}\nmodes counted by {spec.describe_method()}", fontsize="medium")
+    fig.tight_layout()
     fig.savefig(path, dpi=110)
+    return [(h.get_label(), h.get_facecolor() if isinstance(h, Patch) else h.get_color()) for h in handles]
