@@ -396,26 +396,12 @@ def test_bench_gough_script_runs_and_reports_every_design(tmp_path):
 
 
 # -- a faulty sensor, live: the demo's node over DDS, the mock controller's --fault ---------------------------------
-@pytest.fixture
-def fault_domain():
-    """A DDS domain of this test's own: claimed (glpma_tools.sim.domains) where the tree has the claims,
-    otherwise the pid-derived id test_demo.py uses on this branch."""
-    try:
-        from glpma_tools.sim.domains import claim_domain
-    except ImportError:
-        yield 170 + __import__("os").getpid() % 20
-        return
-    with claim_domain() as claim:
-        yield claim.domain_id
-
-
 @pytest.mark.timing
-def test_demo_with_a_faulty_leg_publishes_right_poses_and_names_the_leg(tmp_path, fault_domain):
+def test_demo_with_a_faulty_leg_publishes_right_poses_and_names_the_leg(tmp_path, dds_env, dds_domain):
     pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
-    import os
-    env = dict(os.environ, CYCLONEDDS_URI=(CONFIG / "cyclonedds-localhost.xml").as_uri())
+    env = dds_env
     r = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--manipulator", "hexapod_7legs", "--duration", "2",
-                        "--fault", "4", "0.01", "--out", str(tmp_path), "--domain-id", str(fault_domain)],
+                        "--fault", "4", "0.01", "--out", str(tmp_path), "--domain-id", str(dds_domain)],
                        cwd=CONFIG.parent, env=env, capture_output=True, text=True, timeout=400)
     assert r.returncode == 0, r.stdout + r.stderr
     s = json.loads((tmp_path / "demo_hexapod_7legs.json").read_text())
