@@ -67,7 +67,7 @@ setup(
         # main(argv) -> exit status; the first line of the module's docstring is its --help line
         "glpma_fk.commands": [
             "bag = glpma_tools.bag:main [bag]",
-            "bench = glpma_tools.bench:main [bench]",
+            "bench = glpma_tools.bench:main [tools]",        # the peers (bench extra) are optional rows
             "calibrate = glpma_tools.calibrate:main",
             "demo = glpma_tools.demo:main [tools]",
             "map = glpma_tools.workspace_map:main [map]",

@@ -254,10 +254,10 @@ def cmd_solve_all(args) -> int:
         if res.method == "multistart" and res.starts:
             print(f"  chance that one more start finds a new mode (Good-Turing): {res.miss_probability:.3g}; "
                   f"95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
-        for line in mode_table(model, res.solutions):
-            print(line)
         if load_s:
             print(f"  one-time load of the compiled solvers: {load_s:.2f} s (not part of the search time)")
+        for line in mode_table(model, res.solutions):
+            print(line)
     if not res.solutions:
         print(f"error: no real assembly mode found ({_no_mode_reason(res)})", file=sys.stderr)
         return 1

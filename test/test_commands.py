@@ -59,12 +59,12 @@ def test_without_the_extra_help_names_it_and_the_command_says_how_to_install(wit
     assert cli.missing_requirements("bag") == ["matplotlib"]     # rosbags, tqdm: installed with the tests
     assert cli.main(["--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())          # argparse wraps the help lines
-    for name, extra in (("bench", "bench"), ("demo", "tools"), ("bag", "bag"), ("map", "map")):
+    for name, extra in (("bench", "tools"), ("demo", "tools"), ("bag", "bag"), ("map", "map")):
         assert f"pip install 'glpma_ros[{extra}]'" in text, (name, text)
     assert cli.main(["bench", "--quick"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["error: glpma-fk bench needs matplotlib: pip install 'glpma_ros[bench]' "
-                   "(in a checkout: pip install -e '.[bench]')"], err
+    assert err == ["error: glpma-fk bench needs matplotlib: pip install 'glpma_ros[tools]' "
+                   "(in a checkout: pip install -e '.[tools]')"], err
 
 
 def test_a_command_main_turns_exits_and_errors_into_statuses(capsys):

@@ -437,7 +437,7 @@ def test_the_bag_status_names_the_faulty_leg(tmp_path, capsys):
     pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
     from test_bag import TS, read_bag, write_legs_bag
     from glpma_tools import bag as B
-    from glpma_tools import bag_codec as C
+    from glpma_tools import bag_run as C
     plan = Plan("hexapod_7legs")
     x0 = plan.start_variables()
     legs_m = np.array([plan.sample(k / 100.0)[0] for k in range(40)]) * plan.mpu

@@ -100,7 +100,8 @@ def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
     from glpma_ros.node import params as P
     from glpma_ros.node.ros_args import parse_ros_args
     from glpma_ros.node.service import FkService
-    from glpma_tools.bag_codec import decode_float64_multi_array, pose_stamped_codec, tf_codec
+    from glpma_ros.node.dds import cdr
+    from glpma_tools.bag_run import decode_float64_multi_array
     from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch
     model = load_manipulator(config_dir() / "planar_3rpr_seed.yaml")
     from glpma_tools.sim.trajectories import variables_along
@@ -130,10 +131,11 @@ def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
         for o in outcomes:
             watch(o.estimate.x, o.legs)
         per["assembly-mode watch"] = time.process_time() - c
-        pose, tf = pose_stamped_codec(ts, "base"), tf_codec(ts, "base", "platform")
+        encode = cdr.Encoder()          # as glpma-fk bag writes them (the node's codec)
         c = time.process_time()
-        encoded = [(pose.encode(o.pose.stamp_ns, (*o.pose.position, *o.pose.orientation)),
-                    tf.encode(o.pose.stamp_ns, (*o.pose.position, *o.pose.orientation))) for o in outcomes]
+        encoded = [(encode.pose_stamped(o.pose.stamp_ns, "base", o.pose.position, o.pose.orientation),
+                    encode.tf_message(o.pose.stamp_ns, "base", "platform", o.pose.position, o.pose.orientation))
+                   for o in outcomes]
         per["encode pose and /tf"] = time.process_time() - c
         status = bytes(100)
         with Writer(Path(tmp) / "written", version=9, storage_plugin=StoragePlugin.MCAP) as w:
