@@ -1,6 +1,8 @@
 import gc
 import math
 import os
+import signal
+import subprocess
 import time
 from pathlib import Path
 
@@ -92,3 +94,14 @@ def dds_env(dds_domain, monkeypatch):
     for key in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID"):
         monkeypatch.setenv(key, env[key])
     return env
+
+
+def interrupt(proc: subprocess.Popen, timeout: float = 30.0) -> int:
+    """Stop a node process as Ctrl-C does (SIGINT), killing it if it has not exited within
+    ``timeout`` seconds (a bound for a hang, not a timing figure); returns its exit status."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        return proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.wait()

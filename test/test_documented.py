@@ -12,7 +12,6 @@ from __future__ import annotations
 import ast
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import time
@@ -20,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, interrupt
 
 README = ROOT / "README.md"
 TEST_DIR = Path(__file__).resolve().parent
@@ -177,12 +176,7 @@ def test_readme_node_and_modes(dds_env):
         assert p.returncode == 1 and "no input received yet" in p.stderr, p.stdout + p.stderr
         assert len(p.stderr.strip().splitlines()) == 1
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(30)
-        except subprocess.TimeoutExpired:
-            node.kill()
-            node.wait()
+        interrupt(node)
     assert node.returncode == 0
 
 

@@ -5,7 +5,6 @@ with the node, bad arguments in one line, ``--version``, ``| head -1`` without a
 import json
 import os
 import re
-import signal
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -21,7 +20,7 @@ from glpma_ros.config import load_manipulator, model_from_dict, unit_mistake
 from glpma_ros.errors import ConfigError, GlpmaError, InputError
 from glpma_ros.node.ros_args import check_params_files, load_params_file
 
-from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML
+from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML, interrupt
 
 CONTRACT_SOLVE_KEYS = {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"}
 
@@ -311,11 +310,7 @@ def test_modes_asks_a_running_node(tmp_path, dds_env):
             x = model.variables_from_pose(np.array(mode["position"]) / model.metres_per_unit, mode["orientation"])
             np.testing.assert_allclose(model.inverse_kinematics(x), [100, 120, 150], atol=1e-6)
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(15)
-        except subprocess.TimeoutExpired:
-            node.kill()
+        interrupt(node)
 
 
 # -- the demo's verdict says only what happened (issue 23, item 1) ---------------------------------------
