@@ -63,11 +63,20 @@ def test_the_stored_cases_cover_what_issue_13_asks():
     assert all(c["complex_solutions"] == (6 if c["kind"] == "planar_3rpr" else 40) for c in CASES)
 
 
+#: stored geometries and legs against the generator's on this machine: relative round-off of the
+#: elementary functions (sin, cos, sqrt) over the few operations that build them
+STORED_RTOL = 1e-12
+
+
 @pytest.mark.parametrize("case", CASES, ids=case_id)
 def test_the_stored_cases_are_the_generator_s(case):
     model, legs, _ = GENERATORS[case["kind"]](np.random.default_rng(case["seed"]))
-    assert np.array_equal(model.base, case["base"]) and np.array_equal(model.platform, case["platform"])
-    assert np.array_equal(legs, case["legs"])
+    # the same draws through the same arithmetic: equal up to the round-off of the library's elementary
+    # functions (a few units in the last place of the geometry's scale), not bit for bit
+    rtol = STORED_RTOL
+    assert np.allclose(model.base, case["base"], rtol=rtol, atol=rtol * model.scale)
+    assert np.allclose(model.platform, case["platform"], rtol=rtol, atol=rtol * model.scale)
+    assert np.allclose(legs, case["legs"], rtol=rtol, atol=0.0)
 
 
 @pytest.mark.parametrize("case", CASES, ids=case_id)

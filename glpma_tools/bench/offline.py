@@ -278,10 +278,12 @@ def _differing(axes, a, b):
     return [((r, c), float(axes[0][c]), float(axes[1][r])) for r, c in np.argwhere(a != b)]
 
 
-def measure(bag_messages: int, map_resolution: int, quick: bool = False) -> dict:
-    """The offline section: the bag's breakdown and fleet, the two maps on each engine, the methods."""
+def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod: bool = True) -> dict:
+    """The offline section: the bag's breakdown and fleet, the maps on each engine (the 6-6 slice when
+    ``hexapod``), the methods."""
     return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages),
             "map": map_scaling(map_resolution),
-            "hexapod map": map_scaling(map_resolution, workers=(max(MAP_WORKERS),), config="hexapod_66_rolland"),
+            "hexapod map": map_scaling(map_resolution, workers=(max(MAP_WORKERS),), config="hexapod_66_rolland")
+            if hexapod else None,
             "methods": map_methods(map_resolution if quick else COMPARE_RESOLUTION, 5 if quick else COMPARE_RUNS,
                                    5 if quick else EXACT_POINTS)}
