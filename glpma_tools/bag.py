@@ -116,8 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --out-dir: bags processed at once in local worker processes (default: all cores, at most "
                         "one per bag; 1 = one after the other in this process)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="with --out-dir: run the bags on this Dask distributed scheduler instead (the workers need "
-                        "glpma_ros[bag] and the same paths: INPUT and DIR on a shared file system)")
+                   help="with --out-dir: run the bags on this Dask distributed scheduler instead (dask.distributed "
+                        "from glpma_ros[map]; the workers need glpma_ros[bag] and the same paths: INPUT and DIR on a "
+                        "shared file system)")
     p.add_argument("--storage", choices=STORAGES, default=None, help="storage of OUTPUT (default: INPUT's)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing OUTPUT (refused by default)")
     p.add_argument("--budget-ms", type=float, default=None, metavar="MS",
@@ -154,6 +155,8 @@ def main(argv=None) -> int:
         require("bag", PROG)
         ros = parse_ros_args(argv)
         args = build_parser().parse_args(ros.other)
+        if args.scheduler:              # Dask comes with the map extra
+            require("map", PROG, modules=("dask", "distributed"))
         return run(args, ros)
     except EngineError as exc:
         print(f"error: {PROG}: {exc}", file=sys.stderr)

@@ -70,6 +70,7 @@ def test_the_stored_cases_cover_what_issue_13_asks():
     assert all(c["complex_solutions"] == (6 if c["kind"] == "planar_3rpr" else 40) for c in CASES)
 
 
+
 @pytest.mark.parametrize("case", CASES, ids=case_id)
 def test_the_stored_cases_are_the_generator_s(case):
     """A stored case is what its seed generates (to round-off) and its certified modes are real

@@ -248,3 +248,16 @@ def test_exact_spot_check_certifies_a_sample(tmp_path):
     assert p.returncode == 0, p.stderr
     check = json.loads(p.stdout)["exact_check"]
     assert len(check["points"]) == 3 and check["agree"] == 3 and check["disagree"] == []
+
+
+def test_exact_without_msolve_is_one_line_before_the_map(tmp_path, monkeypatch, capsys):
+    from glpma_ros import exact
+    from glpma_ros.exact import ExactUnavailableError
+
+    def missing():
+        raise ExactUnavailableError("the exact mode needs msolve: pip install 'glpma_ros[exact]'")
+    monkeypatch.setattr(exact, "msolve_executable", missing)
+    assert W.main([str(RPR_YAML), "--out", str(tmp_path / "out"), "--resolution", "2", "--exact", "3"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--exact" in err and "glpma_ros[exact]" in err
+    assert not (tmp_path / "out").exists()              # refused before anything was computed

@@ -208,7 +208,8 @@ def main(argv=None) -> int:
         from . import offline
         say("offline: glpma-fk bag throughput and fleet, glpma-fk map on each engine and against G3-PCX, "
             "glpma-fk calibrate", "offline")
-        res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick)
+        res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick,
+                                         hexapod="hexapod" in keys)
 
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:

@@ -355,8 +355,9 @@ def offline_section(res) -> list[str]:
            table([f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} inputs)", "wall s",
                   "converged"], [[r["engine"], fmt(r["wall s"]), fmt(r["converged"])] for r in fleet["runs"]]),
            "", f"Same statuses on every engine: {'yes' if fleet['same statuses on every engine'] else 'NO'}.", ""]
-    for key in ("map", "hexapod map"):
-        mp = o[key]
+    for mp in (o["map"], o.get("hexapod map")):
+        if mp is None:
+            continue
         out += [table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})", "wall s",
                        "points/s", "speed-up"],
                       [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),

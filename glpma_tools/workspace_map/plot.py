@@ -9,8 +9,10 @@ import numpy as np
 from .grid import ANGLES, OUTSIDE, MapSpec
 
 #: qualitative palettes whose colours, in order and without their greys, are those of the mode counts
-#: (count k gets the k-th colour in every map): tab20 without its greys (14, 15), then tab20b
-MODE_PALETTES = (("tab20", tuple(range(14)) + (16, 17, 18, 19)), ("tab20b", tuple(range(20))))
+#: (count k gets the k-th colour in every map): tab20's dark shades, then its light ones (so that
+#: neighbouring counts get different hues), without its greys (14, 15), then tab20b
+MODE_PALETTES = (("tab20", (0, 2, 4, 6, 8, 10, 12, 16, 18, 1, 3, 5, 7, 9, 11, 13, 17, 19)),
+                 ("tab20b", tuple(range(20))))
 #: colour of the points without valid legs
 OUTSIDE_COLOUR = "0.85"
 
