@@ -329,12 +329,15 @@ RCLPY_CLIENT = r"""
 import sys, time, threading
 import numpy as np, rclpy
 from std_msgs.msg import Float64MultiArray
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from tf2_msgs.msg import TFMessage
 from rclpy.executors import SingleThreadedExecutor
 from glpma_tools.sim.controller import Sent
-from glpma_tools.sim.matching import compare
+from glpma_tools.sim.echo_node import legs_of
+from glpma_tools.sim.matching import compare, pair
 from glpma_tools.sim.trajectories import Plan
 config, rate, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+extras, echo = sys.argv[4] == "extras", sys.argv[5] == "echo"
 plan = Plan(config)
 samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
 rclpy.init()
@@ -349,6 +352,9 @@ def take(m):
 
 
 node.create_subscription(PoseStamped, "pose_estimate", take, 100)
+if extras:          # what any TF listener and RViz do: the node then builds and publishes them
+    node.create_subscription(TFMessage, "/tf", lambda m: None, 100)
+    node.create_subscription(PoseWithCovarianceStamped, "pose_estimate_cov", lambda m: None, 100)
 pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
 executor = SingleThreadedExecutor()
 executor.add_node(node)
@@ -365,15 +371,64 @@ for i, (legs, position, quaternion) in enumerate(samples):
     sent.append(Sent(time.time_ns(), legs, position, quaternion))
     pub.publish(msg)
 time.sleep(1.0)
-c = compare(plan.model, sent, list(received))
-print(len(sent), len(received), np.percentile(c.latency_ms, 50), np.percentile(c.latency_ms, 99),
-      len(c.unpaired) + int(np.sum(~c.on_truth)), flush=True)
+if echo:            # the echo's pose carries the legs it answers (glpma_tools.sim.echo_node)
+    n = plan.model.n_legs
+    pairs, unpaired = pair(plan.model, sent, list(received),
+                           legs_of=lambda p: np.asarray(legs_of(p, n)) / plan.mpu)
+    latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p, _ in pairs])
+    wrong = len(unpaired)
+else:
+    c = compare(plan.model, sent, list(received))
+    latency, wrong = c.latency_ms, len(c.unpaired) + int(np.sum(~c.on_truth))
+print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
 """
-#: rclpy adapter variants of part 4: the shipped one, and two alternatives
+#: a process that keeps one core busy (the "one core busy" rows)
+BUSY_LOOP = "while True:\n    pass\n"
+
+
+class RclpyEcho:
+    """The transport floor on rclpy: ``leg_lengths`` taken raw, the newest read with ``struct``, a
+    ``pose_estimate`` carrying its legs published as bytes -- the rclpy node's path without the solve
+    (:mod:`glpma_tools.sim.echo_node` on Cyclone DDS)."""
+
+    def __init__(self, depth: int, frame_id: str):
+        import time as _time
+
+        from geometry_msgs.msg import PoseStamped
+        from rclpy.node import Node
+        from std_msgs.msg import Float64MultiArray
+
+        from glpma_ros.node.dds import cdr
+        from glpma_tools.sim.echo_node import POSE_NUMBERS
+        self.node = Node("glpma_fk")
+        self.received = self.dropped = 0
+        encode, pub = cdr.Encoder(), self.node.create_publisher(PoseStamped, "pose_estimate", depth)
+
+        def on_legs(data):
+            sub, newest = self.sub, data
+            while True:
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                newest, self.dropped = taken[0], self.dropped + 1
+            self.received += 1
+            numbers = (cdr.float64_multi_array_data(newest) + (0.0,) * POSE_NUMBERS)[:POSE_NUMBERS]
+            pub.publish(encode.pose_stamped(_time.time_ns(), frame_id, numbers[:3], numbers[3:]))
+
+        self.sub = self.node.create_subscription(Float64MultiArray, "leg_lengths", on_legs, depth, raw=True)
+#: rclpy adapter variants of part 4: (label, variant, /tf + covariance subscribed, one core busy) --
+#: the echo floor and the shipped node with the usual subscribers, idle and with one core busy, then
+#: the shipped node alone and two alternative executor set-ups
 RCLPY_VARIANTS = (
-    ("SingleThreadedExecutor, newest input solved in the callback (shipped)", "shipped"),
-    ("SingleThreadedExecutor, hand-off to a solver thread", "submit"),
-    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi"),
+    ("echo (the floor: no solve), /tf + cov subscribed", "echo", True, False),
+    ("shipped, /tf + cov subscribed", "shipped", True, False),
+    ("echo (the floor), /tf + cov subscribed, one core busy", "echo", True, True),
+    ("shipped, /tf + cov subscribed, one core busy", "shipped", True, True),
+    ("SingleThreadedExecutor, newest input solved in the callback (shipped), nothing else subscribed",
+     "shipped", False, False),
+    ("SingleThreadedExecutor, hand-off to a solver thread", "submit", False, False),
+    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi", False, False),
 )
 
 
@@ -391,11 +446,14 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
     from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
     values = {**_params_file(sc.model.kind), "manipulator_config": sc.path}
     rows = []
-    for k, (label, variant) in enumerate(RCLPY_VARIANTS):
+    for k, (label, variant, extras, busy) in enumerate(RCLPY_VARIANTS):
         env = node_environment(domain())
         rclpy.init()
-        node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
-        if variant != "shipped":
+        if variant == "echo":
+            node = RclpyEcho(values["qos_depth"], values["frame_id"])
+        else:
+            node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
+        if variant in ("submit", "multi"):
             node.destroy_subscription(node.input_sub)
             if variant == "submit":
                 node.loop.start()
@@ -405,22 +463,35 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
             node.create_subscription(Float64MultiArray, "leg_lengths", callback, values["qos_depth"],
                                      callback_group=ReentrantCallbackGroup() if variant == "multi" else None)
         executor = MultiThreadedExecutor(2) if variant == "multi" else SingleThreadedExecutor()
-        executor.add_node(node)
+        executor.add_node(node.node if variant == "echo" else node)
         spinner = threading.Thread(target=executor.spin, daemon=True)
         spinner.start()
+        hog = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if busy else None
+        cpu0 = time.process_time()
         try:
-            out = subprocess.run([sys.executable, "-c", RCLPY_CLIENT, sc.path, str(rate_hz), str(seconds)], env=env,
+            out = subprocess.run([sys.executable, "-c", RCLPY_CLIENT, sc.path, str(rate_hz), str(seconds),
+                                  "extras" if extras else "-", "echo" if variant == "echo" else "-"], env=env,
                                  capture_output=True, text=True, timeout=seconds + 300, cwd=PACKAGE_PARENT)
+            cpu_s = time.process_time() - cpu0          # this process = the node under test
             sent, poses, p50, p99, wrong = out.stdout.split()
-            st = node.service.stats
+            if variant == "echo":
+                received, dropped = node.received + node.dropped, node.dropped
+            else:
+                st = node.service.stats
+                received, dropped = st.handled + st.dropped, st.dropped
             rows.append({"variant": label, "sent": int(sent), "poses": int(poses), "p50": float(p50),
-                         "p99": float(p99), "wrong": int(wrong), "received": st.handled + st.dropped,
-                         "dropped": st.dropped})
+                         "p99": float(p99), "wrong": int(wrong), "received": received, "dropped": dropped,
+                         "answered": int(poses) / max(int(sent), 1), "cpu_us_per_input": cpu_s / max(int(sent), 1) * 1e6,
+                         "extras": extras, "busy": busy, "echo": variant == "echo"})
         finally:
+            if hog is not None:
+                hog.kill()
+                hog.wait()
             executor.shutdown()
             spinner.join()
-            node.stop()
-            node.destroy_node()
+            if variant != "echo":
+                node.stop()
+            (node.node if variant == "echo" else node).destroy_node()
             rclpy.try_shutdown()
     return rows
 
@@ -562,13 +633,15 @@ def section(res) -> list[str]:
                       write_alone=_p(p["write_alone"]["cpu_us"], "p50", 1), wake=_p(p["wake_us"], "p50", 1),
                       decode=fmt(p["decode_us"]), encode=fmt(p["encode_us"])), ""]
     if o.get("rclpy"):
-        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}", r["dropped"], r["wrong"],
-                 f"{r['p50']:.3f} / {r['p99']:.3f}"] for r in o["rclpy"]]
+        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}",
+                 f"{100 * r['answered']:.1f} %" if "answered" in r else "—", r["dropped"], r["wrong"],
+                 f"{r['p50']:.3f} / {r['p99']:.3f}",
+                 f"{r['cpu_us_per_input']:.0f}" if "cpu_us_per_input" in r else "—"] for r in o["rclpy"]]
         setup = o["rclpy_setup"]
         out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
                       seconds=f"{setup['seconds']:g}"), "",
-                table(["executor", "sent / received / poses", "dropped (newest wins)", "wrong",
-                       "latency p50 / p99 (ms)"],
+                table(["variant", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
+                       "latency p50 / p99 (ms)", "node CPU µs per input"],
                       body), ""]
     elif o.get("rclpy_reason"):
         out += [prose("outputs", "rclpy_not_run", reason=o["rclpy_reason"]), ""]
