@@ -208,13 +208,17 @@ def test_lifecycle_node_walk_in_process(ros):
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     executor.add_node(client)
+
+    def mine():     # the node's own subscription as the ROS graph (discovery, asynchronous) shows it
+        return [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
     try:
-        assert node.service is None and not node.get_subscriptions_info_by_topic("/leg_lengths")
+        assert node.service is None and not mine()
         assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
         assert node.service is not None
         assert node.get_parameter("qos_overrides./leg_lengths.subscription.depth").value == 4
-        mine = [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
-        assert mine and mine[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+
+        assert _spin_until(executor, lambda: mine())
+        assert mine()[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
         legs = Float64MultiArray(data=[0.100, 0.120, 0.150])
         # inactive: inputs are taken and counted as dropped, no pose
         assert _spin_until(executor, lambda: node.service.stats.dropped >= 3, publish=lambda: pub.publish(legs))
@@ -224,8 +228,7 @@ def test_lifecycle_node_walk_in_process(ros):
         assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)
         assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
         assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
-        assert node.service is None and not [i for i in node.get_subscriptions_info_by_topic("/leg_lengths")
-                                             if i.node_name == "glpma_fk"]
+        assert node.service is None and _spin_until(executor, lambda: not mine())
         assert node.trigger_shutdown() == TransitionCallbackReturn.SUCCESS
         assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED
     finally:
