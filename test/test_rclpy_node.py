@@ -203,13 +203,17 @@ def test_lifecycle_node_walk_in_process(ros):
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     executor.add_node(client)
+
+    def mine():     # the node's own subscription as the ROS graph (discovery, asynchronous) shows it
+        return [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
     try:
-        assert node.service is None and not node.get_subscriptions_info_by_topic("/leg_lengths")
+        assert node.service is None and not mine()
         assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
         assert node.service is not None
         assert node.get_parameter("qos_overrides./leg_lengths.subscription.depth").value == 4
-        mine = [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
-        assert mine and mine[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+
+        assert _spin_until(executor, lambda: mine())
+        assert mine()[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
         legs = Float64MultiArray(data=[0.100, 0.120, 0.150])
         # inactive: inputs are taken and counted as dropped, no pose
         assert _spin_until(executor, lambda: node.service.stats.dropped >= 3, publish=lambda: pub.publish(legs))
@@ -219,8 +223,7 @@ def test_lifecycle_node_walk_in_process(ros):
         assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)
         assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
         assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
-        assert node.service is None and not [i for i in node.get_subscriptions_info_by_topic("/leg_lengths")
-                                             if i.node_name == "glpma_fk"]
+        assert node.service is None and _spin_until(executor, lambda: not mine())
         assert node.trigger_shutdown() == TransitionCallbackReturn.SUCCESS
         # rclpy (Jazzy) has no public accessor of the current state
         assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED  # noqa: SLF001
@@ -274,3 +277,43 @@ def test_mock_publisher_bad_parameter_is_one_line(dds_env):
                         "sys.exit(main())", "--ros-args", "-p", "config:=no_such_config"],
                        capture_output=True, text=True, env=dds_env, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+
+
+def test_the_encoders_bytes_are_the_messages_rclpy_reads():
+    """The rclpy node publishes cdr.Encoder's bytes and reads its inputs with cdr: rclpy's own
+    (de)serializer agrees with them, field for field (the same numbers: no arithmetic on the way)."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import JointState
+    from tf2_msgs.msg import TFMessage
+    from visualization_msgs.msg import MarkerArray
+
+    from glpma_ros.node.dds import cdr
+    from glpma_ros.node.outputs import ExtraOutputs, MarkerOutput
+    enc = cdr.Encoder()
+    stamp_ns, p, q = 1_795_000_000_123_456_789, (0.1, -0.2, 0.3), (0.0, 0.6, 0.0, 0.8)
+    pose = deserialize_message(enc.pose_stamped(stamp_ns, "robot_base", p, q), PoseStamped)
+    assert (pose.header.stamp.sec, pose.header.stamp.nanosec, pose.header.frame_id) == (1_795_000_000, 123_456_789,
+                                                                                          "robot_base")
+    assert (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) == p
+    assert (pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z, pose.pose.orientation.w) == q
+    cov = [float(k) for k in range(36)]
+    marker = MarkerOutput(ns="legs", id=1, type=5, action=0, scale=(0.01, 0.0, 0.0), color=(1.0, 0.0, 0.0, 1.0),
+                          points=((0.0, 0.0, 0.0), (1.0, 2.0, 3.0)), colors=((0.5, 0.5, 0.5, 1.0),) * 2)
+    ex = ExtraOutputs(stamp_ns=stamp_ns, frame_id="base", child_frame_id="platform", position=p, orientation=q,
+                      covariance=cov, twist=((1.0, 2.0, 3.0), (4.0, 5.0, 6.0)), markers=[marker])
+    out = {name: data for name, data in enc.extras(ex)}
+    tf = deserialize_message(out["tf"], TFMessage).transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id, tf.transform.translation.y, tf.transform.rotation.w) == \
+        ("base", "platform", -0.2, 0.8)
+    assert list(deserialize_message(out["covariance"], PoseWithCovarianceStamped).pose.covariance) == cov
+    tw = deserialize_message(out["twist"], TwistStamped).twist
+    assert (tw.linear.x, tw.angular.z) == (1.0, 6.0)
+    m = deserialize_message(out["markers"], MarkerArray).markers[0]
+    assert (m.ns, m.id, m.type, m.header.frame_id, len(m.points), m.points[1].z, m.colors[1].r) == \
+        ("legs", 1, 5, "base", 2, 3.0, 0.5)
+    legs = Float64MultiArray(data=[0.1, 0.12, 0.15])
+    assert cdr.float64_multi_array_data(serialize_message(legs)) == (0.1, 0.12, 0.15)
+    js = JointState(name=["a", "leg_1"], position=[0.5, 0.1], velocity=[0.0, -0.01])
+    js.header.stamp.sec, js.header.stamp.nanosec = 7, 8
+    assert cdr.joint_state_fields(serialize_message(js)) == (7_000_000_008, ("a", "leg_1"), (0.5, 0.1), (0.0, -0.01))

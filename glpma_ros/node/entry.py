@@ -23,6 +23,7 @@ def rclpy_available() -> bool:
 
 def usage() -> str:
     """``glpma-fk node --help``: the syntax and every declared parameter."""
+    from . import qos
     from .params import PARAMETERS
     lines = ["usage: glpma-fk node [--transport auto|rclpy|dds] [--ros-args -p NAME:=VALUE ... "
              "--params-file FILE]", "",
@@ -37,6 +38,9 @@ def usage() -> str:
         default = spec.default if spec.default != [] else "[]"
         extra = f" ({spec.constraints})" if spec.constraints else ""
         lines.append(f"  {spec.name} ({spec.type}, default {default}): {spec.description}{extra}")
+    lines.append(f"  {qos.PREFIX}<topic>.<{'|'.join(qos.ENTITIES)}>.<{'|'.join(qos.POLICIES)}>: the QoS of one "
+                 "endpoint, as rclpy's QoSOverridingOptions reads it (topic fully qualified, e.g. /leg_lengths; "
+                 "read-only)")
     return "\n".join(lines)
 
 

@@ -19,7 +19,11 @@ Handing each input to a solver thread instead costs a thread switch per input, a
 executor, busy taking the next messages, competes with that thread for the GIL, so it is
 slower end to end (BENCHMARKS.md, "Extra outputs and the transport path"); a
 ``MultiThreadedExecutor`` with a reentrant group adds a thread pool and futures to every
-callback and is slower still.  Signals: rclpy's own handler is not installed
+callback and is slower still.  Messages: the input is taken as bytes (``raw=True``) and read with
+``struct``, the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from
+the DDS twin's :class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per
+input (test_rclpy_node checks that rclpy reads those bytes as the same messages); diagnostics and
+assembly modes are rclpy messages.  Signals: rclpy's own handler is not installed
 (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
 the context is still valid and then shuts down -- no "publisher's context is invalid" at Ctrl-C.
 """
@@ -32,8 +36,7 @@ import threading
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import (Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, TransformStamped,
-                               TwistStamped)
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, TwistStamped
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
@@ -43,14 +46,16 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
+from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
-from std_msgs.msg import ColorRGBA, Empty, Float64MultiArray
+from std_msgs.msg import Empty, Float64MultiArray
 from tf2_msgs.msg import TFMessage
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
 from . import params as P
 from . import qos
+from .dds import cdr
 from ..errors import GlpmaError
 from .loops import AssemblyModesLoop, ReportLoop, SolveLoop
 from .ros_args import check_params_files, node_values, remapped
@@ -130,11 +135,13 @@ class FkEndpoints:
             return create_publisher(msg_type, topic, qos_profile(profiles[(topic, qos.PUBLISHER)]),
                                     qos_overriding_options=QOS_OVERRIDING)
 
-        def sub(msg_type, topic, callback):
+        def sub(msg_type, topic, callback, raw=False):
             return self.create_subscription(msg_type, topic, callback, qos_profile(profiles[(topic, qos.SUBSCRIPTION)]),
-                                            qos_overriding_options=QOS_OVERRIDING)
+                                            qos_overriding_options=QOS_OVERRIDING, raw=raw)
 
-        # every output has its publisher from the start: the publish_* parameters switch them at runtime
+        # every output has its publisher from the start: the publish_* parameters switch them at runtime;
+        # the pose and the extra outputs go out as bytes from cdr.Encoder (Publisher.publish(bytes))
+        self._encode = cdr.Encoder()
         self.pose_pub = pub(PoseStamped, "pose_estimate")
         self.tf_pub = pub(TFMessage, "/tf")
         self.cov_pub = pub(PoseWithCovarianceStamped, "pose_estimate_cov")
@@ -145,15 +152,16 @@ class FkEndpoints:
         self._publishers_opened = [self.pose_pub, self.tf_pub, self.cov_pub, self.twist_pub, self.markers_pub,
                                    self.diag_pub, self.modes_pub]
         # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
-        self._extra_pubs = (("tf", self.tf_pub), ("covariance", self.cov_pub), ("twist", self.twist_pub),
-                            ("markers", self.markers_pub))
+        self._extra_pubs = {"tf": self.tf_pub, "covariance": self.cov_pub, "twist": self.twist_pub,
+                            "markers": self.markers_pub}
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed)
         self.modes = AssemblyModesLoop(service, self._publish_modes).start()
+        # the input is taken as bytes and read with struct (cdr): no message object per input
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
-            self.input_sub = sub(JointState, "joint_states", self._on_joint_state)
+            self.input_sub = sub(JointState, "joint_states", self._on_joint_state, raw=True)
         else:
-            self.input_sub = sub(Float64MultiArray, "leg_lengths", self._on_legs)
+            self.input_sub = sub(Float64MultiArray, "leg_lengths", self._on_legs, raw=True)
         self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
         # /diagnostics from a thread of its own, off the executor's (ReportLoop)
         self.reports = ReportLoop(service, self._publish_diagnostics, values["diagnostics_period_s"]).start()
@@ -167,7 +175,7 @@ class FkEndpoints:
             self.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
             self._destroy_publisher(publisher)
-        self._publishers_opened, self._extra_pubs, self.service = [], (), None
+        self._publishers_opened, self._extra_pubs, self.service = [], {}, None
 
     def _destroy_publisher(self, publisher) -> None:
         self.destroy_publisher(publisher)
@@ -202,19 +210,34 @@ class FkEndpoints:
         self.service.note_dropped(1)
         return False
 
-    def _on_legs(self, msg: Float64MultiArray) -> None:
+    def _on_legs(self, data: bytes) -> None:
         if not self._taking():
             return
-        msg = self._newest(msg)         # the pose's stamp is the arrival of the input it answers:
-        self.loop.offer(tuple(msg.data), self.get_clock().now().nanoseconds)   # taken after the newest
+        data = self._newest(data)       # the pose's stamp is the arrival of the input it answers:
+        stamp_ns = self.get_clock().now().nanoseconds                  # taken after the newest
+        try:
+            legs = (cdr.float64_multi_array_data(data) if cdr.little_endian_cdr(data)
+                    else tuple(deserialize_message(data, Float64MultiArray).data))
+        except Exception as exc:  # noqa: BLE001 - a sample that does not deserialize
+            self.service.log.warning(f"could not read leg_lengths: {exc}")
+            return
+        self.loop.offer(legs, stamp_ns)
 
-    def _on_joint_state(self, msg: JointState) -> None:
+    def _on_joint_state(self, data: bytes) -> None:
         if not self._taking():
             return
-        msg = self._newest(msg)
-        stamp = msg.header.stamp
-        self.loop.offer(JointStateInput(tuple(msg.name), tuple(msg.position), tuple(msg.velocity)),
-                        stamp.sec * 1_000_000_000 + stamp.nanosec)
+        data = self._newest(data)
+        try:
+            if cdr.little_endian_cdr(data):
+                stamp_ns, names, positions, velocities = cdr.joint_state_fields(data)
+            else:
+                msg = deserialize_message(data, JointState)
+                stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                names, positions, velocities = tuple(msg.name), tuple(msg.position), tuple(msg.velocity)
+        except Exception as exc:  # noqa: BLE001
+            self.service.log.warning(f"could not read joint_states: {exc}")
+            return
+        self.loop.offer(JointStateInput(names, positions, velocities), stamp_ns)
 
     def _on_request_modes(self, _msg: Empty) -> None:
         if self._active:
@@ -232,60 +255,17 @@ class FkEndpoints:
         self.modes_pub.publish(msg)
 
     def _publish_pose(self, pose) -> None:
-        msg = PoseStamped()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(pose.stamp_ns, 1_000_000_000)
-        msg.header.frame_id = pose.frame_id
-        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = pose.position
-        o = msg.pose.orientation
-        o.x, o.y, o.z, o.w = pose.orientation
-        self.pose_pub.publish(msg)
+        self.pose_pub.publish(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
+                                                        pose.orientation))
 
     def _subscribed(self) -> set:
         """The extra outputs some subscription is matched with (the others are not built)."""
-        return {name for name, pub in self._extra_pubs if pub.get_subscription_count()}
+        return {name for name, pub in self._extra_pubs.items() if pub.get_subscription_count()}
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
-        sec, nanosec = divmod(ex.stamp_ns, 1_000_000_000)
-        if ex.child_frame_id is not None:
-            t = TransformStamped()
-            t.header.stamp.sec, t.header.stamp.nanosec = sec, nanosec
-            t.header.frame_id = ex.frame_id
-            t.child_frame_id = ex.child_frame_id
-            tr, rot = t.transform.translation, t.transform.rotation
-            tr.x, tr.y, tr.z = ex.position
-            rot.x, rot.y, rot.z, rot.w = ex.orientation
-            self.tf_pub.publish(TFMessage(transforms=[t]))
-        if ex.covariance is not None:
-            msg = PoseWithCovarianceStamped()
-            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
-            msg.header.frame_id = ex.frame_id
-            p, o = msg.pose.pose.position, msg.pose.pose.orientation
-            p.x, p.y, p.z = ex.position
-            o.x, o.y, o.z, o.w = ex.orientation
-            msg.pose.covariance = ex.covariance
-            self.cov_pub.publish(msg)
-        if ex.twist is not None:
-            msg = TwistStamped()
-            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
-            msg.header.frame_id = ex.frame_id
-            v, w = msg.twist.linear, msg.twist.angular
-            (v.x, v.y, v.z), (w.x, w.y, w.z) = ex.twist
-            self.twist_pub.publish(msg)
-        if ex.markers is not None:
-            self.markers_pub.publish(MarkerArray(markers=[self._marker(m, ex) for m in ex.markers]))
-
-    @staticmethod
-    def _marker(m, ex) -> Marker:
-        marker = Marker(ns=m.ns, id=m.id, type=m.type, action=m.action,
-                        points=[Point(x=x, y=y, z=z) for x, y, z in m.points],
-                        colors=[ColorRGBA(r=r, g=g, b=b, a=a) for r, g, b, a in m.colors])
-        marker.header.stamp.sec, marker.header.stamp.nanosec = divmod(ex.stamp_ns, 1_000_000_000)
-        marker.header.frame_id = ex.frame_id
-        marker.pose.orientation.w = 1.0
-        marker.scale.x, marker.scale.y, marker.scale.z = m.scale
-        marker.color.r, marker.color.g, marker.color.b, marker.color.a = m.color
-        return marker
+        for name, data in self._encode.extras(ex):
+            self._extra_pubs[name].publish(data)
 
     def _publish_diagnostics(self, report) -> None:
         if not self._active:

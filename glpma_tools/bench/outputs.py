@@ -325,11 +325,53 @@ def micro_profile(sc, n: int, domain: int) -> dict:
 
 
 # -- part 4: the rclpy adapter ---------------------------------------------------------------------------
-#: rclpy adapter variants of part 4: the shipped one, and two alternatives
+#: a process that keeps one core busy (the "one core busy" rows)
+BUSY_LOOP = "while True:\n    pass\n"
+
+
+class RclpyEcho:
+    """The transport floor on rclpy: ``leg_lengths`` taken raw, the newest read with ``struct``, a
+    ``pose_estimate`` carrying its legs published as bytes -- the rclpy node's path without the solve
+    (:mod:`glpma_tools.sim.echo_node` on Cyclone DDS)."""
+
+    def __init__(self, depth: int, frame_id: str):
+        import time as _time
+
+        from geometry_msgs.msg import PoseStamped
+        from rclpy.node import Node
+        from std_msgs.msg import Float64MultiArray
+
+        from glpma_ros.node.dds import cdr
+        from glpma_tools.sim.echo_node import POSE_NUMBERS
+        self.node = Node("glpma_fk")
+        self.received = self.dropped = 0
+        encode, pub = cdr.Encoder(), self.node.create_publisher(PoseStamped, "pose_estimate", depth)
+
+        def on_legs(data):
+            sub, newest = self.sub, data
+            while True:
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                newest, self.dropped = taken[0], self.dropped + 1
+            self.received += 1
+            numbers = (cdr.float64_multi_array_data(newest) + (0.0,) * POSE_NUMBERS)[:POSE_NUMBERS]
+            pub.publish(encode.pose_stamped(_time.time_ns(), frame_id, numbers[:3], numbers[3:]))
+
+        self.sub = self.node.create_subscription(Float64MultiArray, "leg_lengths", on_legs, depth, raw=True)
+#: rclpy adapter variants of part 4: (label, variant, /tf + covariance subscribed, one core busy) --
+#: the echo floor and the shipped node with the usual subscribers, idle and with one core busy, then
+#: the shipped node alone and two alternative executor set-ups
 RCLPY_VARIANTS = (
-    ("SingleThreadedExecutor, newest input solved in the callback (shipped)", "shipped"),
-    ("SingleThreadedExecutor, hand-off to a solver thread", "submit"),
-    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi"),
+    ("echo (the floor: no solve), /tf + cov subscribed", "echo", True, False),
+    ("shipped, /tf + cov subscribed", "shipped", True, False),
+    ("echo (the floor), /tf + cov subscribed, one core busy", "echo", True, True),
+    ("shipped, /tf + cov subscribed, one core busy", "shipped", True, True),
+    ("SingleThreadedExecutor, newest input solved in the callback (shipped), nothing else subscribed",
+     "shipped", False, False),
+    ("SingleThreadedExecutor, hand-off to a solver thread", "submit", False, False),
+    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi", False, False),
 )
 
 
@@ -347,11 +389,14 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
     from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
     values = {**_params_file(sc.model.kind), "manipulator_config": sc.path}
     rows = []
-    for label, variant in RCLPY_VARIANTS:
+    for label, variant, extras, busy in RCLPY_VARIANTS:
         env = node_environment(domain())
         rclpy.init()
-        node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
-        if variant != "shipped":
+        if variant == "echo":
+            node = RclpyEcho(values["qos_depth"], values["frame_id"])
+        else:
+            node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
+        if variant in ("submit", "multi"):
             node.destroy_subscription(node.input_sub)
             if variant == "submit":
                 node.loop.start()
@@ -361,23 +406,36 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
             node.create_subscription(Float64MultiArray, "leg_lengths", callback, values["qos_depth"],
                                      callback_group=ReentrantCallbackGroup() if variant == "multi" else None)
         executor = MultiThreadedExecutor(2) if variant == "multi" else SingleThreadedExecutor()
-        executor.add_node(node)
+        executor.add_node(node.node if variant == "echo" else node)
         spinner = threading.Thread(target=executor.spin, daemon=True)
         spinner.start()
+        hog = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if busy else None
+        cpu0 = time.process_time()
         try:
             out = subprocess.run([sys.executable, "-m", "glpma_tools.bench.rclpy_client", sc.path, str(rate_hz),
-                                  str(seconds)], env=env,
+                                  str(seconds), "extras" if extras else "-", "echo" if variant == "echo" else "-"],
+                                 env=env,
                                  capture_output=True, text=True, timeout=seconds + 300, cwd=PACKAGE_PARENT)
+            cpu_s = time.process_time() - cpu0          # this process = the node under test
             sent, poses, p50, p99, wrong = out.stdout.split()
-            st = node.service.stats
+            if variant == "echo":
+                received, dropped = node.received + node.dropped, node.dropped
+            else:
+                st = node.service.stats
+                received, dropped = st.handled + st.dropped, st.dropped
             rows.append({"variant": label, "sent": int(sent), "poses": int(poses), "p50": float(p50),
-                         "p99": float(p99), "wrong": int(wrong), "received": st.handled + st.dropped,
-                         "dropped": st.dropped})
+                         "p99": float(p99), "wrong": int(wrong), "received": received, "dropped": dropped,
+                         "answered": int(poses) / max(int(sent), 1), "cpu_us_per_input": cpu_s / max(int(sent), 1) * 1e6,
+                         "extras": extras, "busy": busy, "echo": variant == "echo"})
         finally:
+            if hog is not None:
+                hog.kill()
+                hog.wait()
             executor.shutdown()
             spinner.join()
-            node.stop()
-            node.destroy_node()
+            if variant != "echo":
+                node.stop()
+            (node.node if variant == "echo" else node).destroy_node()
             rclpy.try_shutdown()
     return rows
 
@@ -519,13 +577,15 @@ def section(res) -> list[str]:
                       write_alone=_p(p["write_alone"]["cpu_us"], "p50", 1), wake=_p(p["wake_us"], "p50", 1),
                       decode=fmt(p["decode_us"]), encode=fmt(p["encode_us"])), ""]
     if o.get("rclpy"):
-        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}", r["dropped"], r["wrong"],
-                 f"{r['p50']:.3f} / {r['p99']:.3f}"] for r in o["rclpy"]]
+        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}",
+                 f"{100 * r['answered']:.1f} %" if "answered" in r else "—", r["dropped"], r["wrong"],
+                 f"{r['p50']:.3f} / {r['p99']:.3f}",
+                 f"{r['cpu_us_per_input']:.0f}" if "cpu_us_per_input" in r else "—"] for r in o["rclpy"]]
         setup = o["rclpy_setup"]
         out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
                       seconds=f"{setup['seconds']:g}"), "",
-                table(["executor", "sent / received / poses", "dropped (newest wins)", "wrong",
-                       "latency p50 / p99 (ms)"],
+                table(["variant", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
+                       "latency p50 / p99 (ms)", "node CPU µs per input"],
                       body), ""]
     elif o.get("rclpy_reason"):
         out += [prose("outputs", "rclpy_not_run", reason=o["rclpy_reason"]), ""]

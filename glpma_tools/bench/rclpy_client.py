@@ -1,10 +1,13 @@
 """The rclpy client of the outputs section's part 4 (:func:`glpma_tools.bench.outputs.rclpy_variants`),
-run as its own process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS``.
+run as its own process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS ECHO``.
 
 Publishes ``leg_lengths`` (metres) along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes
-``pose_estimate``, pairs every pose with the input it answers (:func:`glpma_tools.sim.matching.compare`)
+``pose_estimate``, pairs every pose with the input it answers (:func:`glpma_tools.sim.matching.compare`;
+against an echo, whose pose carries the legs it answers, :func:`~glpma_tools.sim.matching.pair`)
 and prints one line: inputs sent, poses received, latency p50 and p99 (ms), poses unpaired or off
-the truth.  Importable only where rclpy is.
+the truth.  ``EXTRAS`` = ``extras``: ``/tf`` and ``pose_estimate_cov`` are subscribed too, as any TF
+listener or RViz does (the node then builds and publishes them); ``ECHO`` = ``echo``: the other side is
+the echo floor.  Importable only where rclpy is.
 """
 from __future__ import annotations
 
@@ -14,12 +17,14 @@ import time
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float64MultiArray
+from tf2_msgs.msg import TFMessage
 
 from glpma_tools.sim.controller import Sent
-from glpma_tools.sim.matching import compare
+from glpma_tools.sim.echo_node import legs_of
+from glpma_tools.sim.matching import compare, pair
 from glpma_tools.sim.trajectories import Plan
 
 #: seconds to let the discovery settle after the node matched, and to wait for the last poses
@@ -29,8 +34,8 @@ POLL_S = 0.1
 
 
 def main(argv=None) -> int:
-    config, rate, seconds = (argv or sys.argv[1:])[:3]
-    rate, seconds = float(rate), float(seconds)
+    config, rate, seconds, extras, echo = (argv or sys.argv[1:])[:5]
+    rate, seconds, extras, echo = float(rate), float(seconds), extras == "extras", echo == "echo"
     plan = Plan(config)
     samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
     rclpy.init()
@@ -43,6 +48,9 @@ def main(argv=None) -> int:
                          np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])))
 
     node.create_subscription(PoseStamped, "pose_estimate", take, 100)
+    if extras:
+        node.create_subscription(TFMessage, "/tf", lambda m: None, 100)
+        node.create_subscription(PoseWithCovarianceStamped, "pose_estimate_cov", lambda m: None, 100)
     pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
@@ -57,9 +65,16 @@ def main(argv=None) -> int:
         sent.append(Sent(time.time_ns(), legs, position, quaternion))
         pub.publish(msg)
     time.sleep(SETTLE_S)
-    c = compare(plan.model, sent, list(received))
-    print(len(sent), len(received), np.percentile(c.latency_ms, 50), np.percentile(c.latency_ms, 99),
-          len(c.unpaired) + int(np.sum(~c.on_truth)), flush=True)
+    if echo:
+        n = plan.model.n_legs
+        pairs, unpaired = pair(plan.model, sent, list(received),
+                               legs_of=lambda p: np.asarray(legs_of(p, n)) / plan.mpu)
+        latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p, _ in pairs])
+        wrong = len(unpaired)
+    else:
+        c = compare(plan.model, sent, list(received))
+        latency, wrong = c.latency_ms, len(c.unpaired) + int(np.sum(~c.on_truth))
+    print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
     executor.shutdown()
     rclpy.try_shutdown()
     return 0

@@ -14,21 +14,19 @@ aligned to its size (at most 8) from the start of the payload, a string as ``uin
 :class:`RawWriter` / :func:`take_raw` pass the bytes to and from Cyclone DDS
 (``cyclonedds._clayer``, the calls ``DataWriter.write`` and ``DataReader.take`` make after
 their own serialization).  Input in another encoding (big endian, XCDR2) goes through the
-binding's generic deserializer.
+binding's generic deserializer.  The codec itself needs no Cyclone DDS (it is imported on first use
+of :class:`RawWriter` / :func:`take_raw`): the rclpy node publishes the same bytes with
+``Publisher.publish(bytes)`` and reads its inputs raw (:mod:`glpma_ros.node.ros_node`).
 """
 from __future__ import annotations
 
 import struct
-
-from cyclonedds._clayer import ddspy_take, ddspy_write
-from cyclonedds.core import DDSException, InstanceState, SampleState, ViewState
+from types import SimpleNamespace
 
 #: encapsulation identifier CDR_LE (XCDR1, little endian) and options
 CDR_LE = b"\x00\x01\x00\x00"
 HEADER_SIZE = len(CDR_LE)
 SIZES = {"b": 1, "B": 1, "?": 1, "i": 4, "I": 4, "f": 4, "d": 8}
-#: take every sample, read or not
-ANY_STATE = SampleState.Any | ViewState.Any | InstanceState.Any
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
 
@@ -155,6 +153,23 @@ class Encoder:
             values += _MARKER_TAIL
         return CDR_LE + st.pack(*values)
 
+    def extras(self, ex) -> list:
+        """``[(output name, bytes)]`` of the outputs present in
+        :class:`~glpma_ros.node.outputs.ExtraOutputs` ``ex``: ``tf`` (``/tf``), ``covariance``
+        (``pose_estimate_cov``), ``twist`` (``twist_estimate``), ``markers`` (``~/markers``)."""
+        out = []
+        if ex.child_frame_id is not None:
+            out.append(("tf", self.tf_message(ex.stamp_ns, ex.frame_id, ex.child_frame_id, ex.position,
+                                              ex.orientation)))
+        if ex.covariance is not None:
+            out.append(("covariance", self.pose_with_covariance_stamped(ex.stamp_ns, ex.frame_id, ex.position,
+                                                                        ex.orientation, ex.covariance)))
+        if ex.twist is not None:
+            out.append(("twist", self.twist_stamped(ex.stamp_ns, ex.frame_id, *ex.twist)))
+        if ex.markers is not None:
+            out.append(("markers", self.marker_array(ex.stamp_ns, ex.frame_id, ex.markers)))
+        return out
+
 
 class _Writer:
     """Fields appended one by one with XCDR1 alignment, for messages whose strings change every time."""
@@ -267,6 +282,20 @@ def little_endian_cdr(buf) -> bool:
 
 
 # -- Cyclone DDS ------------------------------------------------------------------------------------
+_cyclone = None
+
+
+def _cyclone_calls() -> SimpleNamespace:
+    """The binding's raw calls, imported once (the codec above works without Cyclone DDS)."""
+    global _cyclone
+    if _cyclone is None:
+        from cyclonedds._clayer import ddspy_take, ddspy_write
+        from cyclonedds.core import DDSException, InstanceState, SampleState, ViewState
+        _cyclone = SimpleNamespace(take=ddspy_take, write=ddspy_write, error=DDSException,
+                                   any_state=SampleState.Any | ViewState.Any | InstanceState.Any)   # read or not
+    return _cyclone
+
+
 class RawWriter:
     """Writes bytes from :class:`Encoder` on a ``DataWriter`` (what ``DataWriter.write`` does after
     serializing)."""
@@ -275,16 +304,18 @@ class RawWriter:
         self.writer = writer
         # the entity's handle, which the binding keeps private: it has no public raw write
         self._ref = writer._ref  # noqa: SLF001
+        self._write = _cyclone_calls().write
 
     def write(self, data: bytes) -> None:
-        ret = ddspy_write(self._ref, data)
+        ret = self._write(self._ref, data)
         if ret < 0:
-            raise DDSException(ret, f"Occurred while writing sample in {self.writer!r}")
+            raise _cyclone.error(ret, f"Occurred while writing sample in {self.writer!r}")
 
 
 def take_raw(reader, n: int) -> list:
     """Up to ``n`` samples of ``reader`` as ``(bytes, SampleInfo)``, not deserialized."""
-    ret = ddspy_take(reader._ref, ANY_STATE, n)  # noqa: SLF001 - the binding has no public raw take
+    c = _cyclone or _cyclone_calls()
+    ret = c.take(reader._ref, c.any_state, n)  # noqa: SLF001 - the binding has no public raw take
     if isinstance(ret, int):
-        raise DDSException(ret, f"Occurred while taking data in {reader!r}")
+        raise c.error(ret, f"Occurred while taking data in {reader!r}")
     return ret

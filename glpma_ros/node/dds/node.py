@@ -100,9 +100,10 @@ class DdsNode:
         self.markers_writer = participant.writer(self.topics[endpoints.MARKERS], MarkerArray,
                                                  qos=pub(endpoints.MARKERS))
         self._encode = cdr.Encoder()
-        self._raw_pose, self._raw_tf, self._raw_cov, self._raw_twist, self._raw_markers = (
-            cdr.RawWriter(w) for w in (self.pose_writer, self.tf_writer, self.cov_writer, self.twist_writer,
-                                       self.markers_writer))
+        self._raw_pose = cdr.RawWriter(self.pose_writer)
+        self._raw_extras = {name: cdr.RawWriter(w).write for name, w in (
+            ("tf", self.tf_writer), ("covariance", self.cov_writer), ("twist", self.twist_writer),
+            ("markers", self.markers_writer))}
         self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray,
                                               qos=pub(endpoints.DIAGNOSTICS))
         self._raw_diag = cdr.RawWriter(self.diag_writer)
@@ -203,17 +204,8 @@ class DdsNode:
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
-        enc = self._encode
-        if ex.child_frame_id is not None:
-            self._raw_tf.write(enc.tf_message(ex.stamp_ns, ex.frame_id, ex.child_frame_id, ex.position,
-                                              ex.orientation))
-        if ex.covariance is not None:
-            self._raw_cov.write(enc.pose_with_covariance_stamped(ex.stamp_ns, ex.frame_id, ex.position,
-                                                                 ex.orientation, ex.covariance))
-        if ex.twist is not None:
-            self._raw_twist.write(enc.twist_stamped(ex.stamp_ns, ex.frame_id, *ex.twist))
-        if ex.markers is not None:
-            self._raw_markers.write(enc.marker_array(ex.stamp_ns, ex.frame_id, ex.markers))
+        for name, data in self._encode.extras(ex):
+            self._raw_extras[name](data)
 
     def _publish_modes(self, modes) -> None:
         self.modes_writer.write(pose_array_message(modes))
