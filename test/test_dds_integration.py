@@ -30,7 +30,7 @@ from cyclonedds.sub import DataReader  # noqa: E402
 from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 
-from conftest import CONFIG, GENEROUS_BUDGET_MS, ROOT, RPR_YAML  # noqa: E402
+from conftest import CONFIG, GENEROUS_BUDGET_MS, ROOT, RPR_YAML, interrupt  # noqa: E402
 
 READY_TIMEOUT_S = 600.0        # a first run compiles the solvers (Numba): minutes on a busy machine
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
@@ -57,12 +57,7 @@ class NodeProcess:
 
     def stop(self):
         if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+            interrupt(self.proc, timeout=10)
 
 
 @pytest.fixture
