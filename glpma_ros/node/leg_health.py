@@ -8,6 +8,7 @@ exactly as many legs as degrees of freedom nothing is added to the report.
 """
 from __future__ import annotations
 
+import threading
 from collections import Counter
 
 from ..estimator import STATUS_CONVERGED, STATUS_INCONSISTENT
@@ -18,7 +19,9 @@ FAILED_AFTER = 10
 
 
 class LegHealth:
-    """Per-leg fault bookkeeping of the node (under the service's lock)."""
+    """Per-leg fault bookkeeping of the node, with a lock of its own: the solving thread notes each
+    estimate, the report thread (:class:`~glpma_ros.node.loops.ReportLoop`) copies the state under the
+    lock and formats it after."""
 
     def __init__(self, model):
         self.active = model.redundancy > 0
@@ -29,11 +32,16 @@ class LegHealth:
         self.last_left_out = None
         self.last_message = ""
         self._period = 0                 # inconsistent inputs since the last report
+        self._lock = threading.Lock()
 
     def note(self, estimate) -> None:
         """Account for one estimate (any status)."""
         if not self.active or estimate is None:
             return
+        with self._lock:
+            self._note(estimate)
+
+    def _note(self, estimate) -> None:
         if estimate.status == STATUS_INCONSISTENT:
             self.inconsistent += 1
             self._period += 1
@@ -56,19 +64,20 @@ class LegHealth:
         order); starts a new period."""
         if not self.active:
             return [], []
-        self.names = list(names)
-        period, self._period = self._period, 0
-        failed = ", ".join(self.names[i] for i in sorted(self.failed)) or "none"
-        values = [("inputs with inconsistent legs", self.inconsistent),
-                  ("leg left out last", "none" if self.last_left_out is None else self.names[self.last_left_out]),
-                  ("legs left out", ", ".join(f"{self.names[i]}: {n}" for i, n in sorted(self.left_out.items()))
-                   or "none"),
+        with self._lock:                 # a copy: formatting happens after, holding nothing
+            period, self._period = self._period, 0
+            inconsistent, last_left_out, last_message = self.inconsistent, self.last_left_out, self.last_message
+            failed_legs, left_out = sorted(self.failed), sorted(self.left_out.items())
+        failed = ", ".join(names[i] for i in failed_legs) or "none"
+        values = [("inputs with inconsistent legs", inconsistent),
+                  ("leg left out last", "none" if last_left_out is None else names[last_left_out]),
+                  ("legs left out", ", ".join(f"{names[i]}: {n}" for i, n in left_out) or "none"),
                   ("failed legs", failed)]
-        if self.last_message:
-            values.append(("last inconsistency", self.last_message))
+        if last_message:
+            values.append(("last inconsistency", last_message))
         problems = []
-        if self.failed:
-            problems.append(f"failed leg{'s' if len(self.failed) > 1 else ''} {failed} (named at fault on "
+        if failed_legs:
+            problems.append(f"failed leg{'s' if len(failed_legs) > 1 else ''} {failed} (named at fault on "
                             f"{FAILED_AFTER}+ inputs in a row)")
         if period:
             problems.append(f"{period} inputs with inconsistent legs")
