@@ -234,7 +234,8 @@ def cmd_solve_all(args) -> int:
                             lambda v: v >= 1), ("--budget-s", args.budget_s, lambda v: v > 0)):
         if value is not None and not ok(value):
             raise GlpmaError(f"{name} must be {'positive' if name == '--budget-s' else 'at least 1'}")
-    load_s = 0.0 if method == "exact" else precompile.exercise_solve_all(model)
+    # the compiled code of the method that runs (msolve is a separate program: nothing to load)
+    load_s = 0.0 if method == "exact" else precompile.exercise_solve_all(model, methods=(method,))
     res = solve_all(model, legs, method=method, runs=args.runs, seed=args.seed, max_starts=args.max_starts,
                     budget_s=args.budget_s)
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
