@@ -13,7 +13,7 @@ import numpy as np
 from glpma_ros.errors import GlpmaError
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.solve_all import G3PCX_RUNS, solve_all
-from glpma_tools.tables import table
+from glpma_tools.tables import MISSING, fmt, table
 from .common import REPO_ROOT
 
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"
@@ -106,33 +106,24 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
 
 
 def _s(v):
-    return "—" if v is None else f"{v:.3f}"
+    return MISSING if v is None else f"{v:.3f}"
 
 
-def section(res) -> list[str]:
+def section(res, md_path=None) -> list[str]:
     data = res.get("modes_comparison")
     if not data:
         return []
-    out = [HEADING, "",
-           "Per case: the fast multistart (`solve_all` default: local Levenberg-Marquardt from random poses within "
-           "the legs' reach, stopped after max(150, 2 n) starts without a new mode), the certified count "
-           "(`solve_all(method=\"exact\")`: msolve's real root isolation, then the polish) and the papers' method "
-           f"(`solve_all(method=\"g3pcx\")`, {G3PCX_RUNS} polished G3-PCX runs, where run). Wall-clock seconds, "
-           "polish included. \"same as certified\" = the multistart's modes match the certified ones one to one "
-           "within 1e-6 of the scale. Miss: the Good-Turing estimate that one more start finds a new mode (modes hit "
-           "by exactly one start / starts) and the 95 % bound on the share of starts leading to unseen modes from the "
-           "final run of starts without a new mode. Random cases: test/data/assembly_modes_cases.json "
-           "(tools/assembly_modes_cases.py).", ""]
+    from .report import prose
+    out = [HEADING, "", prose("modes", runs=G3PCX_RUNS), ""]
     if data["exact"] != "run":
         out += [f"msolve not run ({data['exact']}); certified counts are the stored ones.", ""]
-    body = [[r.label, "—" if r.certified is None else r.certified, "—" if r.complex_solutions is None
-             else r.complex_solutions, r.fast_found, "—" if r.fast_matches is None else
-             ("yes" if r.fast_matches else "**no**"), r.fast_starts, f"{r.fast_evaluations:,}", _s(r.fast_s),
-             f"{r.fast_miss:.3g} / {r.fast_bound:.3g}",
-             _s(r.exact_s), "—" if r.g3pcx_found is None else r.g3pcx_found, _s(r.g3pcx_s)] for r in data["rows"]]
+    body = [[r.label, fmt(r.certified), fmt(r.complex_solutions), r.fast_found,
+             MISSING if r.fast_matches is None else ("yes" if r.fast_matches else "**no**"), r.fast_starts,
+             f"{r.fast_evaluations:,}", _s(r.fast_s), f"{r.fast_miss:.3g} / {r.fast_bound:.3g}", _s(r.exact_s),
+             fmt(r.g3pcx_found), _s(r.g3pcx_s)] for r in data["rows"]]
     out += [table(["case", "real (certified)", "complex", "multistart found", "same as certified", "starts",
-                   "LM evaluations", "multistart s", "miss: Good-Turing / 95 % bound", "msolve s", f"G3-PCX {G3PCX_RUNS} found",
-                   f"G3-PCX {G3PCX_RUNS} s"], body), ""]
+                   "LM evaluations", "multistart s", "miss: Good-Turing / 95 % bound", "msolve s",
+                   f"G3-PCX {G3PCX_RUNS} found", f"G3-PCX {G3PCX_RUNS} s"], body), ""]
     for kind, name in (("planar_3rpr", "3-RPR"), ("hexapod_66", "6-6")):
         rows = [r for r in data["rows"] if r.kind == kind]
         if not rows:

@@ -1,35 +1,16 @@
 """The ``outputs`` section of ``glpma-fk bench``: what the node's extra outputs cost per input,
 and where the time between legs written and pose read goes over DDS.
 
-1. **Extra outputs, per input** (:func:`output_costs`) -- a
-   :class:`~glpma_ros.node.dds.node.DdsNode` in this process, its readers not started, fed
-   through :meth:`SolveLoop.offer <glpma_ros.node.loops.SolveLoop.offer>` (the path its reader
-   threads take) with warm inputs along the simulated motion (:mod:`glpma_tools.sim.trajectories`),
-   a subscriber process (:func:`subscribe_outputs`) taking every topic.  For each output alone
-   (``/tf``, ``pose_estimate_cov``, ``twist_estimate`` from poses and from ``joint_states``
-   velocities, ``~/markers`` with every pose), the shipped ones and all of them: the solving
-   thread's hand-off of each pose to the extras thread (:class:`~glpma_ros.node.loops.ExtrasLoop`)
-   and the extras thread's building and writing of its extra messages, beside the pose's own
-   encoding and write and the solve.
-2. **Legs written -> pose read** (:func:`path_latency`) -- the simulated controller
-   (:class:`glpma_tools.sim.controller.Controller`) writing ``leg_lengths`` at the DDS section's
-   rate (:data:`glpma_tools.bench.dds.END_TO_END`) and taking ``pose_estimate``, against three
-   processes in turn: the node with its shipped params file (the default extra outputs on), the
-   node with every extra output off, and the echo (:mod:`glpma_tools.sim.echo_node`: the node's
-   reading and writing without a solve) -- the floor of Python and Cyclone DDS on the machine.
-   The latency is split at the pose's stamp (the arrival time at the node, same clock):
-   *written -> taken* (delivery, the reader's wake-up and take) and *taken -> read* (decode,
-   solve, encode, write, delivery back, the client's wake-up).
-3. **A micro-profile** (:func:`micro_profile`), measured in the same run: one Cyclone DDS write
-   of a ``leg_lengths`` sample without a reader and with a reader in another process (CPU and
-   wall time), a Python thread wake-up round trip (``threading.Event`` ping-pong), decoding an
-   input and encoding a pose.
-4. **The rclpy adapter** (:func:`rclpy_variants`, where ``rclpy`` imports): legs published by an
-   rclpy client process (:mod:`.rclpy_client`) -> pose received, for the shipped executor set-up and two alternatives.
+1. :func:`output_costs` -- a :class:`~glpma_ros.node.dds.node.DdsNode` in this process fed through
+   ``SolveLoop.offer`` with warm inputs, a subscriber process taking every topic: per output
+   configuration, the solving thread's hand-off to the extras thread and that thread's work.
+2. :func:`path_latency` -- the simulated controller against the node, the node with its extra
+   outputs off and the echo (the transport floor), latency split at the pose's stamp.
+3. :func:`micro_profile` -- one DDS write without and with a remote reader, a thread wake-up round
+   trip, decoding an input and encoding a pose.
+4. :func:`rclpy_variants` (where ``rclpy`` imports) -- the rclpy adapter's executor set-ups.
 
-:func:`measure` runs them for the bench; :func:`section` renders the results (prose in
-``templates/outputs.md``).  Timings are wall clock on a shared machine unless said CPU.
-"""
+:func:`measure` runs them; :func:`section` renders them (prose in ``templates/outputs.md``)."""
 from __future__ import annotations
 
 import contextlib
@@ -38,6 +19,7 @@ import sys
 import tempfile
 import threading
 import time
+import timeit
 from pathlib import Path
 
 import numpy as np
@@ -175,14 +157,11 @@ def output_costs(scenarios, n_inputs: int, domain: int, pace_s: float = PACE_S) 
                 extras.flush()
                 loop.stop()
                 st = service.stats
-
-                def cpu(pairs):
-                    return _us([c for c, _ in pairs])
                 rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, "published": st.published,
-                             "solve_us": _us(st.solve_s.values()), "pose_cpu_us": cpu(pose),
-                             "pose_us": _us([w for _, w in pose]),
-                             "handoff_cpu_us": cpu(handoff), "handoff_us": _us(st.extras_handoff_s.values()),
-                             "extras_cpu_us": cpu(thread), "build_cpu_us": cpu(build), "extras_us": _us(st.extras_s.values()),
+                             "solve_us": _us(st.solve_s.values()), "pose_cpu_us": _us([c for c, _ in pose]),
+                             "pose_us": _us([w for _, w in pose]), "handoff_cpu_us": _us([c for c, _ in handoff]),
+                             "handoff_us": _us(st.extras_handoff_s.values()), "extras_cpu_us": _us([c for c, _ in thread]),
+                             "build_cpu_us": _us([c for c, _ in build]), "extras_us": _us(st.extras_s.values()),
                              "extras_dropped": st.extras_dropped})
     finally:
         sub.kill()
@@ -245,20 +224,12 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
 
 
 # -- part 3: the micro-profile -------------------------------------------------------------------------
-def _per_call_us(function, repeats: int) -> float:
-    """Mean µs of ``function()`` called back to back (CPU-bound steps)."""
-    t0 = time.perf_counter()
-    for _ in range(repeats):
-        function()
-    return (time.perf_counter() - t0) / repeats * 1e6
-
-
-def _timed_writes(writer, data: bytes, n: int) -> dict:
-    """CPU and wall time (µs) of ``n`` raw writes, :data:`PROFILE_PACE_S` apart."""
+def _paced(call, n: int) -> dict:
+    """CPU and wall time (µs) of ``n`` calls ``call()``, :data:`PROFILE_PACE_S` apart."""
     cpu, wall = [], []
     for _ in range(n):
         c, t = time.thread_time_ns(), time.perf_counter_ns()
-        writer.write(data)
+        call()
         wall.append((time.perf_counter_ns() - t) * 1e-3)
         cpu.append((time.thread_time_ns() - c) * 1e-3)
         time.sleep(PROFILE_PACE_S)
@@ -266,26 +237,25 @@ def _timed_writes(writer, data: bytes, n: int) -> dict:
 
 
 def wake_round_trip(n: int) -> dict:
-    """A Python thread wake-up round trip (µs): this thread sets an ``Event`` another waits on,
-    which sets one this thread waits on; :data:`PROFILE_PACE_S` between two round trips."""
-    ping, pong, times = threading.Event(), threading.Event(), []
+    """A Python thread wake-up round trip (wall µs): this thread sets an ``Event`` another waits on,
+    which sets one this thread waits on."""
+    ping, pong = threading.Event(), threading.Event()
 
     def answer():
         for _ in range(n):
             ping.wait()
             ping.clear()
             pong.set()
-    other = threading.Thread(target=answer, daemon=True)
-    other.start()
-    for _ in range(n):
-        t = time.perf_counter_ns()
+
+    def round_trip():
         ping.set()
         pong.wait()
         pong.clear()
-        times.append((time.perf_counter_ns() - t) * 1e-3)
-        time.sleep(PROFILE_PACE_S)
+    other = threading.Thread(target=answer, daemon=True)
+    other.start()
+    out = _paced(round_trip, n)["wall_us"]
     other.join()
-    return distribution(times)
+    return out
 
 
 def micro_profile(sc, n: int, domain: int) -> dict:
@@ -303,10 +273,12 @@ def micro_profile(sc, n: int, domain: int) -> dict:
     try:
         data, _ = ctl.encoded(plan.sample(0.0)[0])
         encoder, position, orientation = cdr.Encoder(), (0.1, 0.2, 0.0), (0.0, 0.0, 0.0, 1.0)
-        out = {"decode_us": _per_call_us(lambda: cdr.float64_multi_array_data(data), PROFILE_CPU_REPEATS),
-               "encode_us": _per_call_us(lambda: encoder.pose_stamped(time.time_ns(), "base", position, orientation),
-                                         PROFILE_CPU_REPEATS),
-               "write_alone": _timed_writes(ctl.raw_writer, data, n)}
+
+        def mean_us(call):          # CPU-bound steps back to back (timeit: the garbage collector off)
+            return timeit.timeit(call, number=PROFILE_CPU_REPEATS) / PROFILE_CPU_REPEATS * 1e6
+        out = {"decode_us": mean_us(lambda: cdr.float64_multi_array_data(data)),
+               "encode_us": mean_us(lambda: encoder.pose_stamped(time.time_ns(), "base", position, orientation)),
+               "write_alone": _paced(lambda: ctl.raw_writer.write(data), n)}
         with tempfile.TemporaryDirectory(prefix="glpma_outputs_") as logs:
             echo = NodeProcess([], env, Path(logs), module=TARGETS[ECHO][0])
             echo.start()
@@ -314,7 +286,7 @@ def micro_profile(sc, n: int, domain: int) -> dict:
                 if not endpoints.wait_for_match([ctl.writer], CONNECT_S):
                     raise TimeoutError(f"the echo did not match within {CONNECT_S:g} s")
                 time.sleep(SETTLE_S)
-                out["write_remote"] = _timed_writes(ctl.raw_writer, data, n)
+                out["write_remote"] = _paced(lambda: ctl.raw_writer.write(data), n)
             finally:
                 echo.stop()
     finally:
@@ -442,42 +414,36 @@ def rclpy_variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
 
 # -- the bench's entry and the report ------------------------------------------------------------------
 def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_seconds: float, say=print) -> dict:
-    """Every part for the bench: ``res["outputs"]``.  ``inputs``: per row of part 1 (0 = skip);
-    ``seconds``: per run of part 2 (0 = skip); ``profile_samples``: writes and round trips of
-    part 3 (0 = skip); ``rclpy_seconds``: per variant of part 4 (0 = skip; needs rclpy)."""
-    with contextlib.ExitStack() as claims:
-        def domain() -> int:
-            """A ROS domain no other process on the host uses, held until the section ends."""
-            return claims.enter_context(claim_domain()).domain_id
-        return _measure(scenarios, inputs, seconds, profile_samples, rclpy_seconds, say, domain)
-
-
-def _measure(scenarios, inputs, seconds, profile_samples, rclpy_seconds, say, domain) -> dict:
+    """Every part for the bench: ``res["outputs"]``.  ``inputs``: per row of part 1, ``seconds``: per
+    run of part 2, ``profile_samples``: writes and round trips of part 3, ``rclpy_seconds``: per variant
+    of part 4 (needs rclpy); 0 skips a part.  Each part runs on a ROS domain of its own."""
     res = {"keys": [sc.key for sc in scenarios], "pace_s": PACE_S, "costs": [], "paths": [], "profile": None,
            "rclpy": None, "rclpy_reason": None}
-    if inputs > 0:
-        say(f"extra outputs: {inputs} inputs per configuration")
-        res["costs"] = output_costs(scenarios, inputs, domain())
-    if seconds > 0:
-        for sc in scenarios:
+    with contextlib.ExitStack() as claims:
+        def domain() -> int:
+            return claims.enter_context(claim_domain()).domain_id
+        if inputs > 0:
+            say(f"extra outputs: {inputs} inputs per configuration")
+            res["costs"] = output_costs(scenarios, inputs, domain())
+        for sc in scenarios if seconds > 0 else ():
             for target in TARGETS:
                 say(f"{sc.label}: legs written -> pose read, {target}, {seconds:g} s")
                 res["paths"].append(path_latency(sc, target, seconds, domain()))
-    if profile_samples > 0:
-        say(f"micro-profile: {profile_samples} writes and thread round trips")
-        res["profile"] = micro_profile(scenarios[0], profile_samples, domain())
-    if rclpy_seconds > 0:
-        try:
-            import rclpy  # noqa: F401 - only whether it imports
-        except ImportError:
-            res["rclpy_reason"] = "rclpy does not import in the Python that ran the bench"
-        else:
-            from .dds import END_TO_END
-            sc = scenarios[0]
-            say(f"{sc.label}: the rclpy adapter's executors")
-            rate = END_TO_END[sc.model.kind][0]
-            res["rclpy_setup"] = {"manipulator": sc.label, "rate": rate, "seconds": rclpy_seconds}
-            res["rclpy"] = rclpy_variants(sc, rclpy_seconds, rate, domain)
+        if profile_samples > 0:
+            say(f"micro-profile: {profile_samples} writes and thread round trips")
+            res["profile"] = micro_profile(scenarios[0], profile_samples, domain())
+        if rclpy_seconds > 0:
+            try:
+                import rclpy  # noqa: F401 - only whether it imports
+            except ImportError:
+                res["rclpy_reason"] = "rclpy does not import in the Python that ran the bench"
+            else:
+                from .dds import END_TO_END
+                sc = scenarios[0]
+                say(f"{sc.label}: the rclpy adapter's executors")
+                rate = END_TO_END[sc.model.kind][0]
+                res["rclpy_setup"] = {"manipulator": sc.label, "rate": rate, "seconds": rclpy_seconds}
+                res["rclpy"] = rclpy_variants(sc, rclpy_seconds, rate, domain)
     return res
 
 
@@ -498,7 +464,7 @@ def _verdict(measured: float | None, target: float | None) -> str:
     return f"{measured:.3f} ms (target ≤ {target:g}: missed by {measured - target:.3f} ms, {measured / target:.1f}×)"
 
 
-def section(res) -> list[str]:
+def section(res, md_path=None) -> list[str]:
     """The section of BENCHMARKS.md from ``res["outputs"]`` (nothing when it did not run)."""
     from .report import prose
     from .scenarios import END_TO_END_TARGET_MS
