@@ -8,6 +8,7 @@ and the best-so-far trace, so evaluations are counted the same way for everyone.
 """
 from __future__ import annotations
 
+import importlib
 import math
 import time
 import warnings
@@ -26,17 +27,15 @@ class PeerMissing(RuntimeError):
     """The peer library is not installed."""
 
 
+#: the module each peer needs
+PEER_MODULES = {"pypop7": "pypop7.optimizers.ga.g3pcx", "pymoo": "pymoo.algorithms.soo.nonconvex.g3pcx",
+                "scipy": "scipy.optimize"}
+
+
 def available(name: str) -> str | None:
     """None if the peer can be imported, else the reason."""
     try:
-        if name == "pypop7":
-            import pypop7.optimizers.ga.g3pcx  # noqa: F401
-        elif name == "pymoo":
-            import pymoo.algorithms.soo.nonconvex.g3pcx  # noqa: F401
-        elif name == "scipy":
-            import scipy.optimize  # noqa: F401
-        else:
-            raise ValueError(name)
+        importlib.import_module(PEER_MODULES[name])
     except ImportError as exc:
         return f"not installed ({exc})"
     return None
@@ -181,35 +180,33 @@ class ScipyWarm:
         if self.jac == "2-point":
             res = ls(lambda x: model.residuals(x, legs)[0], np.asarray(x_start, dtype=float), **kw)
             return res.x, res.nfev
-        if model.kind == "planar_3rpr":
-            cache = {}
+        if model.kind == "planar_3rpr":     # the variables are the pose
+            s0, pose, variables = np.asarray(x_start, dtype=float), (lambda s: s), (lambda s: s)
+        else:                               # position and rotation vector applied to the start
+            from glpma_ros.models.rotations import rotation_from_vector
+            R0, p0 = model.pose_state(x_start)
+            s0 = np.zeros(6)
 
-            def rj(x):
-                key = x.tobytes()
-                if key not in cache:
-                    cache.clear()
-                    cache[key] = model.pose_residuals_jacobian(x, legs)
-                return cache[key]
+            def pose(s):
+                return rotation_from_vector(s[3:]) @ R0, p0 + s[:3]
 
-            res = ls(lambda x: rj(x)[0], np.asarray(x_start, dtype=float), jac=lambda x: rj(x)[1], **kw)
-            return res.x, res.nfev
-        from glpma_ros.models.rotations import rotation_from_vector
-        R0, p0 = model.pose_state(x_start)
+            def variables(s):
+                return model.pose_variables(pose(s))
         cache = {}
 
-        def rj(s):
+        def rj(s):          # least_squares asks for the residuals and the Jacobian at the same point
             key = s.tobytes()
             if key not in cache:
                 cache.clear()
-                r, J = model.pose_residuals_jacobian((rotation_from_vector(s[3:]) @ R0, p0 + s[:3]), legs)
-                J = J.copy()
-                J[:, 3:] = J[:, 3:] @ _left_jacobian(s[3:])
+                r, J = model.pose_residuals_jacobian(pose(s), legs)
+                if model.kind != "planar_3rpr":
+                    J = J.copy()
+                    J[:, 3:] = J[:, 3:] @ _left_jacobian(s[3:])
                 cache[key] = (r, J)
             return cache[key]
 
-        res = ls(lambda s: rj(s)[0], np.zeros(6), jac=lambda s: rj(s)[1], **kw)
-        s = res.x
-        return model.pose_variables((rotation_from_vector(s[3:]) @ R0, p0 + s[:3])), res.nfev
+        res = ls(lambda s: rj(s)[0], s0, jac=lambda s: rj(s)[1], **kw)
+        return variables(res.x), res.nfev
 
 
 SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]

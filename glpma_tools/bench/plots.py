@@ -29,6 +29,38 @@ def _plt():
     return plt
 
 
+def draw(res, out_dir: Path) -> dict:
+    """Every figure of the measurements ``res`` into ``out_dir``: ``{name: path}``."""
+    from glpma_ros import solvers
+    from .report import SOLVER_LABEL
+    from .scenarios import LATENCY_TARGET_MS
+    from .timing import DEADLINE_MARGIN_MS
+    figures = {}
+    for k, sc in res["scenarios"].items():
+        series = [(f"{SOLVER_LABEL[r.config.solver]} {r.config.pop_label} {'default' if r.config.polish else 'pure'}",
+                   color_for(r.config.solver, r.config.population), "--" if r.config.polish else "-", r.runs)
+                  for r in res["tables"].get(k, [])]
+        series += [(f"{r.name} G3PCX", COLORS[r.name], ":", r.runs) for r in res["peers"].get(k, []) if r.status == "run"]
+        if series:
+            figures[f"success_{k}"] = success_curves(out_dir / f"success_vs_evals_{k}.png",
+                                                     f"{sc.label}: success and convergence",
+                                                     solvers.PAPER_SETTINGS[sc.model.kind]["max_evals"], series)
+        if k in res["tracking"]:
+            figures[f"latency_{k}"] = latency_histogram(
+                out_dir / f"latency_{k}.png", f"{sc.label}: warm tracking, solve time per step",
+                res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
+    if res["deadline"]:
+        figures["deadline"] = deadline_plot(out_dir / "deadline.png", res["deadline"], DEADLINE_MARGIN_MS)
+    return figures
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _plt().close(fig)
+    return path
+
+
 def success_curves(path: Path, title, max_evals, series) -> Path:
     """ECDF of evaluations to success and median best fitness vs evaluations.
 
@@ -41,56 +73,43 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
     for label, color, ls, runs in series:
         if not runs:
             continue
-        n = len(runs)
         ok = np.sort([r.nfev for r in runs if r.success])
-        frac = np.searchsorted(ok, grid, side="right") / n
-        ax1.step(grid, 100 * frac, where="post", color=color, ls=ls, label=f"{label} ({n} runs)")
-        # median best-so-far fitness: history is (evaluations, best) per chunk, a step function
-        curves = []
-        for r in runs:
-            if not r.history:
-                continue
+        ax1.step(grid, 100 * np.searchsorted(ok, grid, side="right") / len(runs), where="post", color=color, ls=ls,
+                 label=f"{label} ({len(runs)} runs)")
+        if ls == "--" or not any(r.history for r in runs):
+            continue
+        if np.median([len(r.history) for r in runs]) < MIN_HISTORY_POINTS:
+            coarse.append(label)
+            continue
+        curves = []     # best-so-far fitness: history is (evaluations, best) per chunk, a step function
+        for r in (r for r in runs if r.history):
             h = np.array(r.history, dtype=float)
             idx = np.searchsorted(h[:, 0], grid, side="right") - 1
             best = np.where(idx >= 0, np.minimum.accumulate(h[:, 1])[np.maximum(idx, 0)], np.nan)
             if r.success:  # a run stops at success: it stays below the threshold afterwards
                 best = np.where(grid >= r.nfev, np.minimum(best, r.fun), best)
             curves.append(best)
-        points = np.median([len(r.history) for r in runs])
-        if ls == "--":
-            continue
-        if curves and points < MIN_HISTORY_POINTS:
-            coarse.append(label)
-        elif curves:
-            arr = np.array(curves)
-            with np.errstate(all="ignore"), warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                med = np.nanmedian(arr, axis=0)
-            ax2.step(grid, np.maximum(med, 1e-32), where="post", color=color, ls=ls, label=label)
-    ax1.set_xscale("log")
-    ax1.set_xlabel("fitness evaluations")
-    ax1.set_ylabel("runs with fitness < 1e-20 (%)")
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            med = np.nanmedian(np.array(curves), axis=0)
+        ax2.step(grid, np.maximum(med, 1e-32), where="post", color=color, ls=ls, label=label)
+    for ax, ylabel, title_ in ((ax1, "runs with fitness < 1e-20 (%)", "success vs evaluations"),
+                               (ax2, "median best fitness", "convergence (median over runs)")):
+        ax.set_xscale("log")
+        ax.set_xlabel("fitness evaluations")
+        ax.set_ylabel(ylabel)
+        ax.set_xlim(1, max_evals)
+        ax.grid(alpha=0.3)
+        ax.set_title(title_)
     ax1.set_ylim(-2, 102)
-    ax1.set_xlim(1, max_evals)
-    ax1.grid(alpha=0.3)
     ax1.legend(fontsize=7, loc="upper left")
-    ax1.set_title("success vs evaluations")
-    ax2.set_xscale("log")
     ax2.set_yscale("log")
     ax2.axhline(1e-20, color="k", lw=0.8, ls=":")
-    ax2.set_xlabel("fitness evaluations")
-    ax2.set_ylabel("median best fitness")
-    ax2.set_xlim(1, max_evals)
-    ax2.grid(alpha=0.3)
-    ax2.set_title("convergence (median over runs)")
     if coarse:
         ax2.text(0.02, 0.07, "not drawn (the whole run is one compiled chunk; no history):\n" + "\n".join(coarse),
                  transform=ax2.transAxes, fontsize=7, va="bottom")
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) -> Path:
@@ -115,10 +134,7 @@ def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) ->
     ax.set_title(title)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def deadline_plot(path: Path, rows, margin_ms) -> Path:
@@ -145,7 +161,4 @@ def deadline_plot(path: Path, rows, margin_ms) -> Path:
     axes[0][0].set_yticks(range(1, len(labels) + 1), labels, fontsize=7)
     axes[0][-1].legend(fontsize=7)
     fig.suptitle("deadline honouring: whiskers span min to max")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)

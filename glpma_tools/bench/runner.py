@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import pickle
 import sys
 import tempfile
 import time
@@ -106,6 +107,18 @@ def _count(args, name):
     return DEFAULTS[name][1 if args.quick else 0]
 
 
+def _peer_runs(args, counts, key) -> dict:
+    """Runs per peer on manipulator ``key`` (and why a peer does not run, under ``<peer>_why``)."""
+    if key != "hexapod":
+        return dict.fromkeys(PEER_HEXAPOD_RUNS, counts["peer_runs"])
+    if args.peer_hexapod_runs is not None:
+        return dict.fromkeys(PEER_HEXAPOD_RUNS, args.peer_hexapod_runs)
+    if not args.quick:
+        return dict(PEER_HEXAPOD_RUNS)
+    return {**dict.fromkeys(PEER_HEXAPOD_RUNS, 0), **{f"{n}_why": "skipped in --quick (500,000 evaluations of "
+                                                      "Python overhead per run)" for n in PEER_HEXAPOD_RUNS}}
+
+
 @command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -119,7 +132,7 @@ def main(argv=None) -> int:
         raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
                          f"choose from {', '.join(solvers.SOLVERS)}")
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, deadlines, experiments as ex, report, tracking
+    from . import dds, deadlines, experiments as ex, modes, offline, outputs, report, tracking, waits
     from .scenarios import load
 
     t_start = time.perf_counter()
@@ -132,8 +145,7 @@ def main(argv=None) -> int:
     out_dir, args.markdown = output_paths(args)
     say(f"report: {args.markdown}; figures: {out_dir}")
     if args.render:
-        res = load_saved(args.render)
-        return finish(res, args, out_dir, say)
+        return finish(load_saved(args.render), args, out_dir, say)
     sections = set(args.sections or SECTIONS)
     keys = args.only or ["3rpr", "hexapod"]
     progress = not args.no_progress
@@ -142,28 +154,14 @@ def main(argv=None) -> int:
     res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
            "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
            "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
-           "baselines": None, "outputs": None, "offline": None,
-           "figures": {}, "load": []}
-    if "tables" in sections:
-        for k, sc in scenarios.items():
-            say(f"{sc.label}: the papers' table, pure and default", f"{sc.key} tables")
-            res["tables"][k] = ex.paper_tables(sc, hex_runs if k == "hexapod" else runs, runs, progress)
+           "baselines": None, "outputs": None, "offline": None, "figures": {}, "load": []}
+    for k, sc in scenarios.items() if "tables" in sections else ():
+        say(f"{sc.label}: the papers' table, pure and default", f"{sc.key} tables")
+        res["tables"][k] = ex.paper_tables(sc, hex_runs if k == "hexapod" else runs, runs, progress)
     if "peers" in sections:
-        peer_runs = counts["peer_runs"]
         for k, sc in scenarios.items():
             say(f"{sc.label}: pure G3-PCX peers", f"{sc.key} peers")
-            if k == "hexapod":
-                if args.peer_hexapod_runs is not None:
-                    by_peer = {n: args.peer_hexapod_runs for n in PEER_HEXAPOD_RUNS}
-                elif args.quick:
-                    by_peer = {n: 0 for n in PEER_HEXAPOD_RUNS}
-                    by_peer.update({f"{n}_why": "skipped in --quick (500,000 evaluations of Python overhead per run)"
-                                    for n in PEER_HEXAPOD_RUNS})
-                else:
-                    by_peer = dict(PEER_HEXAPOD_RUNS)
-            else:
-                by_peer = {n: peer_runs for n in PEER_HEXAPOD_RUNS}
-            res["peers"][k] = ex.peer_g3pcx(sc, by_peer, progress)
+            res["peers"][k] = ex.peer_g3pcx(sc, _peer_runs(args, counts, k), progress)
         if "3rpr" in scenarios and counts["gap_runs"] > 0:
             say("3-RPR: G3-PCX with larger evaluation caps")
             res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
@@ -172,15 +170,13 @@ def main(argv=None) -> int:
             say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
             res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
                                                        progress)
-        from . import modes
         say("all real assembly modes: multistart, msolve, G3-PCX", "solve-all modes")
         res["modes_comparison"] = modes.compare(scenarios, counts["modes_cases"], counts["modes_g3pcx_hexapods"],
                                                 progress)
-    if "tracking" in sections:
-        for k, sc in scenarios.items():
-            say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
-            res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
-            res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
+    for k, sc in scenarios.items() if "tracking" in sections else ():
+        say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
+        res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
+        res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
         res["deadline"] = deadlines.deadlines(list(scenarios.values()), args.budgets_ms,
@@ -191,26 +187,18 @@ def main(argv=None) -> int:
     if "dds" in sections:
         say("DDS end to end", "dds")
         res["dds"] = dds.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
-        if res["dds"].get("status") != "run":
-            print(f"bench: DDS end-to-end section skipped: {res['dds']['reason']}", file=sys.stderr)
     if "outputs" in sections:
-        from . import outputs
         say("extra outputs and the transport path", "outputs")
         res["outputs"] = outputs.measure(list(scenarios.values()), counts["outputs_inputs"], counts["outputs_seconds"],
                                          counts["outputs_profile"], counts["outputs_rclpy_seconds"], say)
-
     if "waits" in sections and counts["waits_rounds"] > 0:
-        from . import waits
         say("waits of an input for anything but its own solve", "waits")
         res["waits"] = waits.measure(counts["waits_rounds"], max(1, counts["waits_inputs"]))
-
     if "offline" in sections:
-        from . import offline
         say("offline: glpma-fk bag throughput and fleet, glpma-fk map on each engine and against G3-PCX, "
             "glpma-fk calibrate", "offline")
         res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick,
                                          hexapod="hexapod" in keys)
-
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:
         save(res, args.save_data)
@@ -220,9 +208,7 @@ def main(argv=None) -> int:
 
 def save(res, path):
     """Pickle the measurements; a part that cannot be pickled is left out with a notice."""
-    import pickle
-    data = dict(res)
-    data["scenarios"] = list(res["scenarios"])     # models hold compiled functions: reload by key
+    data = {**res, "scenarios": list(res["scenarios"])}     # models hold compiled functions: reload by key
     for key in list(data):
         try:
             pickle.dumps(data[key])
@@ -233,47 +219,18 @@ def save(res, path):
 
 
 def load_saved(path):
-    import pickle
-
     from .scenarios import load
     res = pickle.loads(Path(path).read_bytes())
-    res["scenarios"] = {k: load(k) for k in res["scenarios"]}
-    res["figures"] = {}
-    return res
+    return {**res, "scenarios": {k: load(k) for k in res["scenarios"]}, "figures": {}}
 
 
 def finish(res, args, out_dir, say) -> int:
     """Figures and the report from the measurements."""
     from . import plots, reliability, report
-    from .scenarios import LATENCY_TARGET_MS
-    from .timing import DEADLINE_MARGIN_MS
-    scenarios = res["scenarios"]
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
         say("figures")
-        for k, sc in scenarios.items():
-            series = []
-            for row in res["tables"].get(k, []):
-                c = row.config
-                series.append((f"{report.SOLVER_LABEL[c.solver]} {c.pop_label} {'pure' if not c.polish else 'default'}",
-                               plots.color_for(c.solver, c.population), "-" if not c.polish else "--",
-                               row.runs))
-            for row in res["peers"].get(k, []):
-                if row.status == "run":
-                    series.append((f"{row.name} G3PCX", plots.COLORS[row.name], ":", row.runs))
-            if series:
-                from glpma_ros import solvers
-                path = out_dir / f"success_vs_evals_{k}.png"
-                res["figures"][f"success_{k}"] = plots.success_curves(
-                    path, f"{sc.label}: success and convergence", solvers.PAPER_SETTINGS[sc.model.kind]["max_evals"],
-                    series)
-            if k in res["tracking"]:
-                res["figures"][f"latency_{k}"] = plots.latency_histogram(
-                    out_dir / f"latency_{k}.png", f"{sc.label}: warm tracking, solve time per step",
-                    res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
-        if res["deadline"]:
-            res["figures"]["deadline"] = plots.deadline_plot(out_dir / "deadline.png", res["deadline"],
-                                                             DEADLINE_MARGIN_MS)
+        res["figures"] = plots.draw(res, out_dir)
     try:
         stress_figures = reliability.load(args.reliability)
     except (OSError, ValueError) as exc:
@@ -281,8 +238,7 @@ def finish(res, args, out_dir, say) -> int:
         return 2
     rpath = args.reliability.resolve()
     source = str(rpath.relative_to(REPO_ROOT)) if rpath.is_relative_to(REPO_ROOT) else str(rpath)
-    text = report.render(res, args.markdown, stress_figures, source)
     args.markdown.parent.mkdir(parents=True, exist_ok=True)
-    args.markdown.write_text(text)
+    args.markdown.write_text(report.render(res, args.markdown, stress_figures, source))
     say(f"wrote {args.markdown}")
     return 0
