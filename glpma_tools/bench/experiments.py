@@ -127,6 +127,10 @@ class AllSolutionsResult:
 
 
 def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
+    """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to
+    the published ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the
+    model's distance)."""
+    from .report import FOUND_MM
     model = sc.model
     solve_all(model, sc.legs, runs=2, seed=999)       # warm-up
     reps, first = [], None
@@ -134,29 +138,20 @@ def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
         gc.collect()
         res = solve_all(model, sc.legs, runs=runs, seed=seed)
         reps.append((seed, len(res.solutions), res.elapsed_s, res.evaluations))
-        if first is None:
-            first = [s.x for s in res.solutions]
+        first = [s.x for s in res.solutions] if first is None else first
     devs = []
-    matched = set()
     for i, pub in enumerate(sc.published):
-        if not first:
-            devs.append((i, None, math.inf))
-            continue
         d = [float(np.max(np.abs(model.canonical(x) - model.canonical(pub)))) if sc.key == "hexapod"
              else model.distance(x, pub) for x in first]
-        j = int(np.argmin(d))
-        devs.append((i, j, d[j]))
-        if d[j] < 5.0:
-            matched.add(j)
-    return AllSolutionsResult(runs, reps, first or [], wide_range(model, sc.legs), devs,
-                              len(first or []) - len(matched))
+        devs.append((i, int(np.argmin(d)), min(d)) if d else (i, None, math.inf))
+    matched = {j for _, j, d in devs if d < FOUND_MM}
+    return AllSolutionsResult(runs, reps, first, wide_range(model, sc.legs), devs, len(first) - len(matched))
 
 
 # -- the gap between the papers' pure G3-PCX and faithful implementations --------------------
 @dataclass
 class GapDiagnostics:
     caps: dict               # max_evals -> list of Run (our pure G3-PCX, paper population)
-    thresholds: tuple = (1e-20, 1e-16, 1e-12, 1e-8)
 
 
 def gap_diagnostics(sc, runs, progress) -> GapDiagnostics:
@@ -165,11 +160,9 @@ def gap_diagnostics(sc, runs, progress) -> GapDiagnostics:
     evaluations a run needs to reach 1e-20 at all)."""
     settings = solvers.PAPER_SETTINGS[sc.model.kind]
     pop, cap = settings["population"], settings["max_evals"]
-    caps = {}
-    for max_evals in (2 * cap + pop, 10 * cap):
-        caps[max_evals] = [timed_solve("g3pcx", sc.model, sc.legs, seed, polish=False, max_evals=max_evals)
-                           for seed in _bar(range(runs), f"{sc.label} G3-PCX cap {max_evals}", progress)]
-    return GapDiagnostics(caps)
+    return GapDiagnostics({max_evals: [timed_solve("g3pcx", sc.model, sc.legs, seed, polish=False, max_evals=max_evals)
+                                       for seed in _bar(range(runs), f"{sc.label} G3-PCX cap {max_evals}", progress)]
+                           for max_evals in (2 * cap + pop, 10 * cap)})
 
 
 # -- the baselines: 004 Table II (SA, GA, GA-SA) and 003's DE on 001's protocols ---------

@@ -26,7 +26,7 @@ import numpy as np
 
 from glpma_tools.sim.domains import claim_domain
 from glpma_tools.stats import distribution
-from glpma_tools.tables import fmt, table
+from glpma_tools.tables import MISSING, fmt, table
 
 HEADING = "## Extra outputs and the transport path"
 #: the outputs the shipped params files switch on: the row judged against :data:`EXTRAS_TARGET_US`
@@ -447,113 +447,98 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
     return res
 
 
-def _p(d, key, digits=3) -> str:
-    return "—" if not d or d.get(key) is None else f"{d[key]:.{digits}f}"
+def _p(d, key="p50", digits=3) -> str:
+    return MISSING if not d or d.get(key) is None else f"{d[key]:.{digits}f}"
 
 
 def _pair(d, digits=3) -> str:
     return f"{_p(d, 'p50', digits)} / {_p(d, 'p99', digits)}"
 
 
-def _verdict(measured: float | None, target: float | None) -> str:
-    """``met`` or by how much it is missed."""
-    if target is None or measured is None:
-        return ""
-    if measured <= target:
-        return f"{measured:.3f} ms (target ≤ {target:g}: met)"
-    return f"{measured:.3f} ms (target ≤ {target:g}: missed by {measured - target:.3f} ms, {measured / target:.1f}×)"
+def _verdict(measured: float, target: float, unit="ms", digits=3, ratio="{}, {:.1f}×") -> str:
+    """``met`` or by how much ``measured`` misses ``target``."""
+    return "met" if measured <= target else ratio.format(f"missed by {measured - target:.{digits}f} {unit}",
+                                                         measured / target)
 
 
 def section(res, md_path=None) -> list[str]:
     """The section of BENCHMARKS.md from ``res["outputs"]`` (nothing when it did not run)."""
     from .report import prose
-    from .scenarios import END_TO_END_TARGET_MS
+    from .scenarios import END_TO_END_TARGET_MS, LABEL
     o = res.get("outputs")
     if not o:
         return []
-    from .scenarios import LABEL
     targets = "; ".join(f"{LABEL[key]} " + " and ".join(f"{q} ≤ {v:g} ms" for q, v in zip(("p50", "p99"), pair)
                                                          if v is not None)
                         for key, pair in END_TO_END_TARGET_MS.items() if key in o["keys"])
     out = [HEADING, "", prose("outputs", extras_target=f"{EXTRAS_TARGET_US:g}", e2e_targets=targets), ""]
     if o["costs"]:
-        c0 = o["costs"][0]
         body = [[r["manipulator"], r["outputs"], _pair(r["handoff_cpu_us"], 1), _pair(r["handoff_us"], 1),
-                 _pair(r["extras_cpu_us"], 1), _p(r["build_cpu_us"], "p50", 1), _pair(r["extras_us"], 1),
-                 r["extras_dropped"], f"{_p(r['pose_cpu_us'], 'p50', 1)} / {_p(r['pose_us'], 'p50', 1)}",
-                 _p(r["solve_us"], "p50", 0)] for r in o["costs"]]
-        out += [prose("outputs", "costs", inputs=c0["inputs"], pace=f"{1e3 * o['pace_s']:g}"), "",
+                 _pair(r["extras_cpu_us"], 1), _p(r["build_cpu_us"], digits=1), _pair(r["extras_us"], 1),
+                 r["extras_dropped"], f"{_p(r['pose_cpu_us'], digits=1)} / {_p(r['pose_us'], digits=1)}",
+                 _p(r["solve_us"], digits=0)] for r in o["costs"]]
+        out += [prose("outputs", "costs", inputs=o["costs"][0]["inputs"], pace=f"{1e3 * o['pace_s']:g}"), "",
                 table(["manipulator", "outputs on", "solving thread: hand-off, CPU p50 / p99 (µs)",
                        "hand-off, wall p50 / p99 (µs)", "extras thread: build + write, CPU p50 / p99 (µs)",
                        "of which building, CPU p50 (µs)", "extras thread, wall p50 / p99 (µs)", "extras dropped",
                        "pose encode + write, CPU / wall p50 (µs)", "solve, wall p50 (µs)"], body), ""]
-        for r in (r for r in o["costs"] if r["outputs"] == SHIPPED):
-            p50 = r["handoff_cpu_us"]["p50"]
-            out.append("- " + prose("outputs", "costs_target", manipulator=r["manipulator"], handoff=f"{p50:.1f}",
-                                    handoff_wall=_p(r["handoff_us"], "p50", 1), target=f"{EXTRAS_TARGET_US:g}",
-                                    verdict="met" if p50 <= EXTRAS_TARGET_US else
-                                    f"missed by {p50 - EXTRAS_TARGET_US:.1f} µs ({p50 / EXTRAS_TARGET_US:.1f}×)",
-                                    thread=_p(r["extras_cpu_us"], "p50", 1), build=_p(r["build_cpu_us"], "p50", 1)))
+        out += ["- " + prose("outputs", "costs_target", manipulator=r["manipulator"],
+                             handoff=f"{r['handoff_cpu_us']['p50']:.1f}", handoff_wall=_p(r["handoff_us"], digits=1),
+                             target=f"{EXTRAS_TARGET_US:g}", thread=_p(r["extras_cpu_us"], digits=1),
+                             verdict=_verdict(r["handoff_cpu_us"]["p50"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
+                             build=_p(r["build_cpu_us"], digits=1)) for r in o["costs"] if r["outputs"] == SHIPPED]
         out += ["", prose("outputs", "costs_reading"), ""]
     if o["paths"]:
         body = [[r["manipulator"], r["target"], f"{r['rate_hz']:g} Hz, {r['seconds']:g} s",
-                 f"{r['sent']:,} / {r['paired']:,}", r["wrong"],
-                 f"{_pair(r['total_ms'])} / {_p(r['total_ms'], 'max', 2)}", _pair(r["to_node_ms"]),
-                 _pair(r["in_node_ms"]), f"{r['cpu_percent']:.0f} %", r["summary"]] for r in o["paths"]]
+                 f"{r['sent']:,} / {r['paired']:,}", r["wrong"], f"{_pair(r['total_ms'])} / {_p(r['total_ms'], 'max', 2)}",
+                 _pair(r["to_node_ms"]), _pair(r["in_node_ms"]), f"{r['cpu_percent']:.0f} %", r["summary"]]
+                for r in o["paths"]]
         out += [prose("outputs", "paths"), "",
-                table(["manipulator", "process", "rate", "sent / poses", "wrong",
-                       "written -> read p50 / p99 / max (ms)",
+                table(["manipulator", "process", "rate", "sent / poses", "wrong", "written -> read p50 / p99 / max (ms)",
                        "written -> taken p50 / p99 (ms)", "taken -> read p50 / p99 (ms)", "process CPU",
                        "process summary"], body), ""]
-        for kind_label in dict.fromkeys(r["manipulator"] for r in o["paths"]):
-            rows = {r["target"]: r for r in o["paths"] if r["manipulator"] == kind_label}
-            node, floor = rows.get(NODE), rows.get(ECHO)
+        for label in dict.fromkeys(r["manipulator"] for r in o["paths"]):
+            rows = {r["target"]: r for r in o["paths"] if r["manipulator"] == label}
+            node, floor, off = rows.get(NODE), rows.get(ECHO), rows.get(NODE_OFF)
             if node is None or floor is None:
                 continue
-            t50, t99 = END_TO_END_TARGET_MS[node["key"]]
-            n50, n99 = node["total_ms"]["p50"], node["total_ms"]["p99"]
-            f50, f99 = floor["total_ms"]["p50"], floor["total_ms"]["p99"]
-            off = rows.get(NODE_OFF)
+            (t50, t99), n, f = END_TO_END_TARGET_MS[node["key"]], node["total_ms"], floor["total_ms"]
             out.append("- " + prose(
-                "outputs", "targets", manipulator=kind_label,
-                p50=_verdict(n50, t50) or f"{n50:.3f} ms", p99=_verdict(n99, t99) or f"{n99:.3f} ms",
-                off=_pair(off["total_ms"]) if off else "—", floor=_pair(floor["total_ms"]),
+                "outputs", "targets", manipulator=label,
+                **{q: f"{n[q]:.3f} ms" + (f" (target ≤ {t:g}: {_verdict(n[q], t)})" if t is not None else "")
+                   for q, t in (("p50", t50), ("p99", t99))},
+                off=_pair(off["total_ms"]) if off else MISSING, floor=_pair(f),
                 floor_to_node=_pair(floor["to_node_ms"]), floor_in_node=_pair(floor["in_node_ms"]),
-                above_p50=f"{n50 - f50:+.3f}", above_p99=f"{n99 - f99:+.3f}",
-                floor_share=(f"{100 * f50 / t50:.0f} % of the p50 target and " if t50 else "")
-                + f"{100 * f99 / t99:.0f} % of the p99 target"))
+                above_p50=f"{n['p50'] - f['p50']:+.3f}", above_p99=f"{n['p99'] - f['p99']:+.3f}",
+                floor_share=(f"{100 * f['p50'] / t50:.0f} % of the p50 target and " if t50 else "")
+                + f"{100 * f['p99'] / t99:.0f} % of the p99 target"))
         out.append("")
     p = o.get("profile")
     if p:
-        solve = {r["manipulator"]: r["solve_us"]["p50"] for r in o["costs"] if r["outputs"] == "none"}
-        pose = {r["manipulator"]: r["pose_cpu_us"]["p50"] for r in o["costs"] if r["outputs"] == "none"}
-        body = [["decode one `leg_lengths` sample (`struct`)", fmt(p["decode_us"]), "—"],
-                ["encode one `PoseStamped` (`struct`)", fmt(p["encode_us"]), "—"],
-                ["one Cyclone DDS write, no reader", _pair(p["write_alone"]["cpu_us"], 1),
-                 _pair(p["write_alone"]["wall_us"], 1)],
-                ["one Cyclone DDS write, a reader in another process", _pair(p["write_remote"]["cpu_us"], 1),
-                 _pair(p["write_remote"]["wall_us"], 1)],
-                ["Python thread wake-up round trip (`threading.Event`)", "—", _pair(p["wake_us"], 1)]]
-        body += [[f"{label}: warm solve (part 1, p50)", "—", fmt(v)] for label, v in solve.items()]
-        body += [[f"{label}: pose encode + write with a subscriber (part 1, CPU p50)", fmt(v), "—"]
-                 for label, v in pose.items()]
+        none = [r for r in o["costs"] if r["outputs"] == "none"]
+        body = [["decode one `leg_lengths` sample (`struct`)", fmt(p["decode_us"]), MISSING],
+                ["encode one `PoseStamped` (`struct`)", fmt(p["encode_us"]), MISSING],
+                *[[f"one Cyclone DDS write, {what}", _pair(p[key]["cpu_us"], 1), _pair(p[key]["wall_us"], 1)]
+                  for key, what in (("write_alone", "no reader"), ("write_remote", "a reader in another process"))],
+                ["Python thread wake-up round trip (`threading.Event`)", MISSING, _pair(p["wake_us"], 1)],
+                *[[f"{r['manipulator']}: warm solve (part 1, p50)", MISSING, fmt(r["solve_us"]["p50"])] for r in none],
+                *[[f"{r['manipulator']}: pose encode + write with a subscriber (part 1, CPU p50)",
+                   fmt(r["pose_cpu_us"]["p50"]), MISSING] for r in none]]
         out += [prose("outputs", "profile", samples=p["samples"]), "",
                 table(["step", "CPU µs (p50 / p99, or mean)", "wall µs (p50 / p99)"], body), "",
-                prose("outputs", "profile_reading", write_remote=_p(p["write_remote"]["cpu_us"], "p50", 1),
-                      write_alone=_p(p["write_alone"]["cpu_us"], "p50", 1), wake=_p(p["wake_us"], "p50", 1),
+                prose("outputs", "profile_reading", write_remote=_p(p["write_remote"]["cpu_us"], digits=1),
+                      write_alone=_p(p["write_alone"]["cpu_us"], digits=1), wake=_p(p["wake_us"], digits=1),
                       decode=fmt(p["decode_us"]), encode=fmt(p["encode_us"])), ""]
     if o.get("rclpy"):
         body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}",
-                 f"{100 * r['answered']:.1f} %" if "answered" in r else "—", r["dropped"], r["wrong"],
+                 f"{100 * r['answered']:.1f} %" if "answered" in r else MISSING, r["dropped"], r["wrong"],
                  f"{r['p50']:.3f} / {r['p99']:.3f}",
-                 f"{r['cpu_us_per_input']:.0f}" if "cpu_us_per_input" in r else "—"] for r in o["rclpy"]]
+                 f"{r['cpu_us_per_input']:.0f}" if "cpu_us_per_input" in r else MISSING] for r in o["rclpy"]]
         setup = o["rclpy_setup"]
         out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
                       seconds=f"{setup['seconds']:g}"), "",
                 table(["variant", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
-                       "latency p50 / p99 (ms)", "node CPU µs per input"],
-                      body), ""]
+                       "latency p50 / p99 (ms)", "node CPU µs per input"], body), ""]
     elif o.get("rclpy_reason"):
         out += [prose("outputs", "rclpy_not_run", reason=o["rclpy_reason"]), ""]
     return out
-
