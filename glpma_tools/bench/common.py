@@ -4,9 +4,11 @@ from __future__ import annotations
 import math
 import os
 import platform
+import shlex
 import subprocess
 import sys
 from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,8 @@ from glpma_tools.stats import mean_ci
 REPO_ROOT = Path(__file__).resolve().parents[2]
 #: the papers' success criterion: best fitness below this
 SUCCESS_TOLERANCE = 1e-20
+#: the libraries whose versions the report names
+LIBRARIES = ("numpy", "numba", "scipy", "pypop7", "pymoo")
 
 
 @dataclass
@@ -46,14 +50,12 @@ class Summary:
 
 
 def summarize(runs: list[Run]) -> Summary:
-    ok = [r.nfev for r in runs if r.success]
-    mean, ci = mean_ci(ok)
+    if not runs:
+        return Summary(0, 0, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
+    mean, ci = mean_ci([r.nfev for r in runs if r.success])
     walls = np.array([r.wall_s for r in runs]) * 1e3
-    return Summary(len(runs), len(ok), mean, ci,
-                   float(np.mean([r.nfev for r in runs])) if runs else math.nan,
-                   float(np.median(walls)) if runs else math.nan,
-                   float(np.mean(walls)) if runs else math.nan,
-                   float(np.median([r.fun for r in runs])) if runs else math.nan)
+    return Summary(len(runs), sum(r.success for r in runs), mean, ci, float(np.mean([r.nfev for r in runs])),
+                   float(np.median(walls)), float(np.mean(walls)), float(np.median([r.fun for r in runs])))
 
 
 def progress_bar(iterable, desc, progress: bool, total=None):
@@ -71,12 +73,10 @@ def load_average() -> str:
         return "n/a"
 
 
-# -- machine ---------------------------------------------------------------------------
 def _version(name):
     try:
-        from importlib.metadata import version
         return version(name)
-    except Exception:  # noqa: BLE001
+    except PackageNotFoundError:
         return "not installed"
 
 
@@ -91,33 +91,21 @@ def cpu_model() -> str:
 
 
 def machine() -> dict:
-    return {
-        "cpu": cpu_model(),
-        "cores": os.cpu_count(),
-        "os": f"{platform.system()} {platform.release()}",
-        "python": platform.python_version(),
-        "numpy": _version("numpy"),
-        "numba": _version("numba"),
-        "scipy": _version("scipy"),
-        "pypop7": _version("pypop7"),
-        "pymoo": _version("pymoo"),
-    }
+    return {"cpu": cpu_model(), "cores": os.cpu_count(), "os": f"{platform.system()} {platform.release()}",
+            "python": platform.python_version(), **{name: _version(name) for name in LIBRARIES}}
 
 
 def git_revision() -> str:
+    def git(*args):
+        return subprocess.run(["git", "-C", str(REPO_ROOT), *args], capture_output=True, text=True,
+                              timeout=5).stdout.strip()
     try:
-        rev = subprocess.run(["git", "-C", str(REPO_ROOT), "rev-parse", "--short", "HEAD"],
-                             capture_output=True, text=True, timeout=5).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(REPO_ROOT), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=5).stdout.strip()
-        return rev + (" (with uncommitted changes)" if dirty else "") if rev else "unknown"
-    except Exception:  # noqa: BLE001
+        rev, dirty = git("rev-parse", "--short", "HEAD"), git("status", "--porcelain", "--untracked-files=no")
+    except (OSError, subprocess.SubprocessError):
         return "unknown"
+    return rev + (" (with uncommitted changes)" if dirty else "") if rev else "unknown"
 
 
 def command_line(argv, tool: str = "bench") -> tuple[str, str]:
     """(``glpma-fk <tool> ARGS``, the command line this process was started with)."""
-    import shlex
-    canonical = shlex.join(["glpma-fk", tool, *argv])
-    invoked = shlex.join(getattr(sys, "orig_argv", sys.argv))
-    return canonical, invoked
+    return shlex.join(["glpma-fk", tool, *argv]), shlex.join(getattr(sys, "orig_argv", sys.argv))

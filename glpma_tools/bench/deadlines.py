@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from glpma_ros import solvers
 from glpma_ros.estimator import Estimator
-from .timing import infeasible_legs, timed_calls, warm_up
+from .timing import TimedCalls, infeasible_legs, timed_calls, warm_up
 
 #: the bench's deadline cells are small: a short warm-up is enough
 WARM_UP_QUIET = 3
@@ -18,28 +16,22 @@ NO_CAP = 10**9
 
 
 @dataclass
-class DeadlineRow:
-    case: str
-    solver: str
-    budget_ms: float
-    elapsed_s: np.ndarray
+class DeadlineRow(TimedCalls):
+    """The timed calls of one case, solver and budget."""
+
+    case: str = ""
+    solver: str = ""
     short: str = ""
-    preempted: np.ndarray = None
-    stopped_early: bool = False
 
     @property
     def label(self):
         return f"{self.short} | {self.solver}"
 
-    @property
-    def overrun_ms(self):
-        return self.elapsed_s * 1e3 - self.budget_ms
-
 
 def _row(case, solver, b, short, call, n, progress) -> DeadlineRow:
     warm_up(call, b, WARM_UP_QUIET, WARM_UP_MAX_CALLS)
     calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
-    return DeadlineRow(case, solver, b, calls.elapsed_s, short, calls.preempted, calls.stopped_early)
+    return DeadlineRow(**{**vars(calls), "results": []}, case=case, solver=solver, short=short)
 
 
 def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRow]:

@@ -170,6 +170,19 @@ def output_costs(scenarios, n_inputs: int, domain: int, pace_s: float = PACE_S) 
 
 
 # -- part 2: legs written -> pose read ------------------------------------------------------------------
+def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int]:
+    """(the index of the input each paired pose answers, those poses, the poses that answer no input or
+    lie off its true pose); an echo's poses carry the legs they answer (part 2 and the rclpy client)."""
+    from glpma_tools.sim.echo_node import legs_of
+    from glpma_tools.sim.matching import compare, pair
+    if echo:
+        pairs, unpaired = pair(plan.model, sent, poses,
+                               legs_of=lambda pose: np.array(legs_of(pose, plan.model.n_legs)) / plan.mpu)
+        return [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired)
+    c = compare(plan.model, sent, poses)
+    return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth))
+
+
 def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
     """Part 2: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
     ``seconds`` at the DDS section's rate; latency split at the pose's stamp (ms), the
@@ -177,8 +190,7 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
     from glpma_ros.config import config_dir
     from glpma_ros.node.dds import endpoints
     from glpma_tools.sim.controller import Controller
-    from glpma_tools.sim.echo_node import legs_of
-    from glpma_tools.sim.matching import compare, pair, split_at_stamp
+    from glpma_tools.sim.matching import split_at_stamp
     from glpma_tools.sim.node_process import NodeProcess, node_environment
     from glpma_tools.sim.trajectories import Plan
     from .dds import END_TO_END
@@ -208,14 +220,7 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
         finally:
             proc.stop()
         summary = proc.stopped_line()
-    if target == ECHO:          # the echo's poses carry their legs
-        pairs, unpaired = pair(plan.model, sent, poses,
-                               legs_of=lambda pose: np.array(legs_of(pose, plan.model.n_legs)) / plan.mpu)
-        index, paired, wrong = [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired)
-    else:
-        c = compare(plan.model, sent, poses)
-        index, paired = c.index, c.poses
-        wrong = len(c.unpaired) + int(np.sum(~c.on_truth))
+    index, paired, wrong = answers(plan, sent, poses, echo=target == ECHO)
     to_node, in_node = split_at_stamp(sent, index, paired)
     return {"manipulator": sc.label, "key": sc.key, "target": target, "rate_hz": rate,
             "seconds": seconds, "sent": len(sent), "poses": len(poses), "paired": len(paired), "wrong": wrong,

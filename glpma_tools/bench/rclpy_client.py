@@ -2,8 +2,7 @@
 run as its own process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS ECHO``.
 
 Publishes ``leg_lengths`` (metres) along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes
-``pose_estimate``, pairs every pose with the input it answers (:func:`glpma_tools.sim.matching.compare`;
-against an echo, whose pose carries the legs it answers, :func:`~glpma_tools.sim.matching.pair`)
+``pose_estimate``, pairs every pose with the input it answers (:func:`glpma_tools.bench.outputs.answers`)
 and prints one line: inputs sent, poses received, latency p50 and p99 (ms), poses unpaired or off
 the truth.  ``EXTRAS`` = ``extras``: ``/tf`` and ``pose_estimate_cov`` are subscribed too, as any TF
 listener or RViz does (the node then builds and publishes them); ``ECHO`` = ``echo``: the other side is
@@ -22,9 +21,8 @@ from rclpy.executors import SingleThreadedExecutor
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
+from glpma_tools.bench.outputs import answers
 from glpma_tools.sim.controller import Sent
-from glpma_tools.sim.echo_node import legs_of
-from glpma_tools.sim.matching import compare, pair
 from glpma_tools.sim.trajectories import Plan
 
 #: seconds to let the discovery settle after the node matched, and to wait for the last poses
@@ -65,15 +63,8 @@ def main(argv=None) -> int:
         sent.append(Sent(time.time_ns(), legs, position, quaternion))
         pub.publish(msg)
     time.sleep(SETTLE_S)
-    if echo:
-        n = plan.model.n_legs
-        pairs, unpaired = pair(plan.model, sent, list(received),
-                               legs_of=lambda p: np.asarray(legs_of(p, n)) / plan.mpu)
-        latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p, _ in pairs])
-        wrong = len(unpaired)
-    else:
-        c = compare(plan.model, sent, list(received))
-        latency, wrong = c.latency_ms, len(c.unpaired) + int(np.sum(~c.on_truth))
+    index, paired, wrong = answers(plan, sent, list(received), echo)
+    latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)])
     print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
     executor.shutdown()
     rclpy.try_shutdown()
