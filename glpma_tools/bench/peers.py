@@ -68,17 +68,20 @@ class CountingFitness:
                     self.first_success = self.n
 
     def one(self, x) -> float:
-        X = np.ascontiguousarray(np.asarray(x, dtype=float).reshape(1, -1))
-        F = population_fitness(X, self.kind, self.data, self.legs, self.n_res)
-        self._record(F)
-        return float(F[0])
+        return float(self.many(np.asarray(x, dtype=float).reshape(1, -1))[0])
 
     def many(self, X) -> np.ndarray:
         F = population_fitness(np.ascontiguousarray(X, dtype=float), self.kind, self.data, self.legs, self.n_res)
         self._record(F)
         return F
 
-    def run(self, wall_s) -> Run:
+    def run(self, optimize) -> Run:
+        """``optimize()`` timed, its warnings silenced: the run it made through this fitness."""
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            optimize()
+        wall_s = time.perf_counter() - t0
         self.history.append((self.n, self.best))
         ok = self.first_success is not None
         return Run(ok, self.first_success if ok else self.n, wall_s, self.best, self.history)
@@ -99,11 +102,7 @@ def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolera
     options = {"max_function_evaluations": int(max_evals),
                "fitness_threshold": float(np.nextafter(tolerance, 0.0)),  # pypop7 stops at <=
                "seed_rng": int(seed), "n_individuals": int(population), "verbose": 0, "saving_fitness": 0}
-    t0 = time.perf_counter()
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore")
-        G3PCX(problem, options).optimize()
-    return fit.run(time.perf_counter() - t0)
+    return fit.run(lambda: G3PCX(problem, options).optimize())
 
 
 def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
@@ -136,11 +135,8 @@ def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals, toleran
     X0 = np.random.default_rng(seed).uniform(low, high, size=(population, n))
     termination = TerminationCollection(MaximumFunctionCallTermination(int(max_evals)),
                                         MinimumFunctionValueTermination(tolerance))
-    t0 = time.perf_counter()
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore")
-        minimize(FK(), G3PCX(pop_size=int(population), sampling=X0), termination, seed=int(seed), verbose=False)
-    return fit.run(time.perf_counter() - t0)
+    return fit.run(lambda: minimize(FK(), G3PCX(pop_size=int(population), sampling=X0), termination, seed=int(seed),
+                                    verbose=False))
 
 
 PEER_SOLVERS = {"pypop7": pypop7_g3pcx, "pymoo": pymoo_g3pcx}

@@ -120,23 +120,13 @@ def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> 
     settings.update(params)
     # load the compiled kernels before the clock matters (004 times the search alone)
     solve(solver_name, model, legs, rng=seed0, **{**settings, "max_evals": WARMUP_EVALS})
-    its, evs, fits, times = [], [], [], []
-    successes = 0
-    ok_its, ok_evs = [], []
-    for k in range(runs):
-        r = solve(solver_name, model, legs, rng=seed0 + k, **settings)
-        its.append(r.nit)
-        evs.append(r.nfev)
-        fits.append(r.fun)
-        times.append(r.elapsed_s)
-        if r.fun < settings["tolerance"]:
-            successes += 1
-            ok_its.append(r.nit)
-            ok_evs.append(r.nfev)
-    mean_it, ci_it = mean_ci(ok_its, Z_95)
-    mean_ev, ci_ev = mean_ci(ok_evs, Z_95)
-    return Table2Result(solver=solver_name, runs=runs, successes=successes, mean_iterations=mean_it,
+    done = [solve(solver_name, model, legs, rng=seed0 + k, **settings) for k in range(runs)]
+    ok = [r for r in done if r.fun < settings["tolerance"]]
+    mean_it, ci_it = mean_ci([r.nit for r in ok], Z_95)
+    mean_ev, ci_ev = mean_ci([r.nfev for r in ok], Z_95)
+    fits = [r.fun for r in done]
+    return Table2Result(solver=solver_name, runs=len(done), successes=len(ok), mean_iterations=mean_it,
                         iterations_ci=ci_it, mean_evaluations=mean_ev, evaluations_ci=ci_ev,
-                        mean_fitness=float(np.mean(fits)), mean_time_s=float(np.mean(times)),
+                        mean_fitness=float(np.mean(fits)), mean_time_s=float(np.mean([r.elapsed_s for r in done])),
                         published=published_row(solver_name, params.get("chain_length")),
-                        iterations=its, evaluations=evs, fitness=fits)
+                        iterations=[r.nit for r in done], evaluations=[r.nfev for r in done], fitness=fits)
