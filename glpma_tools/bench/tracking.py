@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,14 +57,13 @@ def tracking(sc, steps, budget_ms, progress) -> Tracking:
         return est.estimate(legs_all[i + 1])
 
     calls = timed_calls(step, steps, budget_ms, f"{sc.label} tracking", progress, stop_early=False)
-    err, res, statuses, stages = [], [], {}, {}
+    err, res = [], []
     for k, e in enumerate(calls.results, start=1):
-        statuses[e.status] = statuses.get(e.status, 0) + 1
-        stages[e.start] = stages.get(e.start, 0) + 1
         ok = e.x is not None and np.all(np.isfinite(e.x))
         err.append(model.distance(e.x, traj[k]) if ok else math.inf)
         res.append(max_leg_residual(model, e.x, legs_all[k]) if ok else math.inf)
-    return Tracking(steps, budget_ms, calls.elapsed_s, np.array(err), np.array(res), statuses, stages,
+    return Tracking(steps, budget_ms, calls.elapsed_s, np.array(err), np.array(res),
+                    dict(Counter(e.status for e in calls.results)), dict(Counter(e.start for e in calls.results)),
                     np.array([e.evaluations for e in calls.results]), np.array(starts), legs_all[1:], traj[1:],
                     calls.preempted)
 
