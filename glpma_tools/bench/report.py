@@ -4,6 +4,7 @@ experiment's data, ours beside the papers' and the peers' figures, in the report
 from __future__ import annotations
 
 import functools
+import json
 import math
 import os
 import re
@@ -448,6 +449,52 @@ def calibration_section(rows) -> list[str]:
                    "weak directions"], body), ""]
 
 
+def load_reliability(path) -> dict | None:
+    """The stress figures in ``path``, or None when there is no such file."""
+    path = Path(path)
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def reliability_section(res: dict | None, source=None) -> list[str]:
+    """The Reliability section from the figures ``glpma-fk stress`` wrote as JSON (``doc/bench/reliability.json``
+    after a full run: the stress test measures, the benchmark writes); without them, a note of where
+    ``glpma-fk stress`` puts them."""
+    from glpma_tools.stress import session as ses
+    from glpma_tools.stress.report import (DEADLINE_HEAD, FLOOD_SECTIONS, check_result, deadline_rows, flood_rows,
+                                           restart_rows)
+    from .timing import WARM_UP_QUIET
+    out = ["## Reliability", ""]
+    if res is None:
+        return out + [prose("reliability", "missing", path=source or "doc/bench/reliability.json"), ""]
+    secs, m = res["sections"], res["machine"]
+    out += [prose("reliability", command=res.get("command") or "glpma-fk stress", date=res["date"],
+                  minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"], cpu=m["cpu"], cores=m["cores"],
+                  load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
+                  checks="all passed" if res["passed"] else "some failed (see below)",
+                  expectations="all met" if res.get("expectations_met", True) else "some missed (see below)"), ""]
+    if res.get("quick"):
+        out += [prose("reliability", "quick"), ""]
+    if "node" in res:
+        n = res["node"]
+        out += [prose("reliability", "node", command=n["command"], manipulator=n["manipulator"],
+                      budget=f"{n['time_budget_ms']:g}", depth=n["qos_depth"], warmup=f"{ses.WARMUP_S:g}"), ""]
+    if any(k in secs for k in FLOOD_SECTIONS):
+        out += [table(*flood_rows(secs)), ""]
+        out += [f"- {k}: {check_result(secs[k])}" for k in FLOOD_SECTIONS if k in secs]
+        out += ["", prose("reliability", "flood", rss_slack=f"{ses.RSS_SLACK_MB:g}",
+                          lost_slack=f"{100 * ses.LOST_SLACK:g}"), ""]
+    rows = restart_rows(secs)
+    if rows:
+        out += ["### Restarts and a jump", "", table(["scenario", "what happened", "checks"], rows), "",
+                prose("reliability", "restarts"), ""]
+    if "deadline" in secs:
+        d = secs["deadline"]
+        out += ["### Deadlines (in-process Estimator)", "",
+                prose("reliability", "deadline", manipulator=d["manipulator"], quiet=WARM_UP_QUIET), "",
+                table(DEADLINE_HEAD, deadline_rows(d["rows"])), ""]
+    return out
+
+
 def measured_apart(md_path) -> list[str]:
     """The Markdown of :data:`APART` that exists beside ``md_path`` (the repository root's BENCHMARKS.md)."""
     if md_path is None:
@@ -461,7 +508,6 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
     from . import modes, outputs, waits
-    from .reliability import reliability_section
     parts = header(res)
     for section in (summary_section, paper_tables_section, figures_section, peers_section, gap_section,
                     all_solutions_section, modes.section, tracking_section, scipy_section, deadline_section,

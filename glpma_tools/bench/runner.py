@@ -132,7 +132,7 @@ def main(argv=None) -> int:
         raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
                          f"choose from {', '.join(solvers.SOLVERS)}")
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, deadlines, experiments as ex, modes, offline, outputs, report, tracking, waits
+    from . import dds, experiments as ex, modes, offline, outputs, report, timing, tracking, waits
     from .scenarios import load
 
     t_start = time.perf_counter()
@@ -179,7 +179,7 @@ def main(argv=None) -> int:
         res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
-        res["deadline"] = deadlines.deadlines(list(scenarios.values()), args.budgets_ms,
+        res["deadline"] = timing.deadlines(list(scenarios.values()), args.budgets_ms,
                                               max(1, counts["deadline_solves"]), progress, args.deadline_solvers)
     if "baselines" in sections:
         say("baselines: 004 Table II, DE on 001's protocols", "baselines")
@@ -226,13 +226,13 @@ def load_saved(path):
 
 def finish(res, args, out_dir, say) -> int:
     """Figures and the report from the measurements."""
-    from . import plots, reliability, report
+    from . import plots, report
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
         say("figures")
         res["figures"] = plots.draw(res, out_dir)
     try:
-        stress_figures = reliability.load(args.reliability)
+        stress_figures = report.load_reliability(args.reliability)
     except (OSError, ValueError) as exc:
         print(f"error: glpma-fk bench: cannot read {args.reliability}: {exc}", file=sys.stderr)
         return 2

@@ -1,5 +1,5 @@
 """Timed calls on a shared machine: the one deadline experiment of the benchmark and of the
-stress test, and the one warm-up before any timing.
+stress test (:func:`deadlines`: the bench's cells), and the one warm-up before any timing.
 
 Each call is timed with the wall clock and flagged when another process preempted it (the
 thread's involuntary context switches grew) or Python's garbage collector ran during it: on a
@@ -111,3 +111,61 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
         gc.callbacks.remove(on_gc)
     return TimedCalls(budget_ms, np.array(el), np.array(pre, dtype=bool), np.array(col, dtype=bool), results,
                       stopped)
+
+
+#: the bench's deadline cells are small: a short warm-up is enough
+DEADLINE_WARM_UP_QUIET = 3
+DEADLINE_WARM_UP_MAX_CALLS = 30
+#: evaluation cap that never ends a search before its deadline
+NO_CAP = 10**9
+
+
+@dataclass
+class DeadlineRow(TimedCalls):
+    """The timed calls of one case, solver and budget."""
+
+    case: str = ""
+    solver: str = ""
+    short: str = ""
+
+    @property
+    def label(self):
+        return f"{self.short} | {self.solver}"
+
+
+def _row(case, solver, b, short, call, n, progress) -> DeadlineRow:
+    warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
+    calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
+    return DeadlineRow(**{**vars(calls), "results": []}, case=case, solver=solver, short=short)
+
+
+def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRow]:
+    """The bench's deadline experiment: cold searches that cannot converge, stopped only by their time
+    budget (every registered solver, and the Estimator as the node runs it)."""
+    from glpma_ros import solvers
+    from glpma_ros.estimator import Estimator
+    rows = []
+    names = list(names or solvers.SOLVERS)
+    for sc in scenarios:
+        model = sc.model
+        infeasible = infeasible_legs(model)
+        cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible, True)]
+        if sc.key == "hexapod":
+            cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
+                             sc.legs, False))
+        for case, short, legs, polish in cases:
+            for solver in names:
+                for b in budgets_ms:
+                    def call(seed, solver=solver, legs=legs, polish=polish, b=b, model=model):
+                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3, max_evals=NO_CAP)
+                    rows.append(_row(case, solver, b, short, call, n, progress))
+        # the estimator, cold, on legs without a solution: every stage runs until the deadline
+        case = f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)"
+        for b in budgets_ms:
+            est = Estimator(model, time_budget_s=b / 1e3)
+
+            def call(_, est=est, infeasible=infeasible):
+                est.reset()
+                est.estimate(infeasible)
+            rows.append(_row(case, "Estimator", b, f"{sc.label} infeasible, cold", call, n, progress))
+    return rows

@@ -1,5 +1,5 @@
 """The stress test's figures as tables: the rows the terminal output here and the benchmark's
-Reliability section (:mod:`glpma_tools.bench.reliability`) share, and the JSON file that carries
+Reliability section (:func:`glpma_tools.bench.report.reliability_section`) share, and the JSON file that carries
 the figures from the one to the other."""
 from __future__ import annotations
 
