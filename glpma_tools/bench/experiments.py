@@ -15,7 +15,7 @@ from glpma_ros import solvers
 from glpma_ros.solve_all import solve_all, wide_range
 from .common import Run, progress_bar as _bar
 from .papers import PUBLISHED
-from .peers import PEER_SOLVERS, PeerMissing, available
+from .peers import PEER_SOLVERS, available
 
 
 # -- the papers' tables ----------------------------------------------------------------
@@ -45,15 +45,6 @@ class TableRow:
     runs: list = field(default_factory=list)
 
 
-def paper_configs(model) -> list[Config]:
-    """Every row of the paper's table, pure and with the refinement."""
-    out = []
-    for polish in (False, True):
-        for solver, pop, local in PUBLISHED[model.kind]:
-            out.append(Config(solver, pop, local, polish))
-    return out
-
-
 def timed_solve(solver, model, legs, seed, **options) -> Run:
     """One search of ours, timed with the wall clock."""
     t0 = time.perf_counter()
@@ -76,8 +67,9 @@ def table_row(sc, cfg: Config, n: int, progress) -> TableRow:
 
 
 def paper_tables(sc, runs_pure, runs_polished, progress) -> list[TableRow]:
-    return [table_row(sc, cfg, runs_polished if cfg.polish else runs_pure, progress)
-            for cfg in paper_configs(sc.model)]
+    """Every row of the paper's table, pure and with the refinement."""
+    return [table_row(sc, Config(solver, pop, local, polish), runs_polished if polish else runs_pure, progress)
+            for polish in (False, True) for solver, pop, local in PUBLISHED[sc.model.kind]]
 
 
 # -- peers: pure G3-PCX -----------------------------------------------------------------
@@ -102,16 +94,10 @@ def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
         if n <= 0:
             out.append(PeerRow(name, status="skipped", note=runs_by_peer.get(f"{name}_why", "0 runs requested")))
             continue
-        row = PeerRow(name)
-        kw = {"population": settings["population"], "init_range": settings["init_range"],
-              "max_evals": settings["max_evals"]}
-        try:
-            fn(sc.model, sc.legs, seed=999, **{**kw, "max_evals": 200})   # import and compile
-            for seed in _bar(range(n), f"{sc.label} peer {name}", progress):
-                row.runs.append(fn(sc.model, sc.legs, seed=seed, **kw))
-        except PeerMissing as exc:
-            row.status, row.note = "not installed", str(exc)
-        out.append(row)
+        kw = {k: settings[k] for k in ("population", "init_range", "max_evals")}
+        fn(sc.model, sc.legs, seed=999, **{**kw, "max_evals": 200})   # import and compile
+        out.append(PeerRow(name, [fn(sc.model, sc.legs, seed=seed, **kw)
+                                  for seed in _bar(range(n), f"{sc.label} peer {name}", progress)]))
     return out
 
 

@@ -23,10 +23,6 @@ from .common import SUCCESS_TOLERANCE, Run
 PYMOO_BOUND_FACTOR = 10.0
 
 
-class PeerMissing(RuntimeError):
-    """The peer library is not installed."""
-
-
 #: the module each peer needs
 PEER_MODULES = {"pypop7": "pypop7.optimizers.ga.g3pcx", "pymoo": "pymoo.algorithms.soo.nonconvex.g3pcx",
                 "scipy": "scipy.optimize"}
@@ -90,10 +86,7 @@ class CountingFitness:
 def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
     """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1),
     unbounded search, initial population uniform in ``init_range``."""
-    try:
-        from pypop7.optimizers.ga.g3pcx import G3PCX
-    except ImportError as exc:
-        raise PeerMissing(str(exc)) from None
+    from pypop7.optimizers.ga.g3pcx import G3PCX
     fit = CountingFitness(model, legs, tolerance, max_evals)
     n = model.n_vars
     low, high = init_range
@@ -108,16 +101,13 @@ def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolera
 def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
     """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial
     population uniform in ``init_range``, bounds ``PYMOO_BOUND_FACTOR`` times wider."""
-    try:
-        from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX
-        from pymoo.config import Config
-        from pymoo.core.problem import Problem
-        from pymoo.optimize import minimize
-        from pymoo.termination.collection import TerminationCollection
-        from pymoo.termination.fmin import MinimumFunctionValueTermination
-        from pymoo.termination.max_eval import MaximumFunctionCallTermination
-    except ImportError as exc:
-        raise PeerMissing(str(exc)) from None
+    from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX
+    from pymoo.config import Config
+    from pymoo.core.problem import Problem
+    from pymoo.optimize import minimize
+    from pymoo.termination.collection import TerminationCollection
+    from pymoo.termination.fmin import MinimumFunctionValueTermination
+    from pymoo.termination.max_eval import MaximumFunctionCallTermination
     Config.warnings["not_compiled"] = False
     fit = CountingFitness(model, legs, tolerance, max_evals)
     n = model.n_vars
