@@ -44,11 +44,9 @@ PARAMS_3RPR = ["--ros-args", "--params-file", str(config_dir() / "params_3rpr.ya
 
 def _recorded_legs(n: int) -> np.ndarray:
     """``n`` leg readings (metres) along the simulated loop of the seed 3-RPR."""
-    from glpma_tools.sim.trajectories import variables_along
     from .scenarios import load
     sc = load("3rpr")
-    return np.array([sc.model.inverse_kinematics(x) for x in variables_along(sc.model, sc.start, n)]) \
-        * sc.model.metres_per_unit
+    return sc.along(n)[1] * sc.model.metres_per_unit
 
 
 def _write_legs_bag(path: Path, legs_m) -> None:

@@ -9,7 +9,7 @@ import numpy as np
 
 from glpma_ros.config import config_dir, load_document, model_from_dict
 from glpma_ros.models.rotations import quaternion_from_matrix
-from glpma_tools.sim.trajectories import start_pose
+from glpma_tools.sim.trajectories import start_pose, variables_along
 
 #: short name -> shipped config
 CONFIGS = {"3rpr": "planar_3rpr_seed.yaml", "hexapod": "hexapod_66_rolland.yaml"}
@@ -29,6 +29,12 @@ class Scenario:
     legs: np.ndarray
     published: list            # published solutions as solver variables
     start: np.ndarray          # solver variables where the tracking loop starts
+
+    def along(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` solver-variable vectors evenly along one loop of the simulated motion from :attr:`start`,
+        and their leg lengths (config unit)."""
+        xs = variables_along(self.model, self.start, n)
+        return xs, np.array([self.model.inverse_kinematics(x) for x in xs])
 
 
 def load(key: str) -> Scenario:

@@ -9,7 +9,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from glpma_ros.estimator import Estimator
-from glpma_tools.sim.trajectories import variables_along
 from glpma_tools.stats import distribution
 from .peers import SCIPY_VARIANTS, NumpyNewton, ScipyWarm, available
 from .timing import timed_calls, warm_up
@@ -45,8 +44,7 @@ def max_leg_residual(model, x, legs) -> float:
 def tracking(sc, steps, budget_ms, progress) -> Tracking:
     """``steps`` Estimator solves along one loop from the scenario's start, warm from the previous one."""
     model = sc.model
-    traj = variables_along(model, sc.start, steps + 1)
-    legs_all = np.array([model.inverse_kinematics(x) for x in traj])
+    traj, legs_all = sc.along(steps + 1)
     spare = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)
     warm_up(lambda i: spare.estimate(legs_all[1 + i % WARM_UP_STEPS]), budget_ms)
     est = Estimator(model, initial_pose=traj[0], time_budget_s=budget_ms / 1e3)

@@ -23,7 +23,7 @@ from glpma_ros.config import config_dir
 from glpma_ros.node import params as P
 from glpma_ros.node.loops import ReportLoop, SolveLoop
 from glpma_ros.node.service import FkService
-from glpma_tools.sim.trajectories import variables_along
+from .scenarios import load
 
 #: period of the reporting thread of ``handle + reports`` (s): 200x the node's default diagnostics rate,
 #: so that a round meets hundreds of reports
@@ -42,14 +42,6 @@ PARAMS = {"manipulator_config": str(config_dir() / "planar_3rpr_seed.yaml")}
 EXTRAS = {"publish_tf": True, "publish_covariance": True, "publish_twist": True}
 #: seconds to wait for the extras thread to finish a round's poses
 FLUSH_S = 10.0
-
-
-def _inputs(service, n: int) -> list:
-    """``n`` leg-length inputs (metres) along the simulated loop, each a small step from the last."""
-    model = service.model
-    xs = variables_along(model, model.variables_from_pose([0.25 * model.scale, 0.25 * model.scale, model.scale],
-                                                          [0.0, 0.0, 0.0, 1.0]), n)
-    return [tuple(model.inverse_kinematics(x) * service.metres_per_unit) for x in xs]
 
 
 def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -95,7 +87,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
     """The quietest of ``rounds`` rounds of ``inputs`` inputs per setup (:data:`SETUPS`)."""
     service = FkService(PARAMS)
     service.warm_up()
-    legs = _inputs(service, inputs)
+    legs = [tuple(legs) for legs in load("3rpr").along(inputs)[1] * service.metres_per_unit]
     node = FkService({**PARAMS, **EXTRAS})
     node.warm_up()
     loop = SolveLoop(node, lambda pose: None, publish_extras=lambda extras: None)
