@@ -88,12 +88,11 @@ def subscribe_outputs() -> None:
 
 
 def _params_file(kind: str) -> dict:
-    import yaml
-
+    """The parameters of the shipped params file of ``kind`` (the node reads them so)."""
     from glpma_ros.config import config_dir
+    from glpma_ros.node.ros_args import load_params_file
     from .dds import END_TO_END
-    text = (config_dir() / END_TO_END[kind][1]).read_text()
-    return yaml.safe_load(text)["glpma_fk"]["ros__parameters"]
+    return load_params_file(str(config_dir() / END_TO_END[kind][1]))
 
 
 def _timed(function, sink: list):

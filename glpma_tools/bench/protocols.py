@@ -1,24 +1,17 @@
-"""The experimental protocol of Chandra, Zhang & Rolland (2009), "Solving the
-forward kinematics of the 3RPR planar parallel manipulator using a hybrid
-meta-heuristic paradigm", CIRA 2009 (paper 004, section IV.A and Table II),
-and its published figures.
+"""The experimental protocol of Chandra, Zhang & Rolland (2009), "Solving the forward kinematics of the
+3RPR planar parallel manipulator using a hybrid meta-heuristic paradigm", CIRA 2009 (paper 004, section
+IV.A and Table II), and its published figures.
 
-Protocol (004 section IV.A): the 3-RPR of Table I with leg lengths
-[100, 120, 150]; initial population uniform in [-10, 10]^3 (theta in radians);
-population 40 for the population-based methods (SA works with a single
-solution, 004 section V); 50 runs per method; a run stops as soon as the
-fitness is below 1e-4.  Table II reports, over the 50 runs, the mean and 95 %
-confidence interval of the iterations (SA: temperature steps, i.e. Markov
-chains; GA and GA-SA: generations), the final fitness, the CPU time, and the
-number of successful runs.
-
-004 states no cap on the iterations; :data:`TABLE2_MAX_EVALS` is far above every
-published mean (the costliest, GA-SA, is about 18 generations x 36 annealed
-children x 10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s reading),
-so it only stops runs that stall.  The refinement is off (the papers'
-algorithms alone).  Evaluations are machine-independent; CPU times are not
-(004 ran C++ on a 1.74 GHz dual core).
-"""
+Protocol (004 section IV.A): the 3-RPR of Table I with leg lengths [100, 120, 150]; initial population
+uniform in [-10, 10]^3 (theta in radians); population 40 for the population-based methods (SA works with
+a single solution, 004 section V); 50 runs per method; a run stops as soon as the fitness is below 1e-4.
+Table II reports, over the 50 runs, the mean and 95 % confidence interval of the iterations (SA:
+temperature steps, i.e. Markov chains; GA and GA-SA: generations), the final fitness, the CPU time, and
+the number of successful runs.  004 states no cap on the iterations; :data:`TABLE2_MAX_EVALS` is far
+above every published mean (the costliest, GA-SA, is about 18 generations x 36 annealed children x
+10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s reading), so it only stops
+runs that stall.  The refinement is off (the papers' algorithms alone).  Evaluations are
+machine-independent; CPU times are not (004 ran C++ on a 1.74 GHz dual core)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
