@@ -237,7 +237,7 @@ def cmd_solve_all(args) -> int:
     # the compiled code of the method that runs (msolve is a separate program: nothing to load)
     load_s = 0.0 if method == "exact" else precompile.exercise_solve_all(model, methods=(method,))
     res = solve_all(model, legs, method=method, runs=args.runs, seed=args.seed, max_starts=args.max_starts,
-                    budget_s=args.budget_s)
+                    budget_s=args.budget_s, leg_noise_std=args.leg_noise_std)
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
     if res.method == "multistart":
         extra.update(starts=res.starts, stop_reason=res.stop_reason, miss_probability=res.miss_probability,
@@ -331,6 +331,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="multistart: wall-clock budget in seconds, checked after each batch of 256 starts "
                    "(stop_reason budget_exhausted when it runs out)")
     a.add_argument("--runs", type=count_type, default=None, help="g3pcx: independent searches (default 200)")
+    a.add_argument("--leg-noise-std", type=positive_float, default=None,
+                   help="redundant legs: standard deviation of the leg measurements in the config's unit; a mode "
+                        "is a least-squares pose whose residuals pass the chi-square test against it (default: "
+                        "1e-5 m, the node's leg_noise_std)")
     a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
     a.set_defaults(func=cmd_solve_all)

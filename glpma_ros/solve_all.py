@@ -45,7 +45,8 @@ Every mode returned is polished to round-off by the model's refinement
 (:func:`glpma_ros.solvers.refine.polish`), unless the multistart is asked not to (``polish=False``:
 the modes as found, for counting them, e.g. ``glpma-fk map``).  With redundant legs (more than the
 degrees of freedom) a mode is a least-squares pose whose leg residuals pass the estimator's
-consistency test (:func:`consistent_fitness`: chi-square against the default leg noise); the exact
+consistency test (:func:`consistent_fitness`: chi-square against the leg noise ``leg_noise_std``, by
+default the node's default); the exact
 method refuses them.  Plain Python + NumPy: no ROS import.
 """
 from __future__ import annotations
@@ -125,14 +126,15 @@ class AllSolutions:
     hits: tuple = ()                     # multistart: starts that converged to each mode (order of solutions)
 
 
-def consistent_fitness(model) -> float:
+def consistent_fitness(model, leg_noise_std=None) -> float:
     """Redundant legs: the largest sum of squared leg residuals (config unit squared) of a mode, the
-    estimator's consistency limit for the default leg noise; 0 without redundant legs."""
+    estimator's consistency limit for the leg noise ``leg_noise_std`` (config unit; default the
+    node's default, :data:`~glpma_ros.estimator.DEFAULT_LEG_NOISE_M`); 0 without redundant legs."""
     if not model.redundancy:
         return 0.0
     from .estimator import DEFAULT_LEG_NOISE_M
     from .redundancy import chi2_limit
-    sigma = DEFAULT_LEG_NOISE_M / getattr(model, "metres_per_unit", 1e-3)
+    sigma = DEFAULT_LEG_NOISE_M / getattr(model, "metres_per_unit", 1e-3) if leg_noise_std is None else leg_noise_std
     return chi2_limit(model.redundancy) * sigma * sigma
 
 
@@ -146,14 +148,17 @@ def wide_range(model, legs) -> tuple[float, float]:
 
 
 def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", max_evals=None,
-              max_starts=None, budget_s=None, polish=True) -> AllSolutions:
+              max_starts=None, budget_s=None, polish=True, leg_noise_std=None) -> AllSolutions:
     """Every distinct real assembly mode of ``model`` at ``legs`` (config unit) by ``method``
     (module docstring; default ``"multistart"``, or ``"g3pcx"`` when ``runs`` is given, as
     before the multistart existed).  ``runs``: G3-PCX runs (default ``G3PCX_RUNS``);
     ``solver``, ``max_evals``: of those runs; ``max_starts`` (default ``MAX_STARTS``) and
     ``budget_s`` (seconds, default none): limits of the multistart, ``polish=False``: its modes as
-    found (counting only); ``seed``: the random stream."""
+    found (counting only); ``seed``: the random stream; ``leg_noise_std`` (config unit, default the
+    node's default): redundant legs, the noise of the consistency test of a mode."""
     legs = model.check_legs(legs)
+    if leg_noise_std is not None and not (math.isfinite(leg_noise_std) and leg_noise_std > 0.0):
+        raise GlpmaError(f"leg_noise_std must be positive, got {leg_noise_std!r}")
     if method is None:
         method = "g3pcx" if runs is not None else "multistart"
     if runs is not None and method != "g3pcx":
@@ -162,10 +167,10 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
         raise GlpmaError(f"max_starts, budget_s and polish=False are the multistart's; {method} does not take them")
     if method == "multistart":
         return multistart(model, legs, seed=seed, max_starts=MAX_STARTS if max_starts is None else max_starts,
-                          budget_s=budget_s, polish=polish)
+                          budget_s=budget_s, polish=polish, leg_noise_std=leg_noise_std)
     if method == "g3pcx":
         return g3pcx_runs(model, legs, runs=G3PCX_RUNS if runs is None else runs, seed=seed, solver=solver,
-                          max_evals=max_evals)
+                          max_evals=max_evals, leg_noise_std=leg_noise_std)
     if method == "exact":
         return exact_modes(model, legs, seed=seed)
     raise GlpmaError(f"unknown solve_all method {method!r}; choose one of {', '.join(METHODS)}")
@@ -183,8 +188,9 @@ def _sorted(model, found: list) -> list:
 
 
 # -- the papers' method ---------------------------------------------------------------------------
-def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None) -> AllSolutions:
+def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None, leg_noise_std=None) -> AllSolutions:
     t0 = time.perf_counter()
+    limit = consistent_fitness(model, leg_noise_std)
     rng = np.random.default_rng(seed)
     found = []
     evaluations = 0
@@ -192,7 +198,7 @@ def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None) -> 
         r = solvers.solve(solver, model, legs, rng=rng, init_range=wide_range(model, legs), polish=True,
                           max_evals=max_evals)
         evaluations += r.nfev
-        if not r.success or (model.redundancy and _leg_fitness(model, r.x, legs) > consistent_fitness(model)):
+        if not r.success or (model.redundancy and _leg_fitness(model, r.x, legs) > limit):
             continue
         if all(model.distance(r.x, s.x) > DEDUP_RELATIVE * model.scale for s in found):
             found.append(r)
@@ -352,7 +358,8 @@ def _spatial_starts(P, q, arms):
     return out
 
 
-def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True) -> AllSolutions:
+def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True,
+               leg_noise_std=None) -> AllSolutions:
     """The multistart of the module docstring (``legs`` already checked).  ``polish=False`` returns
     each mode as its first local solve left it (leg residuals below ``LOCAL_RESIDUAL_RELATIVE`` of
     the scale) instead of polished to round-off: what counting the modes needs."""
@@ -363,8 +370,8 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
     t0 = time.perf_counter()
     deadline = None if budget_s is None else t0 + budget_s
     rng = np.random.default_rng(seed)
-    # redundant legs: a consistent least-squares pose has a residual (the default leg noise's limit)
-    tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model))
+    # redundant legs: a consistent least-squares pose has a residual (the leg noise's limit)
+    tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
     sampler = StartSampler(model, legs)
     local = LocalSolver(model)
     settings = make_settings(model, max_iter=LOCAL_MAX_ITER)

@@ -311,6 +311,67 @@ def test_covariance_uses_every_leg(seven):
 
 
 # -- shipped configs and the CLI ---------------------------------------------------------------------------------
+#: leg noise of the solve-all tests: ten times the default (1e-5 m), in the config's mm
+COARSE_NOISE_MM = 0.1
+
+
+def _coarse_legs(seven):
+    """The 7-leg hexapod's example legs read with COARSE_NOISE_MM of noise (seeded): consistent at that
+    noise, far beyond the default's consistency limit."""
+    return seven.example_leg_lengths + np.random.default_rng(3).normal(0.0, COARSE_NOISE_MM, seven.n_legs)
+
+
+def _near_published(seven, x):
+    """A mode at coarse noise lies within a few noise widths of the published pose (mm): the least-squares
+    pose moves by about sigma times the Jacobian's gain, well under 5 mm here."""
+    x0 = np.array(yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0])
+    return np.max(np.abs(np.asarray(x) - x0)) < 50 * COARSE_NOISE_MM
+
+
+def test_solve_all_judges_redundant_modes_against_the_given_leg_noise(seven):
+    legs = _coarse_legs(seven)
+    assert solve_all(seven, legs, seed=0).solutions == []     # default noise: the residuals are inconsistent
+    for method in ("multistart", "g3pcx"):
+        kw = {"runs": 20, "max_evals": MAX_EVALS} if method == "g3pcx" else {}
+        found = solve_all(seven, legs, method=method, seed=0, leg_noise_std=COARSE_NOISE_MM, **kw).solutions
+        # the pose of the legs is among them, and every mode's residuals pass the test at that noise (at
+        # 0.1 mm a second least-squares pose below the base passes too: the seventh leg barely tells them apart)
+        assert any(_near_published(seven, s.x) for s in found), method
+        limit = chi2_limit(seven.redundancy) * COARSE_NOISE_MM ** 2
+        assert all(np.sum((seven.inverse_kinematics(s.x) - legs) ** 2) <= limit for s in found), method
+    with pytest.raises(Exception, match="leg_noise_std must be positive"):
+        solve_all(seven, legs, leg_noise_std=-1.0)
+
+
+def test_cli_solve_all_takes_the_leg_noise(seven):
+    legs = [*map(repr, _coarse_legs(seven).tolist())]
+    cmd = [sys.executable, "-m", "glpma_ros", "solve-all", "hexapod_7legs", "--legs", *legs]
+    assert subprocess.run(cmd, capture_output=True, text=True).returncode == 1        # default noise: none
+    r = subprocess.run(cmd + ["--leg-noise-std", str(COARSE_NOISE_MM), "--json"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert any(_near_published(seven, m["variables"]) for m in out["solutions"])
+
+
+@pytest.mark.parametrize("in_child", [False, True])
+def test_the_node_assembly_modes_use_its_leg_noise_std(seven, in_child):
+    """~/assembly_modes judges a redundant mode against the node's leg_noise_std (metres), in this
+    thread and in the worker process the node uses."""
+    svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"),
+                     "leg_noise_std": COARSE_NOISE_MM * 1e-3})
+    svc.modes.note_input((_coarse_legs(seven) * 1e-3).tolist(), 0)      # metres on the topic
+    worker = svc.modes.worker().start() if in_child else None
+    try:
+        result = svc.modes.compute(0, solve=worker)
+    finally:
+        if worker is not None:
+            worker.close()
+    x0 = np.array(yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0])
+    published = np.array(seven.pose(x0).position) * 1e-3                    # metres, as the reply
+    # within a few noise widths of the published position (metres; the default noise would find none)
+    assert any(np.max(np.abs(np.array(p) - published)) < 50 * COARSE_NOISE_MM * 1e-3 for p, _ in result.poses)
+
+
 @pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_configs_solve_their_example_legs(name):
     model = load_manipulator(CONFIG / f"{name}.yaml")

@@ -200,7 +200,7 @@ def test_assembly_modes_loop_with_the_worker_process(service):
 def test_assembly_modes_requests_are_coalesced_while_one_waits(service):
     release, calls = threading.Event(), []
 
-    def slow(legs, runs, seed):
+    def slow(legs, runs, seed, leg_noise_std):
         calls.append(list(legs))
         release.wait(WAIT_S)
         return []

@@ -80,7 +80,8 @@ class AssemblyModes:
 
     def compute(self, stamp_ns: int, last_input=CURRENT, solve=None) -> PoseArrayOutput:
         """Every real assembly mode of the last input received (or ``last_input``), stamped
-        ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed)`` returns the solver
+        ``stamp_ns`` (the time of the request).  ``solve(legs, runs, seed, leg_noise_std)`` (config unit:
+        parameter ``leg_noise_std``, the noise of a redundant leg's consistency test) returns the solver
         variables of each mode, as a list or a :class:`~glpma_ros.node.modes_worker.Modes` that also
         says how many starts it used (default: the multistart of
         :func:`~glpma_ros.node.modes_worker.find_modes` in this thread;
@@ -88,7 +89,8 @@ class AssemblyModes:
         service while solving.  :class:`InputError` with the reason on failure."""
         t0 = time.perf_counter()
         legs, input_stamp_ns, runs, seed = self.request_input(last_input)
-        xs = (solve or self._solve_here)(legs, runs, seed)
+        leg_noise_std = self._params()["leg_noise_std"] / self.metres_per_unit
+        xs = (solve or self._solve_here)(legs, runs, seed, leg_noise_std)
         poses = []
         for x in xs:
             pose = self.model.pose(np.asarray(x, dtype=float))
@@ -102,9 +104,9 @@ class AssemblyModes:
         from .modes_worker import ModesWorker
         return ModesWorker(self.config_path, warm_legs=self._warm_legs)
 
-    def _solve_here(self, legs, runs, seed) -> list:
+    def _solve_here(self, legs, runs, seed, leg_noise_std) -> list:
         from .modes_worker import find_modes
-        return find_modes(self.model, legs, runs, seed)
+        return find_modes(self.model, legs, runs, seed, leg_noise_std)
 
     def note(self, result: PoseArrayOutput | None = None, failure: str | None = None, coalesced: int = 0) -> None:
         """Count a request: answered with ``result``, failed with ``failure``, or ``coalesced``

@@ -279,7 +279,7 @@ class AssemblyModesLoop:
     answered by a computation of its own afterwards."""
 
     def __init__(self, service: FkService, publish, solve=None, name: str = "glpma_fk-assembly-modes"):
-        """``solve(legs, runs, seed)``: default a new :class:`~glpma_ros.node.modes_worker.ModesWorker`
+        """``solve(legs, runs, seed, leg_noise_std)``: default a new :class:`~glpma_ros.node.modes_worker.ModesWorker`
         (started by :meth:`start`, stopped by :meth:`stop`)."""
         self.service = service
         self.publish = publish

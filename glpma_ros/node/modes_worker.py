@@ -51,10 +51,12 @@ def modes_of(result) -> Modes:
                  result.miss_probability)
 
 
-def find_modes(model, legs, runs: int, seed: int) -> Modes:
-    """What a request computes: the multistart, at most ``runs`` starts."""
+def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
+    """What a request computes: the multistart, at most ``runs`` starts; ``leg_noise_std`` (config
+    unit): redundant legs, the noise a mode's leg residuals are tested against (the node's parameter)."""
     from ..solve_all import solve_all
-    return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed)))
+    return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
+                              leg_noise_std=leg_noise_std))
 
 
 def _reply(out, kind: str, payload) -> None:
@@ -64,7 +66,7 @@ def _reply(out, kind: str, payload) -> None:
 
 def child_main(argv=None) -> int:
     """The child: ``python -m glpma_ros.node.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
-    per line on stdin (``[legs, runs, seed]``), one JSON reply per line on stdout
+    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line on stdout
     (``["ok", {"modes": [x, ...], "starts": n, "stop_reason": r, "miss_probability": p}]``,
     ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
     argv = sys.argv[1:] if argv is None else argv
@@ -85,8 +87,8 @@ def child_main(argv=None) -> int:
     _reply(out, "ready", None)
     for line in sys.stdin:
         try:
-            legs, runs, seed = json.loads(line)
-            m = find_modes(model, np.asarray(legs, dtype=float), runs, seed)
+            legs, runs, seed, leg_noise_std = json.loads(line)
+            m = find_modes(model, np.asarray(legs, dtype=float), runs, seed, leg_noise_std)
             _reply(out, "ok", {"modes": [x.tolist() for x in m], "starts": m.starts, "stop_reason": m.stop_reason,
                                "miss_probability": m.miss_probability})
         except InputError as exc:
@@ -97,7 +99,7 @@ def child_main(argv=None) -> int:
 
 
 class ModesWorker:
-    """``worker(legs, runs, seed)`` -> the solver variables of every real assembly mode of
+    """``worker(legs, runs, seed, leg_noise_std=None)`` -> the solver variables of every real assembly mode of
     ``legs`` (config unit) as :class:`Modes`, computed by :func:`find_modes` in a child process
     (``python -m glpma_ros.node.modes_worker``).  The child is (re)started on demand;
     :meth:`close` stops it."""
@@ -139,14 +141,15 @@ class ModesWorker:
             raise EOFError
         return json.loads(line)
 
-    def __call__(self, legs, runs: int, seed: int) -> list:
+    def __call__(self, legs, runs: int, seed: int, leg_noise_std=None) -> list:
         with self._lock:
             self._ensure_started()
             try:
                 if not self._ready:
                     kind, _ = self._read()      # "ready": loaded and warmed up
                     self._ready = True
-                self._proc.stdin.write(json.dumps([[float(v) for v in legs], int(runs), int(seed)]) + "\n")
+                noise = None if leg_noise_std is None else float(leg_noise_std)
+                self._proc.stdin.write(json.dumps([[float(v) for v in legs], int(runs), int(seed), noise]) + "\n")
                 self._proc.stdin.flush()
                 kind, payload = self._read()
             except (EOFError, OSError, ValueError):
