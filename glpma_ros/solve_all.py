@@ -60,9 +60,9 @@ from numba import njit
 
 from . import solvers
 from .errors import GlpmaError
+from .models.pose_kernels import joint_distance
 from .solvers import refine
 from .solvers.common import CONVERGED, SolveResult
-from .models.pose_kernels import joint_distance
 from .solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
 from .solvers.local import LocalSolver, make_settings
 

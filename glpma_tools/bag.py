@@ -55,10 +55,10 @@ import textwrap
 import time
 from pathlib import Path
 
-from glpma_ros.node import params as P
-from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 from glpma_ros.cli import OneLineParser
 from glpma_ros.errors import GlpmaError, InputError
+from glpma_ros.node import params as P
+from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 
 from .bag_run import OFFLINE_BUDGET_MS, BagJob, Summary, make_logger, process_bag, topic_name
 from .extras import require

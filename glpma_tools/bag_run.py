@@ -19,13 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.node import params as P
 from glpma_ros.errors import InputError
 from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
 from glpma_ros.models.pose_kernels import joint_distance
-from glpma_ros.node.diagnostics import ERROR, OK, WARN
-
+from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
+from glpma_ros.node.diagnostics import ERROR, OK, WARN
 
 #: the ROS 2 types the tool reads and writes
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"

@@ -15,9 +15,8 @@ import rclpy
 import yaml
 from rclpy.executors import SingleThreadedExecutor
 
-from glpma_tools.sim.domains import claim_domain
-
 from conftest import CONFIG, DDS_CONFIG, GENEROUS_BUDGET_MS
+from glpma_tools.sim.domains import claim_domain
 
 CLAIM = claim_domain()
 os.environ["ROS_DOMAIN_ID"] = str(CLAIM.domain_id)

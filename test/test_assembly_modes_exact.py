@@ -11,6 +11,7 @@ import sys
 import numpy as np
 import pytest
 
+from conftest import HEX_YAML, ROOT, RPR_YAML
 from glpma_ros import exact
 from glpma_ros import solve_all as SA
 from glpma_ros.errors import GlpmaError
@@ -18,8 +19,6 @@ from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS
 from glpma_ros.node.service import FkService
 from glpma_ros.solve_all import solve_all
-
-from conftest import HEX_YAML, ROOT, RPR_YAML
 
 DATA = ROOT / "test" / "data" / "assembly_modes_cases.json"
 CASES = json.loads(DATA.read_text())["cases"]

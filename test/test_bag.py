@@ -16,9 +16,9 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer  # noqa: E402
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
 
 from conftest import CONFIG, ROOT  # noqa: E402
+from glpma_ros.node.dds import cdr  # noqa: E402
 from glpma_tools import bag as B  # noqa: E402
 from glpma_tools import bag_run as C  # noqa: E402
-from glpma_ros.node.dds import cdr  # noqa: E402
 from glpma_tools.sim.trajectories import variables_along  # noqa: E402
 
 TS = get_typestore(Stores.ROS2_JAZZY)

@@ -10,13 +10,12 @@ import math
 import numpy as np
 import pytest
 
+from conftest import RPR_YAML, check_deadline
 from glpma_ros import cli, solvers
 from glpma_ros.solvers import de, gasa, sa
 from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem
 from glpma_tools.bench.protocols import TABLE2, published_row, table2_protocol
-
-from conftest import RPR_YAML, check_deadline
 
 BASELINES = ["sa", "gasa", "de"]
 #: budget of the deadline test (ms)

@@ -15,14 +15,13 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import HEX_YAML, RPR_YAML
 from glpma_ros.covariance import UNOBSERVED_VARIANCE, VARIANCE_CAP, PoseJacobian
 from glpma_ros.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.node.outputs import TWIST_FROM_POSES, TWIST_FROM_VELOCITIES
 from glpma_ros.node.service import FkService, JointStateInput
 from glpma_ros.velocity import finite_difference_twist, rotation_vector_between
-
-from conftest import HEX_YAML, RPR_YAML
 
 SIGMA_M = 1e-5                 # the parameter's default
 MC_SAMPLES = 2000

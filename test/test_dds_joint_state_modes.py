@@ -20,10 +20,8 @@ from glpma_ros.config import load_manipulator
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from test_dds_integration import (SEED_X, DiagnosticsWatcher, check_tracking,  # noqa: E402,F401 - fixture
-                                  start_node)
-
 from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML  # noqa: E402
+from test_dds_integration import SEED_X, DiagnosticsWatcher, check_tracking, start_node  # noqa: E402,F401 - fixture
 
 RPR_NAMES = ["rpr_a1", "rpr_a2", "rpr_a3"]
 OTHER_JOINTS = [("gripper", 0.03), ("camera_tilt", -0.4), ("conveyor", 12.5)]
@@ -92,8 +90,8 @@ def pose_tuple(msg):
 
 
 def test_3rpr_joint_state_input_rejections_and_assembly_modes(start_node, dds_env, tmp_path, capsys):
-    from glpma_tools.mock_controller import run
     from glpma_ros.node.service import FkService
+    from glpma_tools.mock_controller import run
     params = {"manipulator_config": str(RPR_YAML), "initial_pose": SEED_X, "input_type": "joint_state",
               "joint_names": RPR_NAMES, "time_budget_ms": GENEROUS_BUDGET_MS, "diagnostics_period_s": 0.05}
     path = tmp_path / "params.yaml"

@@ -25,9 +25,17 @@ from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 
 from conftest import CONFIG  # noqa: E402
-from test_dds_integration import start_node  # noqa: E402,F401 - fixture
+
 # the independent client's types it shares with the contract participant there (no glpma_ros import)
-from test_dds_integration import Float64MultiArray, Header, Point, Pose, PoseStamped, Quaternion  # noqa: E402
+from test_dds_integration import (  # noqa: E402
+    Float64MultiArray,
+    Header,
+    Point,
+    Pose,
+    PoseStamped,
+    Quaternion,
+    start_node,  # noqa: E402,F401 - fixture
+)
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 HASHES = {

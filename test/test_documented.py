@@ -206,6 +206,6 @@ def test_the_floor_environment_tests_exactly_the_floors_of_setup_py():
     floors = dict(re.findall(r'"([\w.-]+)>=([\w.]+)"', requires))
     script = (ROOT / "tools" / "test-floor.sh").read_text()
     pinned = dict(re.findall(r"([\w.-]+)==([\w.]+)", re.search(r"FLOORS=\(([^)]*)\)", script).group(1)))
-    from packaging.version import Version          # Version("1.24") == Version("1.24.0")
+    from packaging.version import Version  # Version("1.24") == Version("1.24.0")
     assert {k.lower(): Version(v) for k, v in pinned.items()} == {k.lower(): Version(v) for k, v in floors.items()}
     assert "tools/test-floor.sh" in (ROOT / ".ci" / "run").read_text()

@@ -5,14 +5,13 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
+from conftest import GENEROUS_BUDGET_S
 from glpma_ros.errors import InputError
 from glpma_ros.estimator import Estimator
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.rotations import rotation_from_vector
 from glpma_ros.solvers.refine import polish
 from glpma_tools.sim.trajectories import variables_along
-
-from conftest import GENEROUS_BUDGET_S
 
 # generous: what is computed, not speed, is under test here (the same result on a busy machine)
 BUDGET_S = GENEROUS_BUDGET_S

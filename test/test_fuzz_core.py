@@ -12,13 +12,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import GENEROUS_BUDGET_S, RPR_YAML
 from glpma_ros import cli
 from glpma_ros.config import model_from_dict
 from glpma_ros.errors import ConfigError, InputError
 from glpma_ros.estimator import Estimator
 from glpma_ros.solvers.lm import LEG_RTOL
-
-from conftest import GENEROUS_BUDGET_S, RPR_YAML
 
 CASES = {"estimator": 0, "config": 0, "cli": 0}
 

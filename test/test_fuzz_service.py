@@ -17,11 +17,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from conftest import GENEROUS_BUDGET_MS, RPR_YAML
 from glpma_ros.estimator import STATUS_BUDGET, STATUS_MAX_EVALS, STATUS_NEAR_SINGULAR, STATUS_NO_SOLUTION
 from glpma_ros.node.service import FkService
 from glpma_ros.solvers.lm import LEG_RTOL
-
-from conftest import GENEROUS_BUDGET_MS, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = np.array([0.100, 0.120, 0.150])

@@ -497,6 +497,7 @@ def test_a_plan_with_a_fault_sends_the_step_and_keeps_the_truth():
 def test_the_bag_status_names_the_faulty_leg(tmp_path, capsys):
     pytest.importorskip("rosbags", reason="the bag extra (rosbags) is not installed")
     from test_bag import TS, read_bag, write_legs_bag
+
     from glpma_tools import bag as B
     from glpma_tools import bag_run as C
     plan = Plan("hexapod_7legs")

@@ -14,11 +14,10 @@ pytest.importorskip(
                              "under colcon test on a real Jazzy; the node's logic is tested over Cyclone DDS")
 import launch_testing.actions  # noqa: E402
 import launch_testing.asserts  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
-
-from launch_support import HANG_S, Diagnostics, TestNode, params_file  # noqa: E402
 
 from glpma_ros.testing import MANIPULATOR_CONFIGS, TrackingMonitor, fk_with_mock  # noqa: E402
+from launch import LaunchDescription  # noqa: E402
+from launch_support import HANG_S, Diagnostics, TestNode, params_file  # noqa: E402
 
 #: inputs per second of the mock: well within what a busy 2-core machine answers
 RATE_HZ = 20.0

@@ -21,12 +21,11 @@ pytest.importorskip("sros2", reason="sros2 is not importable: the secured launch
                                     "(ros2 security)")
 import launch_testing.actions  # noqa: E402
 import launch_testing.asserts  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
-
-from launch_support import CLI_TIMEOUT_S, HANG_S, SCRATCH, Diagnostics, TestNode, counters, params_file  # noqa: E402
 
 from conftest import CONFIG  # noqa: E402
 from glpma_ros.testing import TrackingMonitor, fk_with_mock  # noqa: E402
+from launch import LaunchDescription  # noqa: E402
+from launch_support import CLI_TIMEOUT_S, HANG_S, SCRATCH, Diagnostics, TestNode, counters, params_file  # noqa: E402
 
 RATE_HZ = 20.0
 #: seconds of the mock's trajectory: it then stops, so that the node's counters settle

@@ -7,12 +7,11 @@ import sys
 import numpy as np
 import pytest
 import yaml
+from matplotlib.colors import to_rgba
 
 from conftest import HEX_YAML, ROOT, RPR_YAML
 from glpma_ros.models.hexapod_66 import quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solve_all import solve_all
-from matplotlib.colors import to_rgba
-
 from glpma_tools import workspace_map as W
 from glpma_tools.workspace_map.plot import count_colour, draw_map
 

@@ -13,14 +13,13 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML, interrupt
 from glpma_ros import __version__
 from glpma_ros.cli import build_parser, main
 from glpma_ros.compat import check_numba
 from glpma_ros.config import load_manipulator, model_from_dict, unit_mistake
 from glpma_ros.errors import ConfigError, GlpmaError, InputError
 from glpma_ros.node.ros_args import check_params_files, load_params_file
-
-from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML, interrupt
 
 CONTRACT_SOLVE_KEYS = {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"}
 
@@ -253,8 +252,8 @@ def test_a_manipulator_yaml_as_params_file_is_refused(tmp_path):
 
 @pytest.mark.parametrize("config, key", [(RPR_YAML, "real_solutions"), (HEX_YAML, "published_solutions")])
 def test_mock_controller_drives_a_users_config_without_known_solutions(config, key):
-    from glpma_tools.sim.trajectories import legs_for, start_pose
     from glpma_ros.models.rotations import quaternion_from_matrix
+    from glpma_tools.sim.trajectories import legs_for, start_pose
     doc = yaml.safe_load(config.read_text())
     doc.pop(key)
     model = model_from_dict(doc, "mine.yaml")

@@ -13,11 +13,10 @@ import math
 import numpy as np
 import pytest
 
+from conftest import HEX_YAML, RPR_YAML
 from glpma_ros.node import params as P
 from glpma_ros.node.outputs import LINE_LIST, LINE_STRIP, SPHERE_LIST
 from glpma_ros.node.service import FkService, JointStateInput
-
-from conftest import HEX_YAML, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = [0.100, 0.120, 0.150]

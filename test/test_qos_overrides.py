@@ -8,11 +8,10 @@ import time
 
 import pytest
 
+from conftest import ROOT
 from glpma_ros.errors import InputError
 from glpma_ros.node import qos
 from glpma_ros.node.ros_args import parse_ros_args
-
-from conftest import ROOT
 
 OVERRIDES_YAML = """\
 glpma_fk:

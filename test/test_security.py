@@ -7,11 +7,10 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
+from conftest import CONFIG, ROOT
 from glpma_ros.errors import InputError
 from glpma_ros.node import qos
 from glpma_ros.node.security import check_dds_transport, security_enabled
-
-from conftest import CONFIG, ROOT
 
 POLICIES = CONFIG / "security"
 

@@ -10,15 +10,14 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML
+from glpma_ros.errors import ConfigError, InputError
 from glpma_ros.node import params as P
 from glpma_ros.node import ros_args
-from glpma_ros.errors import ConfigError, InputError
-from glpma_ros.node.loops import LatestInput, SolveLoop
 from glpma_ros.node.diagnostics import WARN
+from glpma_ros.node.loops import LatestInput, SolveLoop
 from glpma_ros.node.service import FkService
 from glpma_ros.node.stats import LogThrottle
-
-from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = [0.100, 0.120, 0.150]

@@ -8,14 +8,13 @@ import numpy as np
 import pytest
 import yaml
 
-from glpma_ros.node import params as P
-from glpma_ros.node.ros_args import node_values
+from conftest import GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML
 from glpma_ros.errors import InputError
+from glpma_ros.node import params as P
 from glpma_ros.node.loops import AssemblyModesLoop, SolveLoop
+from glpma_ros.node.ros_args import node_values
 from glpma_ros.node.service import FkService, JointStateInput
 from glpma_ros.solvers import SOLVERS
-
-from conftest import GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]
 SEED_LEGS_M = [0.100, 0.120, 0.150]

@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from conftest import GENEROUS_BUDGET_S
 from glpma_ros.estimator import NEAR_SINGULAR, Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solvers.refine import polish
-
-from conftest import GENEROUS_BUDGET_S
 
 #: evaluation cap of each hexapod search: with it (and a generous budget) the work done, and so
 #: the status, is the same on any machine; the papers' 500,000 would take seconds per input

@@ -4,12 +4,11 @@ counts, reproducibility) and the deadline."""
 import numpy as np
 import pytest
 
+from conftest import check_deadline
 from glpma_ros import solvers
 from glpma_ros.solvers import g3pcx, glpma, rcga
 from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem
-
-from conftest import check_deadline
 
 SOLVER_NAMES = ["g3pcx", "rcga", "glpma"]
 #: solves per budget in the deadline test (the distribution is the benchmark's)

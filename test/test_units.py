@@ -4,12 +4,11 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import HEX_YAML, RPR_YAML
 from glpma_ros.config import model_from_dict
 from glpma_ros.estimator import Estimator
 from glpma_ros.solvers import local
 from glpma_tools.sim.trajectories import variables_along
-
-from conftest import HEX_YAML, RPR_YAML
 
 #: config unit -> length of one millimetre in it
 PER_MM = {"mm": 1.0, "cm": 0.1, "m": 0.001}

@@ -22,7 +22,6 @@ state converts back to the nine variables exactly as ``B_k = p + R CB_k``.
 """
 from __future__ import annotations
 
-
 import numpy as np
 
 from .base import Manipulator, Pose

@@ -19,8 +19,6 @@ from .base import Manipulator, Pose
 from .residuals import KIND_PLANAR_3RPR
 
 
-
-
 class Planar3RPR(Manipulator):
     kind = "planar_3rpr"
     min_legs = 3

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import params as P
 from ..errors import InputError
+from . import params as P
 
 #: ``last_input`` argument: the last input received so far
 CURRENT = object()

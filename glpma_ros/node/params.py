@@ -9,7 +9,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-
 from ..errors import InputError
 from ..estimator import DEFAULT_LEG_NOISE_M
 from ..solvers import SOLVERS

@@ -37,8 +37,7 @@ import threading
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, TwistStamped
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
-                                SetParametersResult)
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.exceptions import ParameterException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
@@ -53,10 +52,10 @@ from std_msgs.msg import Empty, Float64MultiArray
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
+from ..errors import GlpmaError
 from . import params as P
 from . import qos
 from .dds import cdr
-from ..errors import GlpmaError
 from .loops import AssemblyModesLoop, ReportLoop, SolveLoop
 from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput

@@ -34,12 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import params as P
 from ..compat import check_numba
 from ..config import check_units, load_manipulator, plausible_band, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
 from ..precompile import cache_counts, describe_cache_use
+from . import params as P
 from .assembly_modes import AssemblyModes
 from .diagnostics import DiagnosticReport, Diagnostics
 from .leg_health import LegHealth

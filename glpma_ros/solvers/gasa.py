@@ -52,7 +52,6 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import fitness_one
-
 from . import sa
 from .driver import EvolutionaryState, solve_population
 from .rcga import CROSSOVER_RATE, _roulette, mutation_width, start_generation, wright_crossover

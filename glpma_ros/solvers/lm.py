@@ -68,8 +68,15 @@ from numba import njit
 
 from ..linalg import damped_solve, jacobi_svd, normal_equations
 from ..models.kernels import KIND_PLANAR_3RPR, residuals_into
-from ..models.pose_kernels import (STATE_SIZE, joint_distance, kabsch_state, quaternion_from_rows,
-                                   residuals_jacobian, retract, rows_from_quaternion)
+from ..models.pose_kernels import (
+    STATE_SIZE,
+    joint_distance,
+    kabsch_state,
+    quaternion_from_rows,
+    residuals_jacobian,
+    retract,
+    rows_from_quaternion,
+)
 
 #: convergence: largest leg residual relative to the reference length L (about 450 units in the last
 #: place of L; a converged pose is then polished to round-off by the next step)

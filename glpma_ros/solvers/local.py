@@ -8,9 +8,33 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .lm import (I_CONDITIONING, I_CONVERGED, I_DISTANCE, I_FITNESS, I_INPUT_OK, I_LEG_FITNESS, I_MAX_RESIDUAL,
-                 I_MOVEMENT, I_NFEV, I_NIT, I_PROGRESS, I_STATIONARITY, LEG_RTOL, LSQ_GTOL, MAX_ITER, N_INFO, S_FTOL,
-                 S_HI, S_LO, S_MAX_ITER, S_RTOL, S_STALL, lm_kernel, multistart_kernel, workspace_size)
+from .lm import (
+    I_CONDITIONING,
+    I_CONVERGED,
+    I_DISTANCE,
+    I_FITNESS,
+    I_INPUT_OK,
+    I_LEG_FITNESS,
+    I_MAX_RESIDUAL,
+    I_MOVEMENT,
+    I_NFEV,
+    I_NIT,
+    I_PROGRESS,
+    I_STATIONARITY,
+    LEG_RTOL,
+    LSQ_GTOL,
+    MAX_ITER,
+    N_INFO,
+    S_FTOL,
+    S_HI,
+    S_LO,
+    S_MAX_ITER,
+    S_RTOL,
+    S_STALL,
+    lm_kernel,
+    multistart_kernel,
+    workspace_size,
+)
 
 
 def make_settings(model, *, max_iter=None, rtol=None, ftol=math.inf) -> np.ndarray:

@@ -47,7 +47,6 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import fitness_one
-
 from .driver import EvolutionaryState, solve_population
 from .rcga import mutation_width
 

@@ -41,9 +41,9 @@ def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart:
     "Running secured").  Add ``launch_testing.actions.ReadyToTest()`` (or launch_pytest's) after them."""
     from launch.actions import IncludeLaunchDescription
     from launch.launch_description_sources import PythonLaunchDescriptionSource
+    from launch.substitutions import PathJoinSubstitution
     from launch_ros.actions import Node
     from launch_ros.substitutions import FindPackageShare
-    from launch.substitutions import PathJoinSubstitution
 
     args = {"manipulator": manipulator, "managed": str(bool(managed)).lower(),
             "autostart": str(bool(autostart)).lower(), "input_type": input_type}

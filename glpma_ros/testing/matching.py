@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
 #: a pose pairs with an input whose legs it reproduces to this share of the geometry's scale:
 #: far above the round-off of a converged solve (~1e-12) and far below the legs' change between
 #: two inputs (~1e-5 of the scale in the stress test's burst)

@@ -13,7 +13,9 @@ import numpy as np
 
 from glpma_ros import solvers
 from glpma_ros.solve_all import solve_all, wide_range
-from .common import Run, progress_bar as _bar
+
+from .common import Run
+from .common import progress_bar as _bar
 from .papers import PUBLISHED
 from .peers import PEER_SOLVERS, available
 

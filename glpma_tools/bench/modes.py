@@ -14,6 +14,7 @@ from glpma_ros.errors import GlpmaError
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.solve_all import G3PCX_RUNS, solve_all
 from glpma_tools.tables import MISSING, fmt, table
+
 from .common import REPO_ROOT
 
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"

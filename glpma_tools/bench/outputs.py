@@ -73,8 +73,7 @@ def subscribe_outputs() -> None:
     from cyclonedds.util import duration
 
     from glpma_ros.node.dds import cdr, endpoints
-    from glpma_ros.node.dds.messages import (MarkerArray, PoseStamped, PoseWithCovarianceStamped, TFMessage,
-                                             TwistStamped)
+    from glpma_ros.node.dds.messages import MarkerArray, PoseStamped, PoseWithCovarianceStamped, TFMessage, TwistStamped
     p = endpoints.Participant()
     readers = [p.reader(t, m, 100) for t, m in ((endpoints.POSE_ESTIMATE, PoseStamped), (endpoints.TF, TFMessage),
                (endpoints.POSE_ESTIMATE_COV, PoseWithCovarianceStamped), (endpoints.TWIST_ESTIMATE, TwistStamped),
@@ -91,6 +90,7 @@ def _params_file(kind: str) -> dict:
     """The parameters of the shipped params file of ``kind`` (the node reads them so)."""
     from glpma_ros.config import config_dir
     from glpma_ros.node.ros_args import load_params_file
+
     from .dds import END_TO_END
     return load_params_file(str(config_dir() / END_TO_END[kind][1]))
 
@@ -192,6 +192,7 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
     from glpma_tools.sim.matching import split_at_stamp
     from glpma_tools.sim.node_process import NodeProcess, node_environment
     from glpma_tools.sim.trajectories import Plan
+
     from .dds import END_TO_END
 
     plan = Plan(sc.path)

@@ -16,6 +16,7 @@ import warnings
 import numpy as np
 
 from glpma_ros.models.kernels import population_fitness
+
 from .common import SUCCESS_TOLERANCE, Run
 
 #: pymoo needs bounds (its PM mutation scales with them): this many init half-widths

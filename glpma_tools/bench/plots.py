@@ -32,6 +32,7 @@ def _plt():
 def draw(res, out_dir: Path) -> dict:
     """Every figure of the measurements ``res`` into ``out_dir``: ``{name: path}``."""
     from glpma_ros import solvers
+
     from .report import SOLVER_LABEL
     from .scenarios import LATENCY_TARGET_MS
     from .timing import DEADLINE_MARGIN_MS

@@ -19,6 +19,7 @@ from glpma_ros import solvers
 from glpma_tools.sim import trajectories as traj
 from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, fmt, fmt_ci, ratio, table
+
 from .common import summarize
 from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE_NAME
 from .peers import PEER_LABEL, PYMOO_BOUND_FACTOR
@@ -454,8 +455,15 @@ def reliability_section(res: dict | None, source=None) -> list[str]:
     after a full run: the stress test measures, the benchmark writes); without them, a note of where
     ``glpma-fk stress`` puts them."""
     from glpma_tools.stress import session as ses
-    from glpma_tools.stress.report import (DEADLINE_HEAD, FLOOD_SECTIONS, check_result, deadline_rows, flood_rows,
-                                           restart_rows)
+    from glpma_tools.stress.report import (
+        DEADLINE_HEAD,
+        FLOOD_SECTIONS,
+        check_result,
+        deadline_rows,
+        flood_rows,
+        restart_rows,
+    )
+
     from .timing import WARM_UP_QUIET
     out = ["## Reliability", ""]
     if res is None:

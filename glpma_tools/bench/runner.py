@@ -10,6 +10,7 @@ from pathlib import Path
 
 from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
+
 from .common import REPO_ROOT, command_line, git_revision, load_average, machine
 
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
@@ -132,7 +133,8 @@ def main(argv=None) -> int:
         raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
                          f"choose from {', '.join(solvers.SOLVERS)}")
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, experiments as ex, modes, offline, outputs, report, timing, tracking, waits
+    from . import dds, modes, offline, outputs, report, timing, tracking, waits
+    from . import experiments as ex
     from .scenarios import load
 
     t_start = time.perf_counter()

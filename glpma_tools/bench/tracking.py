@@ -10,6 +10,7 @@ import numpy as np
 
 from glpma_ros.estimator import Estimator
 from glpma_tools.stats import distribution
+
 from .peers import SCIPY_VARIANTS, NumpyNewton, ScipyWarm, available
 from .timing import timed_calls, warm_up
 

@@ -23,6 +23,7 @@ from glpma_ros.config import config_dir
 from glpma_ros.node import params as P
 from glpma_ros.node.loops import ReportLoop, SolveLoop
 from glpma_ros.node.service import FkService
+
 from .scenarios import load
 
 #: period of the reporting thread of ``handle + reports`` (s): 200x the node's default diagnostics rate,
@@ -118,6 +119,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
 def section(res, md_path=None) -> list[str]:
     """The BENCHMARKS.md section (``res["waits"]``: :func:`measure`'s rows), prose from templates/waits.md."""
     from glpma_tools.tables import fmt, table
+
     from .report import prose
     rows = res.get("waits")
     if not rows:

@@ -23,8 +23,14 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.errors import InputError
-from glpma_tools.bag_run import (FLOAT64_MULTI_ARRAY, JOINT_STATE, NS_PER_S, POSE_STAMPED,
-                                 decode_float64_multi_array, decode_joint_state)
+from glpma_tools.bag_run import (
+    FLOAT64_MULTI_ARRAY,
+    JOINT_STATE,
+    NS_PER_S,
+    POSE_STAMPED,
+    decode_float64_multi_array,
+    decode_joint_state,
+)
 
 from .identify import Measurements
 from .simulate import pose_columns, rotations_from_values
@@ -157,6 +163,7 @@ def read_bag(path: Path, n_legs: int, dim: int, metres_per_unit: float, legs_top
              pose_topic: str | None, max_dt_s: float) -> tuple[Measurements, BagInfo]:
     """The measurements of a rosbag2 (config unit), paired as the module docstring says."""
     from rosbags.typesys import Stores, get_typestore
+
     from glpma_tools.bag_run import open_bag
     ts = get_typestore(Stores.ROS2_JAZZY)
     reader = open_bag(Path(path))

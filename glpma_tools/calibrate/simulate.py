@@ -136,6 +136,7 @@ def main(argv=None) -> int:
     """``python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]``: simulated data for
     the README's example (the true geometry printed on stderr)."""
     import sys
+
     from glpma_ros.config import load_document, model_from_dict, resolve_config
     from glpma_tools.sim.trajectories import start_pose
     args = list(sys.argv[1:] if argv is None else argv)

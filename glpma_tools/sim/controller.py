@@ -158,8 +158,7 @@ class Controller:
     def __init__(self, model, domain_id: int | None = None, depth: int = 10, listen_depth: int = 1000,
                  input_type: str = INPUT_FLOAT64_MULTI_ARRAY, joint_names=None, modes: bool = False):
         from glpma_ros.node.dds import cdr, endpoints
-        from glpma_ros.node.dds.messages import (Float64MultiArray, JointState, MultiArrayDimension,
-                                                 MultiArrayLayout)
+        from glpma_ros.node.dds.messages import Float64MultiArray, JointState, MultiArrayDimension, MultiArrayLayout
         if input_type not in INPUT_TYPES:
             raise ValueError(f"input_type must be one of {', '.join(INPUT_TYPES)}, got {input_type!r}")
         self.names = list(joint_names) if joint_names else default_joint_names(model.n_legs)

@@ -54,7 +54,7 @@ class Echo:
         from cyclonedds.util import duration
 
         from glpma_ros.node.dds import cdr
-        from glpma_ros.node.dds.node import TAKE_BATCH       # the node's batch
+        from glpma_ros.node.dds.node import TAKE_BATCH  # the node's batch
         timeout = duration(seconds=WAIT_S)
         while not self.stop.is_set():
             self.waitset.wait(timeout)

@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from glpma_ros.errors import GlpmaError
-from glpma_ros.testing.matching import legs_for  # noqa: F401 - the tools' name for it
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+from glpma_ros.testing.matching import legs_for  # noqa: F401 - the tools' name for it
 
 #: known solution of each manipulator to move around (index in the config's list)
 DEFAULT_SOLUTION = {"planar_3rpr": 0,      # real_solutions[0], the one of 001 Table 1

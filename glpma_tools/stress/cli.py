@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from glpma_ros.cli import OneLineParser, command_main
+
 from . import flood, restarts
 from .deadline import DEADLINE_BUDGETS_MS, deadlines
 from .report import format_table, to_json, write_json

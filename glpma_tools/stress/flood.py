@@ -6,8 +6,8 @@ from __future__ import annotations
 import time
 
 from glpma_tools.sim.trajectories import PERIOD_S
-from .session import (LOST_SLACK, RATE_HZ, RSS_SLACK_MB, WARMUP_S, Session, analyse, counters, diff, node_latency,
-                      starts)
+
+from .session import LOST_SLACK, RATE_HZ, RSS_SLACK_MB, WARMUP_S, Session, analyse, counters, diff, node_latency, starts
 
 
 def flood(session: Session, name: str, n: int, rate_hz: float | None, warmup_s: float = WARMUP_S,

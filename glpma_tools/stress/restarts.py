@@ -15,6 +15,7 @@ import numpy as np
 
 from glpma_tools.sim.controller import Controller
 from glpma_tools.sim.trajectories import PERIOD_S, Plan
+
 from .session import MATCH_TIMEOUT_S, PHASE_RATE_HZ, Session, analyse, counters, diff, starts
 
 #: the new controller's inputs that must be answered, and the jump's

@@ -9,8 +9,8 @@ import time
 from pathlib import Path
 
 from glpma_tools.sim.controller import Controller, counters, diff, starts
-from glpma_tools.sim.matching import compare
 from glpma_tools.sim.domains import claim_domain
+from glpma_tools.sim.matching import compare
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution

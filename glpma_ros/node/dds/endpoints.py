@@ -10,8 +10,7 @@ from __future__ import annotations
 import os
 import time
 
-from cyclonedds.core import (GuardCondition, InstanceState, Policy, Qos, ReadCondition, SampleState, ViewState,
-                             WaitSet)
+from cyclonedds.core import GuardCondition, InstanceState, Policy, Qos, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader

@@ -36,17 +36,31 @@ import time
 
 from cyclonedds.util import duration
 
-from .. import params as P
 from ...errors import GlpmaError, InputError
+from .. import params as P
+from .. import qos
 from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop, pause_report
 from ..ros_args import node_values, parse_ros_args, remapped, split_transport
 from ..security import check_dds_transport
-from ..service import FkService
-from ..service import JointStateInput
-from .. import qos
+from ..service import FkService, JointStateInput
 from . import cdr, endpoints
-from .messages import (DiagnosticArray, Empty, Float64MultiArray, Header, JointState, MarkerArray, Point, Pose, PoseArray, PoseStamped, PoseWithCovarianceStamped, Quaternion,
-                       TFMessage, Time, TwistStamped)
+from .messages import (
+    DiagnosticArray,
+    Empty,
+    Float64MultiArray,
+    Header,
+    JointState,
+    MarkerArray,
+    Point,
+    Pose,
+    PoseArray,
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    Quaternion,
+    TFMessage,
+    Time,
+    TwistStamped,
+)
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
 #: samples taken per read; the newest is solved, the others count as dropped
