@@ -33,6 +33,19 @@ Three methods (``solve_all(model, legs, method=...)``):
   Both are statements about the basins of this start distribution, not a proof: a mode whose
   basin is tiny can be missed.  Use ``"exact"`` for a certificate.
 
+  Partner search: real modes are born and die in pairs, at a fold of the forward kinematics
+  where the leg Jacobian ``J`` turns singular (the real roots of a polynomial system with real
+  coefficients meet and leave the real space as a complex-conjugate pair; e.g. Merlet,
+  *Parallel Robots*, 2nd ed., 2006, section 4.5).  Near a fold the two modes of the pair lie on
+  either side of the midpoint along the nearly-null direction of ``J`` (its right singular
+  vector of the smallest singular value), and the one nearer the fold often has a basin too
+  small for the random starts (on the seed 6-6's default map slice the stopping rule ended with
+  one mode of such a pair missing at 2 % of the points).  So, once the random starts stop, every
+  mode whose reciprocal condition number is below ``PARTNER_CONDITIONING`` gets one local solve
+  from each of ``PARTNER_STEPS`` (shares of the scale) both ways along that direction; a new mode
+  found so gets its own partner search.  These starts are counted in ``partner_starts``, apart
+  from the random ``starts`` that the estimates above are about.
+
 ``"g3pcx"`` -- the papers' method: ``runs`` independent polished G3-PCX searches from the wide
   initial range ``U[-2R, 2R]^n`` (Rolland & Chandra 2016, section 5.5.2 collect the 16 hexapod
   solutions with 100 runs from U[-2000, 2000]^9), de-duplicated the same way.
@@ -102,6 +115,21 @@ CANDIDATE_MARGIN = 1.25
 MIN_CANDIDATES = 16
 MIN_ACCEPTANCE = 1.0 / 64
 
+#: partner search (module docstring): a mode whose leg Jacobian has a reciprocal condition number below
+#: this is near a fold and its partner is sought.  The partners the random starts missed on the seed 6-6's
+#: default map slice had a found twin of conditioning 1.3e-4 .. 1.05e-2; twice the largest
+PARTNER_CONDITIONING = 0.02
+#: partner search: the steps from the mode along the Jacobian's nearly-null direction, in shares of the
+#: scale, each both ways.  A local solve started beyond the midpoint of the pair goes to the partner; the
+#: missed partners lay 0.013 .. 0.53 of the scale away (pairs nearer than 0.06 were found from 0.09 on)
+PARTNER_STEPS = (0.0625, 0.125, 0.25, 0.5)
+#: a mode whose leg Jacobian's reciprocal condition number is below this is a double mode at the local
+#: solves' tolerance: a solve stops once the residual is below LOCAL_RESIDUAL_RELATIVE of the scale, and near a
+#: double root the residual grows with the square of the distance, so a converged pose can lie
+#: sqrt(LOCAL_RESIDUAL_RELATIVE) of the scale from it, where the conditioning is of that order too.  Below this,
+#: two modes closer than that, a double one, or the real shadow of a complex pair cannot be told apart
+DOUBLE_CONDITIONING = math.sqrt(LOCAL_RESIDUAL_RELATIVE)
+
 #: multistart stop reasons
 STALLED = "stalled"
 MAX_STARTS_REACHED = "max_starts"
@@ -123,6 +151,7 @@ class AllSolutions:
     stop_reason: str = ""                # multistart: stalled | max_starts | budget_exhausted | unreachable
     stall: int = 0                       # multistart: consecutive starts at the end that found nothing new
     hits: tuple = ()                     # multistart: starts that converged to each mode (order of solutions)
+    partner_starts: int = 0              # multistart: local solves of the partner search (module docstring)
 
 
 def consistent_fitness(model) -> float:
@@ -211,14 +240,14 @@ MODES_CAPACITY = 40
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, tolerance, dedup, modes, hits,
-                      counters, out, work):
+                      counters, out, work, stall_rule=True):
     """The multistart's inner loop over one batch of ``starts``, compiled: from each start one
     Levenberg-Marquardt solve (:func:`~glpma_ros.solvers.lm.lm_kernel`'s iteration, the caps in
     ``settings``); a solve whose leg fitness is below ``tolerance`` is a mode, the same as the
     nearest one found so far when their platform joints are within ``dedup``
     (``Manipulator.distance``), else a new one appended to ``modes``; then the stopping rule of the
-    module docstring, checked after every start.  ``counters`` (``C_*``) carry the state from batch
-    to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
+    module docstring, checked after every start (unless ``stall_rule`` is false: the partner
+    search's starts).  ``counters`` (``C_*``) carry the state from batch to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
     (``GOING``: the batch is used up; ``STALL_RULE``; ``FULL``: ``modes`` has no room left)."""
     n_vars = modes.shape[1]
     info = n_vars + 7
@@ -246,7 +275,7 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
                 counters[C_MODES] = m + 1
                 counters[C_LAST_NEW] = counters[C_STARTS]
         stall = counters[C_STARTS] - counters[C_LAST_NEW]
-        if stall >= max(STALL_MIN, STALL_FACTOR * counters[C_LAST_NEW]):
+        if stall_rule and stall >= max(STALL_MIN, STALL_FACTOR * counters[C_LAST_NEW]):
             counters[C_STOP] = STALL_RULE
             return k + 1
     return starts.shape[0]
@@ -352,10 +381,78 @@ def _spatial_starts(P, q, arms):
     return out
 
 
+class _Search:
+    """The multistart's state: the modes found (grown when full), the hits of the random starts and the
+    compiled kernel's arguments; :meth:`run` solves a batch of starts with :func:`_multistart_batch`."""
+
+    def __init__(self, model, legs):
+        self.model = model
+        self.local = LocalSolver(model)
+        self.settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
+        self.legs = np.ascontiguousarray(legs, dtype=float)
+        self.ref = max(model.scale, float(np.max(legs)))
+        # redundant legs: a consistent least-squares pose has a residual (the default leg noise's limit)
+        self.tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model))
+        self.dedup = DEDUP_RELATIVE * model.scale
+        self.modes = np.empty((MODES_CAPACITY, model.n_vars))
+        self.hits = np.zeros(MODES_CAPACITY, np.int64)
+        self.counters = np.zeros(5, np.int64)
+        self.out = np.empty(self.local.n_out)
+
+    def run(self, starts, counters=None, random=True) -> None:
+        """Local solves from ``starts`` into the modes, growing the arrays when they are full.  ``random``:
+        the random starts (their hits counted, the stopping rule on); else the partner search's (``counters``
+        its own, the hits not kept)."""
+        counters = self.counters if counters is None else counters
+        starts = np.ascontiguousarray(starts)
+        while True:
+            hits = self.hits if random else np.zeros_like(self.hits)
+            used = _multistart_batch(self.local.kind, self.local.data, self.local.platform, self.local.frame,
+                                     self.legs, self.ref, starts, self.settings, self.tolerance, self.dedup,
+                                     self.modes, hits, counters, self.out, self.local.work, random)
+            if counters[C_STOP] != FULL:
+                return
+            self.modes = np.vstack((self.modes, np.empty_like(self.modes)))
+            self.hits = np.concatenate((self.hits, np.zeros_like(self.hits)))
+            starts = starts[used:]
+
+    def partner_starts(self, x) -> np.ndarray:
+        """Starts (rows of solver variables) for the partner of the mode ``x`` (module docstring): none when
+        ``x`` is well conditioned."""
+        model = self.model
+        state = model.pose_state(x)
+        _, J = model.pose_residuals_jacobian(state, self.legs)
+        _, sv, vt = np.linalg.svd(J * model.pose_column_scale)
+        if not sv[-1] < PARTNER_CONDITIONING * sv[0]:
+            return np.empty((0, model.n_vars))
+        direction = vt[-1] * model.pose_column_scale        # a step of unit length (rotations per scale)
+        return np.array([model.pose_variables(model.pose_retract(state, sign * step * model.scale * direction))
+                         for step in PARTNER_STEPS for sign in (1.0, -1.0)])
+
+    def partner_search(self) -> int:
+        """The partner search of every near-singular mode, and of the modes it finds; returns its starts."""
+        n_vars = self.model.n_vars
+        counters = self.counters.copy()       # the random starts' counts stay theirs
+        counters[C_STARTS] = counters[C_LAST_NEW] = 0
+        done, used = 0, 0
+        while done < int(counters[C_MODES]):
+            todo = range(done, int(counters[C_MODES]))
+            done = int(counters[C_MODES])
+            starts = [self.partner_starts(self.modes[k].copy()) for k in todo]
+            starts = np.concatenate(starts) if starts else np.empty((0, n_vars))
+            if len(starts):
+                self.run(starts, counters=counters, random=False)
+                used += len(starts)
+        self.counters[C_MODES] = counters[C_MODES]
+        self.counters[C_NFEV] = counters[C_NFEV]
+        return used
+
+
 def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True) -> AllSolutions:
-    """The multistart of the module docstring (``legs`` already checked).  ``polish=False`` returns
-    each mode as its first local solve left it (leg residuals below ``LOCAL_RESIDUAL_RELATIVE`` of
-    the scale) instead of polished to round-off: what counting the modes needs."""
+    """The multistart of the module docstring (``legs`` already checked), with its partner search.
+    ``polish=False`` returns each mode as its first local solve left it (leg residuals below
+    ``LOCAL_RESIDUAL_RELATIVE`` of the scale) instead of polished to round-off: what counting the modes
+    needs."""
     if max_starts < 1:
         raise GlpmaError("max_starts must be at least 1")
     if budget_s is not None and not budget_s > 0:
@@ -363,57 +460,42 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
     t0 = time.perf_counter()
     deadline = None if budget_s is None else t0 + budget_s
     rng = np.random.default_rng(seed)
-    # redundant legs: a consistent least-squares pose has a residual (the default leg noise's limit)
-    tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model))
     sampler = StartSampler(model, legs)
-    local = LocalSolver(model)
-    settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
-    legs = np.ascontiguousarray(legs, dtype=float)
-    ref = max(model.scale, float(np.max(legs)))
-    modes = np.empty((MODES_CAPACITY, model.n_vars))
-    hits = np.zeros(MODES_CAPACITY, np.int64)
-    counters = np.zeros(5, np.int64)
-    out = np.empty(local.n_out)
+    search = _Search(model, legs)
+    counters = search.counters
     reason = UNREACHABLE if sampler.empty else ""
     while not reason:
-        starts = np.ascontiguousarray(sampler.draw(rng, min(BATCH, max_starts - int(counters[C_STARTS]))))
-        while True:
-            used = _multistart_batch(local.kind, local.data, local.platform, local.frame, legs, ref, starts,
-                                     settings, tolerance, DEDUP_RELATIVE * model.scale,
-                                     modes, hits, counters, out, local.work)
-            if counters[C_STOP] != FULL:
-                break
-            modes = np.vstack((modes, np.empty_like(modes)))
-            hits = np.concatenate((hits, np.zeros_like(hits)))
-            starts = starts[used:]
+        search.run(sampler.draw(rng, min(BATCH, max_starts - int(counters[C_STARTS]))))
         if counters[C_STOP] == STALL_RULE:
             reason = STALLED
         elif counters[C_STARTS] >= max_starts:
             reason = MAX_STARTS_REACHED
         elif deadline is not None and time.perf_counter() >= deadline:
             reason = BUDGET_EXHAUSTED
+    partner_starts = 0 if reason == UNREACHABLE else search.partner_search()
     n_modes, starts_used = int(counters[C_MODES]), int(counters[C_STARTS])
     evaluations = int(counters[C_NFEV])
     polish_rng = np.random.default_rng(seed) if polish else None
     found = []
-    for x in modes[:n_modes]:
+    for x in search.modes[:n_modes]:
         t1 = time.perf_counter()
         if polish:
-            xp, fp, nfev, _ = refine.polish(model, x, legs, polish_rng)
+            xp, fp, nfev, _ = refine.polish(model, x, search.legs, polish_rng)
         else:
-            xp, fp, nfev = x.copy(), float(model.fitness(x, legs)[0]), 1
+            xp, fp, nfev = x.copy(), float(model.fitness(x, search.legs)[0]), 1
         evaluations += nfev
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "multistart",
                                  polished=polish))
     order = _order(model, found)
     stall = starts_used - int(counters[C_LAST_NEW])
-    hits = hits[:n_modes]
+    hits = search.hits[:n_modes]
     singletons = int(np.sum(hits == 1))
     return AllSolutions([found[k] for k in order], starts_used, time.perf_counter() - t0, evaluations,
                         method="multistart", starts=starts_used,
                         miss_probability=singletons / starts_used if starts_used else None,
                         unseen_share_bound=1.0 - (1.0 - UNSEEN_CONFIDENCE) ** (1.0 / stall) if stall else 1.0,
-                        stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order))
+                        stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order),
+                        partner_starts=partner_starts)
 
 
 # -- certified ----------------------------------------------------------------------------------
