@@ -46,6 +46,21 @@ Three methods (``solve_all(model, legs, method=...)``):
   found so gets its own partner search.  These starts are counted in ``partner_starts``, apart
   from the random ``starts`` that the estimates above are about.
 
+  Parity rule: the forward kinematics is a polynomial system with real coefficients (3-RPR: a
+  sextic, Gosselin, Sefrioui & Richard 1992; 6-6: 40 complex solutions, Husty 1996; 16 for the
+  coincident-joint designs), whose non-real solutions come in conjugate pairs: with an even number
+  of complex solutions the real ones are even in number, counted with multiplicity.  An odd count
+  therefore means a mode missed -- unless one of the modes is double (its conditioning, polished
+  to round-off, below ``DOUBLE_CONDITIONING``: two modes met at a singularity, counted once; a
+  grid point exactly on a singularity curve has one, and whether the rounded legs give two real
+  modes or a complex pair there is decided by round-off).  So when the search stalls with an odd
+  count and no double mode, it goes on drawing random starts, without the stopping rule, until the
+  count is even or ``PARITY_EXTENSION`` times the starts used so far (a design whose count is odd
+  by nature, e.g. one with solutions at infinity, costs that much more and keeps its count).  Not
+  with redundant legs (least-squares poses).  ``conditioning`` reports each mode's reciprocal
+  condition number (of the polished mode for the candidates below ``DOUBLE_CANDIDATE``),
+  ``double_modes`` how many are double.
+
 ``"g3pcx"`` -- the papers' method: ``runs`` independent polished G3-PCX searches from the wide
   initial range ``U[-2R, 2R]^n`` (Rolland & Chandra 2016, section 5.5.2 collect the 16 hexapod
   solutions with 100 runs from U[-2000, 2000]^9), de-duplicated the same way.
@@ -117,18 +132,32 @@ MIN_ACCEPTANCE = 1.0 / 64
 
 #: partner search (module docstring): a mode whose leg Jacobian has a reciprocal condition number below
 #: this is near a fold and its partner is sought.  The partners the random starts missed on the seed 6-6's
-#: default map slice had a found twin of conditioning 1.3e-4 .. 1.05e-2; twice the largest
-PARTNER_CONDITIONING = 0.02
+#: default map slice had a found twin of conditioning 1.3e-4 .. 1.05e-2; on every 7th point of that map
+#: 0.02 and this gave the same counts, this with a fifth of the partner starts (an odd count left is the
+#: parity rule's)
+PARTNER_CONDITIONING = 0.003
 #: partner search: the steps from the mode along the Jacobian's nearly-null direction, in shares of the
 #: scale, each both ways.  A local solve started beyond the midpoint of the pair goes to the partner; the
 #: missed partners lay 0.013 .. 0.53 of the scale away (pairs nearer than 0.06 were found from 0.09 on)
 PARTNER_STEPS = (0.0625, 0.125, 0.25, 0.5)
-#: a mode whose leg Jacobian's reciprocal condition number is below this is a double mode at the local
-#: solves' tolerance: a solve stops once the residual is below LOCAL_RESIDUAL_RELATIVE of the scale, and near a
-#: double root the residual grows with the square of the distance, so a converged pose can lie
-#: sqrt(LOCAL_RESIDUAL_RELATIVE) of the scale from it, where the conditioning is of that order too.  Below this,
-#: two modes closer than that, a double one, or the real shadow of a complex pair cannot be told apart
-DOUBLE_CONDITIONING = math.sqrt(LOCAL_RESIDUAL_RELATIVE)
+#: a mode whose leg Jacobian's reciprocal condition number, once the mode is polished to round-off, is
+#: below this is double: two real modes met at a singularity (a double root), counted once.  Polished,
+#: a double root is left about sqrt(machine epsilon) of the scale from the exact one (the residual grows
+#: with the square of the distance), where the conditioning is of that order: 1.5e-8 .. 1.6e-7 on the
+#: seed 3-RPR's singular lines.  2**-20 = 64 sqrt(epsilon) leaves a margin both ways (the closest pair of
+#: distinct modes on the seed 6-6 map slice has conditioning 7.5e-6)
+DOUBLE_CONDITIONING = 2.0 ** -20
+#: a mode found with a conditioning below this may be double and is polished to decide: a local solve
+#: stops at a residual of LOCAL_RESIDUAL_RELATIVE of the scale, which leaves it up to sqrt(that) of the
+#: scale from a double root, where the conditioning is of that order (up to 2.9e-5 seen on the seed 3-RPR
+#: map, whose distinct modes start at 1.1e-4); twice that bound
+DOUBLE_CANDIDATE = 2.0 * math.sqrt(LOCAL_RESIDUAL_RELATIVE)
+
+#: parity rule (module docstring): an odd count without a double mode goes on with random starts (no
+#: stopping rule) until the count is even or this many times the starts used so far.  The modes the
+#: stopping rule missed on the seed 6-6's default map slice drew 1.1 % .. 4.7 % of the starts, so three
+#: times the usual ~200 starts more miss one with a chance below 0.989 ** 600 = 0.13 %
+PARITY_EXTENSION = 4
 
 #: multistart stop reasons
 STALLED = "stalled"
@@ -152,6 +181,13 @@ class AllSolutions:
     stall: int = 0                       # multistart: consecutive starts at the end that found nothing new
     hits: tuple = ()                     # multistart: starts that converged to each mode (order of solutions)
     partner_starts: int = 0              # multistart: local solves of the partner search (module docstring)
+    parity_starts: int = 0               # multistart: random starts added by the parity rule (among ``starts``)
+    conditioning: tuple = ()             # multistart: each mode's conditioning as found (order of solutions)
+
+    @property
+    def double_modes(self) -> int:
+        """Multistart: the modes that are double at the solver's tolerance (``DOUBLE_CONDITIONING``)."""
+        return sum(c < DOUBLE_CONDITIONING for c in self.conditioning)
 
 
 def consistent_fitness(model) -> float:
@@ -382,11 +418,13 @@ def _spatial_starts(P, q, arms):
 
 
 class _Search:
-    """The multistart's state: the modes found (grown when full), the hits of the random starts and the
-    compiled kernel's arguments; :meth:`run` solves a batch of starts with :func:`_multistart_batch`."""
+    """The multistart's state: the modes found (grown when full), the hits of the random starts, the
+    conditioning of the modes seen by the partner search, and the compiled kernel's arguments; :meth:`run`
+    solves a batch of starts with :func:`_multistart_batch`."""
 
-    def __init__(self, model, legs):
+    def __init__(self, model, legs, seed=0):
         self.model = model
+        self.rng = np.random.default_rng(seed)      # of the polish that decides a double mode
         self.local = LocalSolver(model)
         self.settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
         self.legs = np.ascontiguousarray(legs, dtype=float)
@@ -398,48 +436,64 @@ class _Search:
         self.hits = np.zeros(MODES_CAPACITY, np.int64)
         self.counters = np.zeros(5, np.int64)
         self.out = np.empty(self.local.n_out)
+        self.polish_evaluations = 0
+        self.conditioning = []          # per mode (in the order found), once its partner search ran; of the
+        #                                 polished mode when it was below DOUBLE_CANDIDATE
 
-    def run(self, starts, counters=None, random=True) -> None:
+    @property
+    def n_modes(self) -> int:
+        return int(self.counters[C_MODES])
+
+    def run(self, starts, counters=None, random=True, stall_rule=True) -> None:
         """Local solves from ``starts`` into the modes, growing the arrays when they are full.  ``random``:
-        the random starts (their hits counted, the stopping rule on); else the partner search's (``counters``
-        its own, the hits not kept)."""
+        random starts (their hits counted; ``stall_rule``: the stopping rule on); else the partner search's
+        (``counters`` its own, the hits not kept, no stopping rule)."""
         counters = self.counters if counters is None else counters
         starts = np.ascontiguousarray(starts)
         while True:
             hits = self.hits if random else np.zeros_like(self.hits)
             used = _multistart_batch(self.local.kind, self.local.data, self.local.platform, self.local.frame,
                                      self.legs, self.ref, starts, self.settings, self.tolerance, self.dedup,
-                                     self.modes, hits, counters, self.out, self.local.work, random)
+                                     self.modes, hits, counters, self.out, self.local.work, random and stall_rule)
             if counters[C_STOP] != FULL:
                 return
             self.modes = np.vstack((self.modes, np.empty_like(self.modes)))
             self.hits = np.concatenate((self.hits, np.zeros_like(self.hits)))
             starts = starts[used:]
 
-    def partner_starts(self, x) -> np.ndarray:
-        """Starts (rows of solver variables) for the partner of the mode ``x`` (module docstring): none when
-        ``x`` is well conditioned."""
+    def partner_starts(self, x) -> tuple[float, np.ndarray]:
+        """The conditioning of the mode ``x`` (reciprocal condition number of its leg Jacobian, as
+        ``Manipulator.conditioning``) and the starts (rows of solver variables) for its partner (module
+        docstring): none when ``x`` is well conditioned."""
         model = self.model
         state = model.pose_state(x)
         _, J = model.pose_residuals_jacobian(state, self.legs)
         _, sv, vt = np.linalg.svd(J * model.pose_column_scale)
-        if not sv[-1] < PARTNER_CONDITIONING * sv[0]:
-            return np.empty((0, model.n_vars))
+        conditioning = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+        if conditioning < DOUBLE_CANDIDATE:     # double or not: decided on the mode polished to round-off
+            xp, _, nfev, _ = refine.polish(model, x, self.legs, self.rng)
+            self.polish_evaluations += nfev
+            conditioning = model.conditioning(xp, self.legs)
+        if not conditioning < PARTNER_CONDITIONING:
+            return conditioning, np.empty((0, model.n_vars))
         direction = vt[-1] * model.pose_column_scale        # a step of unit length (rotations per scale)
-        return np.array([model.pose_variables(model.pose_retract(state, sign * step * model.scale * direction))
-                         for step in PARTNER_STEPS for sign in (1.0, -1.0)])
+        return conditioning, np.array([model.pose_variables(model.pose_retract(state, sign * step * model.scale *
+                                                                                 direction))
+                                       for step in PARTNER_STEPS for sign in (1.0, -1.0)])
 
     def partner_search(self) -> int:
-        """The partner search of every near-singular mode, and of the modes it finds; returns its starts."""
-        n_vars = self.model.n_vars
+        """The partner search of every mode not yet searched from, and of the modes it finds; returns its
+        starts."""
         counters = self.counters.copy()       # the random starts' counts stay theirs
         counters[C_STARTS] = counters[C_LAST_NEW] = 0
-        done, used = 0, 0
-        while done < int(counters[C_MODES]):
-            todo = range(done, int(counters[C_MODES]))
-            done = int(counters[C_MODES])
-            starts = [self.partner_starts(self.modes[k].copy()) for k in todo]
-            starts = np.concatenate(starts) if starts else np.empty((0, n_vars))
+        used = 0
+        while len(self.conditioning) < int(counters[C_MODES]):
+            batch = []
+            for k in range(len(self.conditioning), int(counters[C_MODES])):
+                conditioning, starts = self.partner_starts(self.modes[k].copy())
+                self.conditioning.append(conditioning)
+                batch.append(starts)
+            starts = np.concatenate(batch)
             if len(starts):
                 self.run(starts, counters=counters, random=False)
                 used += len(starts)
@@ -447,10 +501,16 @@ class _Search:
         self.counters[C_NFEV] = counters[C_NFEV]
         return used
 
+    def odd_and_unexplained(self) -> bool:
+        """An odd number of modes, none of them double (module docstring, parity rule); never with redundant
+        legs (least-squares poses: no polynomial system)."""
+        return (not self.model.redundancy and self.n_modes % 2 == 1
+                and all(c >= DOUBLE_CONDITIONING for c in self.conditioning))
+
 
 def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True) -> AllSolutions:
-    """The multistart of the module docstring (``legs`` already checked), with its partner search.
-    ``polish=False`` returns each mode as its first local solve left it (leg residuals below
+    """The multistart of the module docstring (``legs`` already checked), with its partner search and
+    parity rule.  ``polish=False`` returns each mode as its first local solve left it (leg residuals below
     ``LOCAL_RESIDUAL_RELATIVE`` of the scale) instead of polished to round-off: what counting the modes
     needs."""
     if max_starts < 1:
@@ -461,7 +521,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
     deadline = None if budget_s is None else t0 + budget_s
     rng = np.random.default_rng(seed)
     sampler = StartSampler(model, legs)
-    search = _Search(model, legs)
+    search = _Search(model, legs, seed)
     counters = search.counters
     reason = UNREACHABLE if sampler.empty else ""
     while not reason:
@@ -473,8 +533,17 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
         elif deadline is not None and time.perf_counter() >= deadline:
             reason = BUDGET_EXHAUSTED
     partner_starts = 0 if reason == UNREACHABLE else search.partner_search()
-    n_modes, starts_used = int(counters[C_MODES]), int(counters[C_STARTS])
-    evaluations = int(counters[C_NFEV])
+    parity_starts = 0
+    if reason == STALLED:
+        limit = min(max_starts, PARITY_EXTENSION * int(counters[C_STARTS]))
+        while (search.odd_and_unexplained() and counters[C_STARTS] < limit
+               and (deadline is None or time.perf_counter() < deadline)):
+            before = int(counters[C_STARTS])
+            search.run(sampler.draw(rng, min(BATCH, limit - before)), stall_rule=False)
+            parity_starts += int(counters[C_STARTS]) - before
+            partner_starts += search.partner_search()
+    n_modes, starts_used = search.n_modes, int(counters[C_STARTS])
+    evaluations = int(counters[C_NFEV]) + search.polish_evaluations
     polish_rng = np.random.default_rng(seed) if polish else None
     found = []
     for x in search.modes[:n_modes]:
@@ -490,12 +559,14 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
     stall = starts_used - int(counters[C_LAST_NEW])
     hits = search.hits[:n_modes]
     singletons = int(np.sum(hits == 1))
+    conditioning = search.conditioning if len(search.conditioning) == n_modes else [math.nan] * n_modes
     return AllSolutions([found[k] for k in order], starts_used, time.perf_counter() - t0, evaluations,
                         method="multistart", starts=starts_used,
                         miss_probability=singletons / starts_used if starts_used else None,
                         unseen_share_bound=1.0 - (1.0 - UNSEEN_CONFIDENCE) ** (1.0 / stall) if stall else 1.0,
                         stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order),
-                        partner_starts=partner_starts)
+                        partner_starts=partner_starts, parity_starts=parity_starts,
+                        conditioning=tuple(conditioning[k] for k in order))
 
 
 # -- certified ----------------------------------------------------------------------------------
