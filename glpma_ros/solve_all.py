@@ -49,14 +49,15 @@ Three methods (``solve_all(model, legs, method=...)``):
   Parity rule: the forward kinematics is a polynomial system with real coefficients (3-RPR: a
   sextic, Gosselin, Sefrioui & Richard 1992; 6-6: 40 complex solutions, Husty 1996; 16 for the
   coincident-joint designs), whose non-real solutions come in conjugate pairs: with an even number
-  of complex solutions the real ones are even in number, counted with multiplicity.  An odd count
-  therefore means a mode missed -- unless one of the modes is double (its conditioning, polished
-  to round-off, below ``DOUBLE_CONDITIONING``: two modes met at a singularity, counted once; a
-  grid point exactly on a singularity curve has one, and whether the rounded legs give two real
-  modes or a complex pair there is decided by round-off).  So when the search stalls with an odd
-  count and no double mode, it goes on drawing random starts, without the stopping rule, until the
-  count is even or ``PARITY_EXTENSION`` times the starts used so far (a design whose count is odd
-  by nature, e.g. one with solutions at infinity, costs that much more and keeps its count).  Not
+  of complex solutions the real ones are even in number, counted with multiplicity.  A mode is
+  double when its conditioning, polished to round-off, is below ``DOUBLE_CONDITIONING``: two modes
+  met at a singularity, found as one (a grid point exactly on a singularity curve has one, and
+  whether the rounded legs give two real modes or a complex pair there is decided by round-off).
+  Counting each double mode twice, an odd count therefore means a mode missed.  So when the search
+  stalls with an odd count so counted, it goes on drawing random starts, without the stopping rule,
+  until the count is even or ``PARITY_EXTENSION`` times the starts used so far (a design whose
+  count is odd by nature, e.g. one with solutions at infinity, costs that much more and keeps its
+  count).  Not
   with redundant legs (least-squares poses).  ``conditioning`` reports each mode's reciprocal
   condition number (of the polished mode for the candidates below ``DOUBLE_CANDIDATE``),
   ``double_modes`` how many are double.
@@ -153,7 +154,7 @@ DOUBLE_CONDITIONING = 2.0 ** -20
 #: map, whose distinct modes start at 1.1e-4); twice that bound
 DOUBLE_CANDIDATE = 2.0 * math.sqrt(LOCAL_RESIDUAL_RELATIVE)
 
-#: parity rule (module docstring): an odd count without a double mode goes on with random starts (no
+#: parity rule (module docstring): an odd count (a double mode counted twice) goes on with random starts (no
 #: stopping rule) until the count is even or this many times the starts used so far.  The modes the
 #: stopping rule missed on the seed 6-6's default map slice drew 1.1 % .. 4.7 % of the starts, so three
 #: times the usual ~200 starts more miss one with a chance below 0.989 ** 600 = 0.13 %
@@ -502,10 +503,10 @@ class _Search:
         return used
 
     def odd_and_unexplained(self) -> bool:
-        """An odd number of modes, none of them double (module docstring, parity rule); never with redundant
-        legs (least-squares poses: no polynomial system)."""
-        return (not self.model.redundancy and self.n_modes % 2 == 1
-                and all(c >= DOUBLE_CONDITIONING for c in self.conditioning))
+        """An odd number of modes counted with multiplicity, a double mode twice (module docstring, parity
+        rule); never with redundant legs (least-squares poses: no polynomial system)."""
+        doubles = sum(c < DOUBLE_CONDITIONING for c in self.conditioning)
+        return not self.model.redundancy and (self.n_modes + doubles) % 2 == 1
 
 
 def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True) -> AllSolutions:

@@ -124,6 +124,7 @@ def test_map_marks_points_on_a_singularity(tmp_path, rpr):
     assert np.all(data["double_modes"][1] > 0) and np.all(data["double_modes"][[0, 2]] == 0)   # the row y = 0
     assert sum(summary["on_singularity"].values()) == 3 and sum(summary["modes"].values()) == 6
     assert all(int(k) % 2 == 0 for k in summary["modes"])
+    assert np.all((data["counts"] + data["double_modes"]) % 2 == 0)     # even, a double mode counted twice
     if HAVE_MSOLVE:
         check = summary["exact_check"]
         assert len(check["points"]) == 6 and check["agree"] == 6 and all(i // 3 != 1 for i in check["points"])

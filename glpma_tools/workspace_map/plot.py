@@ -19,7 +19,7 @@ OUTSIDE_COLOUR = "0.85"
 #: whatever their count of distinct modes, and its colour: near black, apart from every count's colour
 ON_SINGULARITY = -2
 ON_SINGULARITY_COLOUR = "0.15"
-ON_SINGULARITY_LABEL = "on a singularity (a double mode)"
+ON_SINGULARITY_LABEL = "on a singularity\n(a double mode)"
 
 
 def _label(name: str, unit: str) -> str:
