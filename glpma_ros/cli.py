@@ -241,7 +241,9 @@ def cmd_solve_all(args) -> int:
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
     if res.method == "multistart":
         extra.update(starts=res.starts, stop_reason=res.stop_reason, miss_probability=res.miss_probability,
-                     unseen_share_bound=res.unseen_share_bound, hits=list(res.hits))
+                     unseen_share_bound=res.unseen_share_bound, hits=list(res.hits),
+                     partner_starts=res.partner_starts, parity_starts=res.parity_starts,
+                     conditioning=list(res.conditioning), double_modes=res.double_modes)
     if res.method == "exact":
         extra.update(complex_solutions=res.complex_solutions)
     if args.json:

@@ -33,6 +33,35 @@ Three methods (``solve_all(model, legs, method=...)``):
   Both are statements about the basins of this start distribution, not a proof: a mode whose
   basin is tiny can be missed.  Use ``"exact"`` for a certificate.
 
+  Partner search: real modes are born and die in pairs, at a fold of the forward kinematics
+  where the leg Jacobian ``J`` turns singular (the real roots of a polynomial system with real
+  coefficients meet and leave the real space as a complex-conjugate pair; e.g. Merlet,
+  *Parallel Robots*, 2nd ed., 2006, section 4.5).  Near a fold the two modes of the pair lie on
+  either side of the midpoint along the nearly-null direction of ``J`` (its right singular
+  vector of the smallest singular value), and the one nearer the fold often has a basin too
+  small for the random starts (on the seed 6-6's default map slice the stopping rule ended with
+  one mode of such a pair missing at 2 % of the points).  So, once the random starts stop, every
+  mode whose reciprocal condition number is below ``PARTNER_CONDITIONING`` gets one local solve
+  from each of ``PARTNER_STEPS`` (shares of the scale) both ways along that direction; a new mode
+  found so gets its own partner search.  These starts are counted in ``partner_starts``, apart
+  from the random ``starts`` that the estimates above are about.
+
+  Parity rule: the forward kinematics is a polynomial system with real coefficients (3-RPR: a
+  sextic, Gosselin, Sefrioui & Richard 1992; 6-6: 40 complex solutions, Husty 1996; 16 for the
+  coincident-joint designs), whose non-real solutions come in conjugate pairs: with an even number
+  of complex solutions the real ones are even in number, counted with multiplicity.  A mode is
+  double when its conditioning, polished to round-off, is below ``DOUBLE_CONDITIONING``: two modes
+  met at a singularity, found as one (a grid point exactly on a singularity curve has one, and
+  whether the rounded legs give two real modes or a complex pair there is decided by round-off).
+  Counting each double mode twice, an odd count therefore means a mode missed.  So when the search
+  stalls with an odd count so counted, it goes on drawing random starts, without the stopping rule,
+  until the count is even or ``PARITY_EXTENSION`` times the starts used so far (a design whose
+  count is odd by nature, e.g. one with solutions at infinity, costs that much more and keeps its
+  count).  Not
+  with redundant legs (least-squares poses).  ``conditioning`` reports each mode's reciprocal
+  condition number (of the polished mode for the candidates below ``DOUBLE_CANDIDATE``),
+  ``double_modes`` how many are double.
+
 ``"g3pcx"`` -- the papers' method: ``runs`` independent polished G3-PCX searches from the wide
   initial range ``U[-2R, 2R]^n`` (Rolland & Chandra 2016, section 5.5.2 collect the 16 hexapod
   solutions with 100 runs from U[-2000, 2000]^9), de-duplicated the same way.
@@ -103,6 +132,35 @@ CANDIDATE_MARGIN = 1.25
 MIN_CANDIDATES = 16
 MIN_ACCEPTANCE = 1.0 / 64
 
+#: partner search (module docstring): a mode whose leg Jacobian has a reciprocal condition number below
+#: this is near a fold and its partner is sought.  The partners the random starts missed on the seed 6-6's
+#: default map slice had a found twin of conditioning 1.3e-4 .. 1.05e-2; on every 7th point of that map
+#: 0.02 and this gave the same counts, this with a fifth of the partner starts (an odd count left is the
+#: parity rule's)
+PARTNER_CONDITIONING = 0.003
+#: partner search: the steps from the mode along the Jacobian's nearly-null direction, in shares of the
+#: scale, each both ways.  A local solve started beyond the midpoint of the pair goes to the partner; the
+#: missed partners lay 0.013 .. 0.53 of the scale away (pairs nearer than 0.06 were found from 0.09 on)
+PARTNER_STEPS = (0.0625, 0.125, 0.25, 0.5)
+#: a mode whose leg Jacobian's reciprocal condition number, once the mode is polished to round-off, is
+#: below this is double: two real modes met at a singularity (a double root), counted once.  Polished,
+#: a double root is left about sqrt(machine epsilon) of the scale from the exact one (the residual grows
+#: with the square of the distance), where the conditioning is of that order: 1.5e-8 .. 1.6e-7 on the
+#: seed 3-RPR's singular lines.  2**-20 = 64 sqrt(epsilon) leaves a margin both ways (the closest pair of
+#: distinct modes on the seed 6-6 map slice has conditioning 7.5e-6)
+DOUBLE_CONDITIONING = 2.0 ** -20
+#: a mode found with a conditioning below this may be double and is polished to decide: a local solve
+#: stops at a residual of LOCAL_RESIDUAL_RELATIVE of the scale, which leaves it up to sqrt(that) of the
+#: scale from a double root, where the conditioning is of that order (up to 2.9e-5 seen on the seed 3-RPR
+#: map, whose distinct modes start at 1.1e-4); twice that bound
+DOUBLE_CANDIDATE = 2.0 * math.sqrt(LOCAL_RESIDUAL_RELATIVE)
+
+#: parity rule (module docstring): an odd count (a double mode counted twice) goes on with random starts (no
+#: stopping rule) until the count is even or this many times the starts used so far.  The modes the
+#: stopping rule missed on the seed 6-6's default map slice drew 1.1 % .. 4.7 % of the starts, so three
+#: times the usual ~200 starts more miss one with a chance below 0.989 ** 600 = 0.13 %
+PARITY_EXTENSION = 4
+
 #: multistart stop reasons
 STALLED = "stalled"
 MAX_STARTS_REACHED = "max_starts"
@@ -124,6 +182,14 @@ class AllSolutions:
     stop_reason: str = ""                # multistart: stalled | max_starts | budget_exhausted | unreachable
     stall: int = 0                       # multistart: consecutive starts at the end that found nothing new
     hits: tuple = ()                     # multistart: starts that converged to each mode (order of solutions)
+    partner_starts: int = 0              # multistart: local solves of the partner search (module docstring)
+    parity_starts: int = 0               # multistart: random starts added by the parity rule (among ``starts``)
+    conditioning: tuple = ()             # multistart: each mode's conditioning as found (order of solutions)
+
+    @property
+    def double_modes(self) -> int:
+        """Multistart: the modes that are double at the solver's tolerance (``DOUBLE_CONDITIONING``)."""
+        return sum(c < DOUBLE_CONDITIONING for c in self.conditioning)
 
 
 def consistent_fitness(model, leg_noise_std=None) -> float:
@@ -217,14 +283,14 @@ MODES_CAPACITY = 40
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, tolerance, dedup, modes, hits,
-                      counters, out, work):
+                      counters, out, work, stall_rule=True):
     """The multistart's inner loop over one batch of ``starts``, compiled: from each start one
     Levenberg-Marquardt solve (:func:`~glpma_ros.solvers.lm.lm_kernel`'s iteration, the caps in
     ``settings``); a solve whose leg fitness is below ``tolerance`` is a mode, the same as the
     nearest one found so far when their platform joints are within ``dedup``
     (``Manipulator.distance``), else a new one appended to ``modes``; then the stopping rule of the
-    module docstring, checked after every start.  ``counters`` (``C_*``) carry the state from batch
-    to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
+    module docstring, checked after every start (unless ``stall_rule`` is false: the partner
+    search's starts).  ``counters`` (``C_*``) carry the state from batch to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
     (``GOING``: the batch is used up; ``STALL_RULE``; ``FULL``: ``modes`` has no room left)."""
     n_vars = modes.shape[1]
     info = n_vars + 7
@@ -252,7 +318,7 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
                 counters[C_MODES] = m + 1
                 counters[C_LAST_NEW] = counters[C_STARTS]
         stall = counters[C_STARTS] - counters[C_LAST_NEW]
-        if stall >= max(STALL_MIN, STALL_FACTOR * counters[C_LAST_NEW]):
+        if stall_rule and stall >= max(STALL_MIN, STALL_FACTOR * counters[C_LAST_NEW]):
             counters[C_STOP] = STALL_RULE
             return k + 1
     return starts.shape[0]
@@ -358,11 +424,103 @@ def _spatial_starts(P, q, arms):
     return out
 
 
+class _Search:
+    """The multistart's state (``leg_noise_std``: redundant legs, as :func:`consistent_fitness`): the modes found (grown when full), the hits of the random starts, the
+    conditioning of the modes seen by the partner search, and the compiled kernel's arguments; :meth:`run`
+    solves a batch of starts with :func:`_multistart_batch`."""
+
+    def __init__(self, model, legs, seed=0, leg_noise_std=None):
+        self.model = model
+        self.rng = np.random.default_rng(seed)      # of the polish that decides a double mode
+        self.local = LocalSolver(model)
+        self.settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
+        self.legs = np.ascontiguousarray(legs, dtype=float)
+        self.ref = max(model.scale, float(np.max(legs)))
+        # redundant legs: a consistent least-squares pose has a residual (the leg noise's limit)
+        self.tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
+        self.dedup = DEDUP_RELATIVE * model.scale
+        self.modes = np.empty((MODES_CAPACITY, model.n_vars))
+        self.hits = np.zeros(MODES_CAPACITY, np.int64)
+        self.counters = np.zeros(5, np.int64)
+        self.out = np.empty(self.local.n_out)
+        self.polish_evaluations = 0
+        self.conditioning = []          # per mode (in the order found), once its partner search ran; of the
+        #                                 polished mode when it was below DOUBLE_CANDIDATE
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.counters[C_MODES])
+
+    def run(self, starts, counters=None, random=True, stall_rule=True) -> None:
+        """Local solves from ``starts`` into the modes, growing the arrays when they are full.  ``random``:
+        random starts (their hits counted; ``stall_rule``: the stopping rule on); else the partner search's
+        (``counters`` its own, the hits not kept, no stopping rule)."""
+        counters = self.counters if counters is None else counters
+        starts = np.ascontiguousarray(starts)
+        while True:
+            hits = self.hits if random else np.zeros_like(self.hits)
+            used = _multistart_batch(self.local.kind, self.local.data, self.local.platform, self.local.frame,
+                                     self.legs, self.ref, starts, self.settings, self.tolerance, self.dedup,
+                                     self.modes, hits, counters, self.out, self.local.work, random and stall_rule)
+            if counters[C_STOP] != FULL:
+                return
+            self.modes = np.vstack((self.modes, np.empty_like(self.modes)))
+            self.hits = np.concatenate((self.hits, np.zeros_like(self.hits)))
+            starts = starts[used:]
+
+    def partner_starts(self, x) -> tuple[float, np.ndarray]:
+        """The conditioning of the mode ``x`` (reciprocal condition number of its leg Jacobian, as
+        ``Manipulator.conditioning``) and the starts (rows of solver variables) for its partner (module
+        docstring): none when ``x`` is well conditioned."""
+        model = self.model
+        state = model.pose_state(x)
+        _, J = model.pose_residuals_jacobian(state, self.legs)
+        _, sv, vt = np.linalg.svd(J * model.pose_column_scale)
+        conditioning = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+        if conditioning < DOUBLE_CANDIDATE:     # double or not: decided on the mode polished to round-off
+            xp, _, nfev, _ = refine.polish(model, x, self.legs, self.rng)
+            self.polish_evaluations += nfev
+            conditioning = model.conditioning(xp, self.legs)
+        if not conditioning < PARTNER_CONDITIONING:
+            return conditioning, np.empty((0, model.n_vars))
+        direction = vt[-1] * model.pose_column_scale        # a step of unit length (rotations per scale)
+        return conditioning, np.array([model.pose_variables(model.pose_retract(state, sign * step * model.scale *
+                                                                                 direction))
+                                       for step in PARTNER_STEPS for sign in (1.0, -1.0)])
+
+    def partner_search(self) -> int:
+        """The partner search of every mode not yet searched from, and of the modes it finds; returns its
+        starts."""
+        counters = self.counters.copy()       # the random starts' counts stay theirs
+        counters[C_STARTS] = counters[C_LAST_NEW] = 0
+        used = 0
+        while len(self.conditioning) < int(counters[C_MODES]):
+            batch = []
+            for k in range(len(self.conditioning), int(counters[C_MODES])):
+                conditioning, starts = self.partner_starts(self.modes[k].copy())
+                self.conditioning.append(conditioning)
+                batch.append(starts)
+            starts = np.concatenate(batch)
+            if len(starts):
+                self.run(starts, counters=counters, random=False)
+                used += len(starts)
+        self.counters[C_MODES] = counters[C_MODES]
+        self.counters[C_NFEV] = counters[C_NFEV]
+        return used
+
+    def odd_and_unexplained(self) -> bool:
+        """An odd number of modes counted with multiplicity, a double mode twice (module docstring, parity
+        rule); never with redundant legs (least-squares poses: no polynomial system)."""
+        doubles = sum(c < DOUBLE_CONDITIONING for c in self.conditioning)
+        return not self.model.redundancy and (self.n_modes + doubles) % 2 == 1
+
+
 def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, polish=True,
                leg_noise_std=None) -> AllSolutions:
-    """The multistart of the module docstring (``legs`` already checked).  ``polish=False`` returns
-    each mode as its first local solve left it (leg residuals below ``LOCAL_RESIDUAL_RELATIVE`` of
-    the scale) instead of polished to round-off: what counting the modes needs."""
+    """The multistart of the module docstring (``legs`` already checked), with its partner search and
+    parity rule.  ``polish=False`` returns each mode as its first local solve left it (leg residuals below
+    ``LOCAL_RESIDUAL_RELATIVE`` of the scale) instead of polished to round-off: what counting the modes
+    needs."""
     if max_starts < 1:
         raise GlpmaError("max_starts must be at least 1")
     if budget_s is not None and not budget_s > 0:
@@ -370,57 +528,53 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
     t0 = time.perf_counter()
     deadline = None if budget_s is None else t0 + budget_s
     rng = np.random.default_rng(seed)
-    # redundant legs: a consistent least-squares pose has a residual (the leg noise's limit)
-    tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
     sampler = StartSampler(model, legs)
-    local = LocalSolver(model)
-    settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
-    legs = np.ascontiguousarray(legs, dtype=float)
-    ref = max(model.scale, float(np.max(legs)))
-    modes = np.empty((MODES_CAPACITY, model.n_vars))
-    hits = np.zeros(MODES_CAPACITY, np.int64)
-    counters = np.zeros(5, np.int64)
-    out = np.empty(local.n_out)
+    search = _Search(model, legs, seed, leg_noise_std)
+    counters = search.counters
     reason = UNREACHABLE if sampler.empty else ""
     while not reason:
-        starts = np.ascontiguousarray(sampler.draw(rng, min(BATCH, max_starts - int(counters[C_STARTS]))))
-        while True:
-            used = _multistart_batch(local.kind, local.data, local.platform, local.frame, legs, ref, starts,
-                                     settings, tolerance, DEDUP_RELATIVE * model.scale,
-                                     modes, hits, counters, out, local.work)
-            if counters[C_STOP] != FULL:
-                break
-            modes = np.vstack((modes, np.empty_like(modes)))
-            hits = np.concatenate((hits, np.zeros_like(hits)))
-            starts = starts[used:]
+        search.run(sampler.draw(rng, min(BATCH, max_starts - int(counters[C_STARTS]))))
         if counters[C_STOP] == STALL_RULE:
             reason = STALLED
         elif counters[C_STARTS] >= max_starts:
             reason = MAX_STARTS_REACHED
         elif deadline is not None and time.perf_counter() >= deadline:
             reason = BUDGET_EXHAUSTED
-    n_modes, starts_used = int(counters[C_MODES]), int(counters[C_STARTS])
-    evaluations = int(counters[C_NFEV])
+    partner_starts = 0 if reason == UNREACHABLE else search.partner_search()
+    parity_starts = 0
+    if reason == STALLED:
+        limit = min(max_starts, PARITY_EXTENSION * int(counters[C_STARTS]))
+        while (search.odd_and_unexplained() and counters[C_STARTS] < limit
+               and (deadline is None or time.perf_counter() < deadline)):
+            before = int(counters[C_STARTS])
+            search.run(sampler.draw(rng, min(BATCH, limit - before)), stall_rule=False)
+            parity_starts += int(counters[C_STARTS]) - before
+            partner_starts += search.partner_search()
+    n_modes, starts_used = search.n_modes, int(counters[C_STARTS])
+    evaluations = int(counters[C_NFEV]) + search.polish_evaluations
     polish_rng = np.random.default_rng(seed) if polish else None
     found = []
-    for x in modes[:n_modes]:
+    for x in search.modes[:n_modes]:
         t1 = time.perf_counter()
         if polish:
-            xp, fp, nfev, _ = refine.polish(model, x, legs, polish_rng)
+            xp, fp, nfev, _ = refine.polish(model, x, search.legs, polish_rng)
         else:
-            xp, fp, nfev = x.copy(), float(model.fitness(x, legs)[0]), 1
+            xp, fp, nfev = x.copy(), float(model.fitness(x, search.legs)[0]), 1
         evaluations += nfev
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "multistart",
                                  polished=polish))
     order = _order(model, found)
     stall = starts_used - int(counters[C_LAST_NEW])
-    hits = hits[:n_modes]
+    hits = search.hits[:n_modes]
     singletons = int(np.sum(hits == 1))
+    conditioning = search.conditioning if len(search.conditioning) == n_modes else [math.nan] * n_modes
     return AllSolutions([found[k] for k in order], starts_used, time.perf_counter() - t0, evaluations,
                         method="multistart", starts=starts_used,
                         miss_probability=singletons / starts_used if starts_used else None,
                         unseen_share_bound=1.0 - (1.0 - UNSEEN_CONFIDENCE) ** (1.0 / stall) if stall else 1.0,
-                        stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order))
+                        stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order),
+                        partner_starts=partner_starts, parity_starts=parity_starts,
+                        conditioning=tuple(conditioning[k] for k in order))
 
 
 # -- certified ----------------------------------------------------------------------------------

@@ -21,8 +21,13 @@ skips what is done.  Chunks run in this process (``--workers 1``), on the local 
 (``--workers N``, processes; default all), or on a Dask distributed cluster
 (``--scheduler tcp://HOST:PORT``); the results are written by this process only, so
 the workers need no shared file system.  Output in DIR: ``assembly_modes.npz`` (counts,
-conditioning, Jacobian sign, axes, fixed coordinates, runs, seed, configuration) and
+conditioning, Jacobian sign, double modes, axes, fixed coordinates, runs, seed, configuration) and
 ``assembly_modes.png``.
+
+A point with a double mode (:func:`.grid.double_modes`) lies on a singularity: two modes met there,
+and whether its float legs give two real modes or a complex pair is decided by round-off, so its
+count of distinct modes is odd where the counts are otherwise even.  Such points are a class of their
+own in the summary (``on_singularity``), the figure and the ``--exact`` sample (left out).
 
 Modules: :mod:`.grid` (the grid and the computation of one point / one chunk),
 :mod:`.engines` (chunks on disk, the local / process / Dask engines, :func:`compute_map`),

@@ -162,7 +162,7 @@ def main(argv=None) -> int:
             require_exact()
         result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
                              chunk_size=args.chunk_size, progress=not args.no_progress)
-        check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact)
+        check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact, result.double)
     except GlpmaError as exc:
         print(f"error: {PROG}: {exc}", file=sys.stderr)
         return 1 if isinstance(exc, EngineError) else 2

@@ -31,6 +31,8 @@ BYTES_PER_POINT = 96
 #: share of the available memory a map may take
 MEMORY_SHARE = 0.5
 OUTPUT_NAME = "assembly_modes"
+#: the per-point arrays of a chunk and of the map (a chunk saved without one of them is computed again)
+CHUNK_ARRAYS = ("counts", "conditioning", "jacobian_sign", "double_modes")
 
 
 # -- chunks on disk ---------------------------------------------------------------------------------
@@ -47,7 +49,7 @@ def load_chunk(path: Path, start: int, stop: int) -> dict | None:
     """A finished chunk, or None when it is missing or unreadable (then it is computed again)."""
     try:
         with np.load(path) as f:
-            chunk = {k: f[k] for k in ("counts", "conditioning", "jacobian_sign")}
+            chunk = {k: f[k] for k in CHUNK_ARRAYS}
     except (OSError, ValueError, KeyError, EOFError):
         return None
     return chunk if all(len(v) == stop - start for v in chunk.values()) else None
@@ -56,8 +58,7 @@ def load_chunk(path: Path, start: int, stop: int) -> dict | None:
 def save_chunk(path: Path, chunk: dict) -> None:
     tmp = path.with_name(path.name + ".part")
     with open(tmp, "wb") as f:
-        np.savez(f, counts=chunk["counts"], conditioning=chunk["conditioning"],
-                 jacobian_sign=chunk["jacobian_sign"])
+        np.savez(f, **{k: chunk[k] for k in CHUNK_ARRAYS})
     os.replace(tmp, path)
 
 
@@ -73,23 +74,32 @@ class MapResult:
     chunks_reused: int
     elapsed_s: float
     engine: str
-    modes: dict              # count -> points (count OUTSIDE = -1: no valid legs)
+    modes: dict              # count -> points without a double mode (count OUTSIDE = -1: no valid legs)
     method: str = ""         # how the modes were counted: "multistart" or "g3pcx (N runs)"
     counts: np.ndarray = field(default=None, repr=False)   # the map (rows, columns), not in the summary
+    double: np.ndarray = field(default=None, repr=False)   # its double modes per point (rows, columns)
+    on_singularity: dict = field(default_factory=dict)     # count of distinct modes -> points with a double mode
 
     def as_dict(self) -> dict:
-        """The JSON summary: ``modes`` maps a mode count to its points; the points without valid legs
-        (count -1 in the npz) are ``no_valid_legs``."""
+        """The JSON summary: ``modes`` maps a mode count to its points (those without a double mode); the
+        points without valid legs (count -1 in the npz) are ``no_valid_legs``; the points on a singularity
+        (a double mode: their count is decided by round-off) are ``on_singularity``, by their count of
+        distinct modes."""
         return {"npz": str(self.npz), "png": str(self.png), "points": self.points, "computed": self.computed,
                 "chunks_computed": self.chunks_computed, "chunks_reused": self.chunks_reused,
                 "elapsed_s": self.elapsed_s, "engine": self.engine, "method": self.method,
                 "modes": {str(k): v for k, v in self.modes.items() if k != OUTSIDE},
-                "no_valid_legs": self.modes.get(OUTSIDE, 0)}
+                "no_valid_legs": self.modes.get(OUTSIDE, 0),
+                "on_singularity": {str(k): v for k, v in self.on_singularity.items()}}
 
     def text(self) -> str:
         rate = self.computed / self.elapsed_s if self.elapsed_s > 0 else 0.0
         modes = ", ".join(f"{'no valid legs' if k == OUTSIDE else f'{k} modes'}: {v}"
                           for k, v in sorted(self.modes.items()))
+        if self.on_singularity:
+            modes += (f"; on a singularity (a double mode, the count decided by round-off): "
+                      f"{sum(self.on_singularity.values())} ("
+                      + ", ".join(f"{k} distinct: {v}" for k, v in sorted(self.on_singularity.items())) + ")")
         return (f"{self.npz} and {self.png}: {self.points} points ({self.computed} computed in {self.elapsed_s:.1f} s "
                 f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run; "
                 f"modes counted by {self.method})\n  {modes}")
@@ -122,13 +132,12 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
     except OSError as exc:
         raise InputError(f"cannot create {chunk_dir}: {exc.strerror or exc}") from None
     chunks = plan(spec.n_points, chunk_size)
-    counts = np.empty(spec.n_points, np.int16)
-    cond = np.empty(spec.n_points)
-    sign = np.empty(spec.n_points, np.int8)
+    arrays = {"counts": np.empty(spec.n_points, np.int16), "conditioning": np.empty(spec.n_points),
+              "jacobian_sign": np.empty(spec.n_points, np.int8), "double_modes": np.empty(spec.n_points, np.int8)}
 
     def store(start, stop, chunk):
-        counts[start:stop], cond[start:stop], sign[start:stop] = (
-            chunk["counts"], chunk["conditioning"], chunk["jacobian_sign"])
+        for k in CHUNK_ARRAYS:
+            arrays[k][start:stop] = chunk[k]
 
     todo = []
     for start, stop in chunks:
@@ -155,15 +164,16 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
             raise EngineError(f"computing the map failed on {exc}") from None
     elapsed = time.perf_counter() - t0
     shape = (spec.shape[1], spec.shape[0])           # rows, columns
-    data = {"counts": counts.reshape(shape), "conditioning": cond.reshape(shape),
-            "jacobian_sign": sign.reshape(shape)}
+    data = {k: arrays[k].reshape(shape) for k in CHUNK_ARRAYS}
     npz, png = out_dir / f"{OUTPUT_NAME}.npz", out_dir / f"{OUTPUT_NAME}.png"
     save_map(npz, data, spec, config_text)
     model = model_from_dict(yaml.safe_load(config_text), source)
     draw_map(png, data, spec, model, title=Path(source).name)
-    modes = Counter(int(c) for c in counts)
+    counts, double = arrays["counts"], arrays["double_modes"] > 0
+    modes = Counter(int(c) for c in counts[~double])
+    singular = Counter(int(c) for c in counts[double])
     return MapResult(npz, png, spec.n_points, remaining, len(todo), len(chunks) - len(todo), elapsed, engine,
-                     dict(sorted(modes.items())), spec.describe_method(), data["counts"])
+                     dict(sorted(modes.items())), spec.describe_method(), data["counts"], data["double_modes"], dict(sorted(singular.items())))
 
 
 def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:

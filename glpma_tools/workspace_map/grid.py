@@ -4,7 +4,9 @@
 point is solved; :func:`solve_point` gives the number of real assembly modes
 (:func:`glpma_ros.solve_all.solve_all`: by default its multistart, counted without polishing
 the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX searches; seeded from the
-point's index by :func:`point_seed`), the conditioning and the sign of det J of one point;
+point's index by :func:`point_seed`), how many of those modes are double (a leg Jacobian singular at
+the solver's tolerance, :data:`glpma_ros.solve_all.DOUBLE_CONDITIONING`: the point is on a
+singularity and its count is decided by round-off), the conditioning and the sign of det J of one point;
 :func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
 """
 from __future__ import annotations
@@ -97,15 +99,28 @@ def point_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
 
 
-def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int]:
-    """(real assembly modes, conditioning, sign of det J) at grid point ``index``; the sign is 0 with
-    redundant legs (a non-square J: the singularities are where the conditioning vanishes)."""
+def double_modes(model, found, legs) -> int:
+    """How many modes of ``found`` (an ``AllSolutions``) are double at the solver's tolerance: their leg
+    Jacobian's reciprocal condition number is below :data:`~glpma_ros.solve_all.DOUBLE_CONDITIONING`
+    (the multistart reports it; the G3-PCX runs' modes are measured here).  Such a mode stands for two
+    real modes met at a singularity (a double root), for two closer than the tolerance, or for the real
+    shadow of a complex pair: the count of distinct modes there is decided by round-off."""
+    from glpma_ros.solve_all import DOUBLE_CONDITIONING
+    if found.conditioning:
+        return found.double_modes
+    return sum(model.conditioning(s.x, legs) < DOUBLE_CONDITIONING for s in found.solutions)
+
+
+def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int]:
+    """(real assembly modes, conditioning, sign of det J, double modes among them) at grid point
+    ``index``; the sign is 0 with redundant legs (a non-square J: the singularities are where the
+    conditioning vanishes)."""
     from glpma_ros.solve_all import solve_all
     x = pose_variables(model, spec.coordinates(index))
     try:
         legs = model.check_legs(model.inverse_kinematics(x))
     except InputError:                       # a leg of length 0 or outside the leg limits: no such pose
-        return OUTSIDE, math.nan, 0
+        return OUTSIDE, math.nan, 0, 0
     seed = point_seed(spec.seed, index)
     if spec.method == "g3pcx":
         modes = solve_all(model, legs, method="g3pcx", runs=spec.runs, seed=seed)
@@ -113,7 +128,7 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int]:
         modes = solve_all(model, legs, method="multistart", seed=seed, max_starts=spec.runs or None, polish=False)
     _, J = model.pose_residuals_jacobian(model.pose_state(x), legs)
     sign = int(np.sign(np.linalg.det(J * model.pose_column_scale))) if J.shape[0] == J.shape[1] else 0
-    return len(modes.solutions), float(model.conditioning(x, legs)), sign
+    return len(modes.solutions), float(model.conditioning(x, legs)), sign, double_modes(model, modes, legs)
 
 
 _MODELS: dict = {}     # per process: configuration text -> model
@@ -125,7 +140,8 @@ def solve_chunk(config_text: str, source: str, spec: MapSpec, start: int, stop: 
     if model is None:
         model = _MODELS[config_text] = model_from_dict(yaml.safe_load(config_text), source)
     n = stop - start
-    counts, cond, sign = np.empty(n, np.int16), np.empty(n), np.empty(n, np.int8)
+    counts, cond, sign, double = np.empty(n, np.int16), np.empty(n), np.empty(n, np.int8), np.empty(n, np.int8)
     for k in range(n):
-        counts[k], cond[k], sign[k] = solve_point(model, spec, start + k)
-    return {"start": start, "stop": stop, "counts": counts, "conditioning": cond, "jacobian_sign": sign}
+        counts[k], cond[k], sign[k], double[k] = solve_point(model, spec, start + k)
+    return {"start": start, "stop": stop, "counts": counts, "conditioning": cond, "jacobian_sign": sign,
+            "double_modes": double}

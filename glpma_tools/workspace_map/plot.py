@@ -15,6 +15,11 @@ MODE_PALETTES = (("tab20", (0, 2, 4, 6, 8, 10, 12, 16, 18, 1, 3, 5, 7, 9, 11, 13
                  ("tab20b", tuple(range(20))))
 #: colour of the points without valid legs
 OUTSIDE_COLOUR = "0.85"
+#: class drawn for the points with a double mode (on a singularity: their count is decided by round-off),
+#: whatever their count of distinct modes, and its colour: near black, apart from every count's colour
+ON_SINGULARITY = -2
+ON_SINGULARITY_COLOUR = "0.15"
+ON_SINGULARITY_LABEL = "on a singularity\n(a double mode)"
 
 
 def _label(name: str, unit: str) -> str:
@@ -24,24 +29,38 @@ def _label(name: str, unit: str) -> str:
 def count_colour(count: int):
     """The fixed colour of a mode count, the same in every map: the ``MODE_PALETTES`` colours
     indexed by the count (38 colours; a 6-6 has at most 40 modes, counts beyond wrap), light grey
-    (``OUTSIDE_COLOUR``) for a point without valid legs."""
+    (``OUTSIDE_COLOUR``) for a point without valid legs, near black for a point on a singularity."""
     from matplotlib import colormaps
     if count == OUTSIDE:
         return OUTSIDE_COLOUR
+    if count == ON_SINGULARITY:
+        return ON_SINGULARITY_COLOUR
     colours = [colormaps[name](k) for name, picks in MODE_PALETTES for k in picks]
     return colours[count % len(colours)]
 
 
+def class_label(count: int) -> str:
+    """The legend's name of a class drawn."""
+    if count == OUTSIDE:
+        return "no valid legs"
+    if count == ON_SINGULARITY:
+        return ON_SINGULARITY_LABEL
+    return f"{count} real mode{'' if count == 1 else 's'}"
+
+
 def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> list:
     """Assembly-mode count regions (a fixed colour per count, :func:`count_colour`; a legend entry for
-    every class drawn, points without valid legs included) and the singularity curves (zero contour of
-    the signed conditioning).  Returns the legend's ``(label, colour)`` entries."""
+    every class drawn, points without valid legs included; the points with a double mode, ``data``'s
+    ``double_modes`` > 0, drawn as their own class ``ON_SINGULARITY``) and the singularity curves (zero
+    contour of the signed conditioning).  Returns the legend's ``(label, colour)`` entries."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
     counts = np.asarray(data["counts"])
+    if "double_modes" in data:
+        counts = np.where(np.asarray(data["double_modes"]) > 0, ON_SINGULARITY, counts)
     classes = sorted(int(c) for c in np.unique(counts))
     # each class drawn is an index into a colour list holding exactly the classes present
     index = np.searchsorted(classes, counts)
@@ -54,9 +73,7 @@ def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> l
     ax.imshow(index, origin="lower", extent=(v0[0] - h0, v0[-1] + h0, v1[0] - h1, v1[-1] + h1), cmap=cmap,
               vmin=-0.5, vmax=len(classes) - 0.5, interpolation="nearest",
               aspect="equal" if not set(spec.axes) & set(ANGLES) else "auto")
-    handles = [Patch(facecolor=count_colour(c), edgecolor="0.3",
-                     label="no valid legs" if c == OUTSIDE else f"{c} real mode{'' if c == 1 else 's'}")
-               for c in classes]
+    handles = [Patch(facecolor=count_colour(c), edgecolor="0.3", label=class_label(c)) for c in classes]
     signed = np.where(np.isfinite(data["conditioning"]), data["jacobian_sign"] * data["conditioning"], np.nan)
     if np.nanmin(signed, initial=np.inf) < 0 < np.nanmax(signed, initial=-np.inf):
         ax.contour(v0, v1, signed, levels=[0.0], colors="k", linewidths=1.2)
