@@ -197,7 +197,8 @@ def bag_fleet(messages: int = BAG_MESSAGES, bags: int = FLEET_BAGS) -> dict:
 
 
 def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple]:
-    """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts and the grid's axes."""
+    """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each
+    point (shape 2 x rows x columns) and the grid's axes."""
     from glpma_tools import workspace_map
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
         t0 = time.perf_counter()
@@ -206,20 +207,21 @@ def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple
                               ok=(0, 1) if "--exact" in options else (0,))
         wall = time.perf_counter() - t0
         with np.load(Path(tmp) / "assembly_modes.npz") as f:
-            return wall, summary, f["counts"], (f["axis_0"], f["axis_1"])
+            return wall, summary, np.stack((f["counts"], f["double_modes"])), (f["axis_0"], f["axis_1"])
 
 
 def map_scaling(resolution: int = MAP_RESOLUTION, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
     """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each
     engine: wall time (spawning and loading the workers included), points per second, and whether the
-    mode counts are identical."""
+    mode counts (and the double modes of the points on a singularity) are identical."""
     rows, counts = [], []
     with _engines(workers) as engines:
         for label, extra in engines:
             wall, summary, c, _ = _map_run(config, ["--resolution", str(resolution), *extra])
             counts.append(c)
             rows.append({"engine": label, "wall s": wall, "points/s": summary["points"] / wall,
-                         "modes": summary["modes"], "speed-up": (rows[0]["wall s"] if rows else wall) / wall})
+                         "modes": summary["modes"], "on_singularity": summary["on_singularity"],
+                         "speed-up": (rows[0]["wall s"] if rows else wall) / wall})
     return {"config": config, "grid": f"{resolution} x {resolution}", "at": "", "runs": rows,
             "identical counts": all(np.array_equal(c, counts[0]) for c in counts)}
 
@@ -230,13 +232,13 @@ def map_methods(resolution: int = MAP_RESOLUTION, runs: int = COMPARE_RUNS, exac
     ``exact`` points of the multistart's map (``--exact``) when the extra is installed."""
     from glpma_ros.exact import ExactUnavailableError, msolve_executable
     options = ["--resolution", str(resolution), "--workers", str(max(MAP_WORKERS))]
-    wall_g, _, g, _ = _map_run("planar_3rpr_seed", [*options, "--method", "g3pcx", "--runs", str(runs)])
+    wall_g, _, (g, _), _ = _map_run("planar_3rpr_seed", [*options, "--method", "g3pcx", "--runs", str(runs)])
     try:
         msolve_executable()
         check = ["--exact", str(exact)]
     except ExactUnavailableError:
         check = []
-    wall_m, summary, m, axes = _map_run("planar_3rpr_seed", [*options, *check])
+    wall_m, summary, (m, _), axes = _map_run("planar_3rpr_seed", [*options, *check])
     out = {"grid": f"{resolution} x {resolution}", "g3pcx runs": runs, "g3pcx wall s": wall_g,
            "multistart wall s": wall_m, "points": int(m.size), "same count": int(np.sum(m == g)),
            "multistart more": int(np.sum(m > g)), "multistart fewer": int(np.sum(m < g)),

@@ -420,6 +420,9 @@ def offline_section(res, md_path) -> list[str]:
                       [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
                 "", "Mode counts (points per count, first engine): " + ", ".join(
                     f"{k}: {v:,}" for k, v in mp["runs"][0]["modes"].items())
+                + "".join(f"; on a singularity (a double mode): {sum(sing.values()):,} ("
+                          + ", ".join(f"{k} distinct: {v:,}" for k, v in sing.items()) + ")"
+                          for sing in [mp["runs"][0].get("on_singularity") or {}] if sing)
                 + f"; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.", ""]
     out += [table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
                   [[k, fmt(v) if isinstance(v, (int, float)) else str(v)] for k, v in methods.items()
