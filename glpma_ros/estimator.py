@@ -106,9 +106,6 @@ STATUS_NEAR_SINGULAR = "near_singular"
 STATUS_MAX_EVALS = "max_evals"
 #: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.redundancy`)
 STATUS_INCONSISTENT = "inconsistent_legs"
-#: standard deviation of the leg measurements (m) when none is given: the node's ``leg_noise_std``
-#: default (a good linear encoder or string pot)
-DEFAULT_LEG_NOISE_M = 1e-5
 
 
 @dataclass
@@ -167,7 +164,7 @@ class Estimator:
 
     Redundant legs (more than the degrees of freedom): the pose is the least-squares one, converged
     when its residuals pass the chi-square test against ``leg_noise_std`` (config unit; default
-    :data:`DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is ``inconsistent_legs``
+    :data:`~glpma_ros.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is ``inconsistent_legs``
     with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other legs determine
     the pose consistently, the pose without it (:mod:`glpma_ros.redundancy`)."""
 
@@ -176,10 +173,7 @@ class Estimator:
                  ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL, init_range=None,
                  leg_noise_std=None, exclude_faulty_leg=True):
         self.model = model
-        mpu = getattr(model, "metres_per_unit", UNIT_TO_METRES.get(model.unit, 1.0))
-        self.leg_noise_std = float(DEFAULT_LEG_NOISE_M / mpu if leg_noise_std is None else leg_noise_std)
-        if not (math.isfinite(self.leg_noise_std) and self.leg_noise_std > 0.0):
-            raise InputError(f"leg_noise_std must be positive, got {leg_noise_std!r}")
+        self.leg_noise_std = redundancy.leg_noise(model, leg_noise_std)
         self.exclude_faulty_leg = bool(exclude_faulty_leg)
         self._isolator = redundancy.FaultIsolator(model) if model.redundancy > 0 else None
         self.consistency_limit = redundancy.chi2_limit(model.redundancy)

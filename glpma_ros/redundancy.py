@@ -32,11 +32,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .config import UNIT_TO_METRES
+from .errors import InputError
 from .solvers.local import LocalSolver
 
 #: confidence of the consistency test: a healthy manipulator gets ``inconsistent_legs`` for one
 #: input in a thousand (a false alarm costs little: the pose without the "faulty" leg is published)
 CONSISTENCY_LEVEL = 0.999
+#: standard deviation of the leg measurements (m) when none is given: the node's ``leg_noise_std``
+#: default (a good linear encoder or string pot)
+DEFAULT_LEG_NOISE_M = 1e-5
 #: one redundant leg: the leave-one-out pose nearest the predicted pose must be this many times
 #: nearer than the next for the isolation to hold (otherwise the fault is named, not isolated)
 ISOLATION_MARGIN = 3.0
@@ -52,6 +57,16 @@ def chi2_limit(dof: int, level: float = CONSISTENCY_LEVEL) -> float:
         return 0.0
     from scipy.special import chdtri
     return float(chdtri(dof, 1.0 - level))
+
+
+def leg_noise(model, leg_noise_std=None) -> float:
+    """``sigma`` of the tests in the config's unit: ``leg_noise_std`` (config unit), or
+    :data:`DEFAULT_LEG_NOISE_M` converted when it is None; :class:`InputError` unless positive."""
+    mpu = getattr(model, "metres_per_unit", UNIT_TO_METRES.get(model.unit, 1.0))
+    sigma = float(DEFAULT_LEG_NOISE_M / mpu if leg_noise_std is None else leg_noise_std)
+    if not (math.isfinite(sigma) and sigma > 0.0):
+        raise InputError(f"leg_noise_std must be positive, got {leg_noise_std!r}")
+    return sigma
 
 
 @dataclass

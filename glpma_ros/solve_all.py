@@ -90,6 +90,7 @@ from numba import njit
 from . import solvers
 from .errors import GlpmaError
 from .models.pose_kernels import joint_distance
+from .redundancy import chi2_limit, leg_noise
 from .solvers import refine
 from .solvers.common import CONVERGED, SolveResult
 from .solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
@@ -195,13 +196,10 @@ class AllSolutions:
 def consistent_fitness(model, leg_noise_std=None) -> float:
     """Redundant legs: the largest sum of squared leg residuals (config unit squared) of a mode, the
     estimator's consistency limit for the leg noise ``leg_noise_std`` (config unit; default the
-    node's default, :data:`~glpma_ros.estimator.DEFAULT_LEG_NOISE_M`); 0 without redundant legs."""
+    node's default, :func:`~glpma_ros.redundancy.leg_noise`); 0 without redundant legs."""
     if not model.redundancy:
         return 0.0
-    from .estimator import DEFAULT_LEG_NOISE_M
-    from .redundancy import chi2_limit
-    sigma = DEFAULT_LEG_NOISE_M / getattr(model, "metres_per_unit", 1e-3) if leg_noise_std is None else leg_noise_std
-    return chi2_limit(model.redundancy) * sigma * sigma
+    return chi2_limit(model.redundancy) * leg_noise(model, leg_noise_std) ** 2
 
 
 def _leg_fitness(model, x, legs) -> float:
@@ -223,8 +221,8 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
     found (counting only); ``seed``: the random stream; ``leg_noise_std`` (config unit, default the
     node's default): redundant legs, the noise of the consistency test of a mode."""
     legs = model.check_legs(legs)
-    if leg_noise_std is not None and not (math.isfinite(leg_noise_std) and leg_noise_std > 0.0):
-        raise GlpmaError(f"leg_noise_std must be positive, got {leg_noise_std!r}")
+    if leg_noise_std is not None:
+        leg_noise(model, leg_noise_std)         # checked up front, for every model
     if method is None:
         method = "g3pcx" if runs is not None else "multistart"
     if runs is not None and method != "g3pcx":
