@@ -17,10 +17,7 @@ import numpy as np
 
 from glpma_ros.config import config_dir
 
-#: messages of the recorded run (one loop of the simulated motion at 1 kHz)
-BAG_MESSAGES = 10_000
-#: the maps' grids (points per axis; the command's default) and the process counts they are timed with
-MAP_RESOLUTION = 101
+#: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
 #: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default
 #: before the multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
@@ -63,14 +60,17 @@ def _write_legs_bag(path: Path, legs_m) -> None:
             w.write(conn, T0_NS + i * PERIOD_NS, bytes(ts.serialize_cdr(msg, name)))
 
 
-def _quiet_json(main, argv, ok=(0,)) -> dict:
-    """Run a tool's ``main(argv)`` with ``--json`` and return its JSON summary (exit statuses ``ok``)."""
+def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
+    """Run a tool's ``main(argv)`` with ``--json``: wall s, CPU s of this process and its JSON summary (exit
+    statuses ``ok``)."""
     out = io.StringIO()
+    t0, c0 = time.perf_counter(), time.process_time()
     with contextlib.redirect_stdout(out):
         code = main(argv)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if code not in ok:
         raise RuntimeError(f"exit status {code}")
-    return json.loads(out.getvalue().strip().splitlines()[-1])
+    return wall, cpu, json.loads(out.getvalue().strip().splitlines()[-1])
 
 
 def _cpu_per_part(parts) -> dict:
@@ -84,7 +84,7 @@ def _cpu_per_part(parts) -> dict:
     return out
 
 
-def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
+def bag_breakdown(messages: int) -> dict:
     """``glpma-fk bag`` on a recorded 3-RPR run of ``messages`` inputs (the node's parameters of
     ``config/params_3rpr.yaml``): poses per second of wall and of CPU time; and where its CPU time
     goes, per input (µs): reading the bag, decoding the legs, the node's service (validation,
@@ -141,9 +141,7 @@ def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
                  encode.tf_message(o.pose.stamp_ns, "base", "platform", o.pose.position, o.pose.orientation))
                 for raw, o in zip(raws, outcomes)]),
             ("write 4 messages (rosbags MCAP writer)", write)])
-        t0 = time.perf_counter()
-        summary = _quiet_json(bag.main, [str(src), str(dst), "--json", "--no-progress", *PARAMS_3RPR])
-        wall = time.perf_counter() - t0
+        wall, _, summary = _run_json(bag.main, [str(src), str(dst), "--json", "--no-progress", *PARAMS_3RPR])
     per_cpu_s = summary["converged"] / summary["cpu_s"] if summary["cpu_s"] else None
     run = {"messages": messages, "converged": summary["converged"], "rejected": summary["rejected"],
            "assembly-mode changes": summary["assembly_mode_changes"], "wall s (incl. warm-up)": wall,
@@ -167,7 +165,7 @@ def _engines(workers=MAP_WORKERS):
         yield engines + [(f"Dask, {max(workers)} workers", ["--scheduler", cluster.scheduler_address])]
 
 
-def bag_fleet(messages: int = BAG_MESSAGES, bags: int = FLEET_BAGS) -> dict:
+def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
     """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each
     engine: wall time and whether every engine wrote the same statuses."""
     from rosbags.rosbag2 import Reader
@@ -182,11 +180,9 @@ def bag_fleet(messages: int = BAG_MESSAGES, bags: int = FLEET_BAGS) -> dict:
             _write_legs_bag(fleet / f"run{k}", legs_m[k * each:(k + 1) * each])
         for label, options in engines:
             out = Path(tmp) / label.replace(" ", "_").replace(",", "")
-            t0 = time.perf_counter()
-            summary = _quiet_json(bag.main, [str(fleet), "--out-dir", str(out), *options, "--json", "--no-progress",
-                                             *PARAMS_3RPR])
-            rows.append({"engine": label, "wall s": time.perf_counter() - t0,
-                         "converged": summary["total"]["converged"]})
+            wall, _, summary = _run_json(bag.main, [str(fleet), "--out-dir", str(out), *options, "--json",
+                                                    "--no-progress", *PARAMS_3RPR])
+            rows.append({"engine": label, "wall s": wall, "converged": summary["total"]["converged"]})
             digest = []
             for k in range(bags):
                 with Reader(out / f"run{k}") as r:
@@ -201,16 +197,14 @@ def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple
     point (shape 2 x rows x columns) and the grid's axes."""
     from glpma_tools import workspace_map
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
-        t0 = time.perf_counter()
         # with --exact, exit status 1 says a count differs from msolve's: a result, reported in the table
-        summary = _quiet_json(workspace_map.main, [config, "--out", tmp, "--no-progress", "--json", *options],
-                              ok=(0, 1) if "--exact" in options else (0,))
-        wall = time.perf_counter() - t0
+        wall, _, summary = _run_json(workspace_map.main, [config, "--out", tmp, "--no-progress", "--json", *options],
+                                     ok=(0, 1) if "--exact" in options else (0,))
         with np.load(Path(tmp) / "assembly_modes.npz") as f:
             return wall, summary, np.stack((f["counts"], f["double_modes"])), (f["axis_0"], f["axis_1"])
 
 
-def map_scaling(resolution: int = MAP_RESOLUTION, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
+def map_scaling(resolution: int, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
     """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each
     engine: wall time (spawning and loading the workers included), points per second, and whether the
     mode counts (and the double modes of the points on a singularity) are identical."""
@@ -226,7 +220,7 @@ def map_scaling(resolution: int = MAP_RESOLUTION, workers=MAP_WORKERS, config: s
             "identical counts": all(np.array_equal(c, counts[0]) for c in counts)}
 
 
-def map_methods(resolution: int = MAP_RESOLUTION, runs: int = COMPARE_RUNS, exact: int = EXACT_POINTS) -> dict:
+def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_POINTS) -> dict:
     """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers'
     ``runs`` polished G3-PCX searches per point; where they differ, and msolve's certified count at
     ``exact`` points of the multistart's map (``--exact``) when the extra is installed."""
@@ -298,21 +292,17 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
             with tempfile.TemporaryDirectory(prefix="glpma_bench_calibrate_") as tmp:
                 data, new = Path(tmp) / "data.csv", Path(tmp) / "new.yaml"
                 write_csv(data, sim.measured)
-                walls, cpus, ident = [], [], []
-                for _ in range(repeats):
-                    t0, c0 = time.perf_counter(), time.process_time()
-                    out = _quiet_json(calibrate_main, [str(path), str(data), "--out", str(new), "--json"])
-                    walls.append(time.perf_counter() - t0)
-                    cpus.append(time.process_time() - c0)
-                    ident.append(out["identify_s"])
+                walls, cpus, outs = zip(*(_run_json(calibrate_main, [str(path), str(data), "--out", str(new), "--json"])
+                                          for _ in range(repeats)))
                 calibrated = model_from_dict(load_document(new), str(new))
+            out = outs[-1]
             fresh = simulate(model, center, np.random.default_rng(1), fk_poses).true_poses
             readings = true_readings(sim.truth, fresh.position, fresh.rotation)
             errors = {label: [_fk_error(m, sim, *args) * mm for args in zip(readings, fresh.position, fresh.rotation)]
                       for label, m in (("nominal", model), ("calibrated", calibrated))}
             rows.append({"manipulator": name, "measurements": size, "fitted": out["fitted"],
                          "wall s median": float(np.median(walls)), "wall s min": float(min(walls)),
-                         "cpu s median": float(np.median(cpus)), "identify s median": float(np.median(ident)),
+                         "cpu s median": float(np.median(cpus)), "identify s median": float(np.median([o["identify_s"] for o in outs])),
                          "iterations": out["iterations"],
                          "held-out RMS before mm": out["holdout_rms_before"] * mm,
                          "held-out RMS after mm": out["holdout_rms_after"] * mm,

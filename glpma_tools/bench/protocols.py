@@ -69,14 +69,8 @@ SOLVER_ROWS = {"sa": "SA", "rcga": "GA (N-U)", "gasa": "Hybrid GA-SA"}
 def published_row(solver_name, chain_length=None):
     """The Table II row for ``solver_name`` (SA: by Markov chain length), or None."""
     method = SOLVER_ROWS.get(solver_name)
-    if method is None:
-        return None
-    if method == "SA":
-        chain_length = sa.CHAIN_LENGTH if chain_length is None else int(chain_length)
-    for row in TABLE2:
-        if row.method == method and (method != "SA" or row.markov_chain == chain_length):
-            return row
-    return None
+    chain = sa.CHAIN_LENGTH if chain_length is None else int(chain_length)
+    return next((row for row in TABLE2 if row.method == method and (method != "SA" or row.markov_chain == chain)), None)
 
 
 @dataclass
@@ -92,7 +86,6 @@ class Table2Result:
     mean_time_s: float            # over all runs (machine-dependent)
     published: PublishedRow | None
     iterations: list = field(default_factory=list)    # per run
-    evaluations: list = field(default_factory=list)   # per run
     fitness: list = field(default_factory=list)       # per run
 
     @property
@@ -109,17 +102,13 @@ def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> 
     legs = model.example_leg_lengths
     settings = {"population": sa.POPULATION if solver_name == "sa" else TABLE2_POPULATION,
                 "init_range": TABLE2_INIT_RANGE, "tolerance": TABLE2_TOLERANCE,
-                "max_evals": TABLE2_MAX_EVALS, "polish": False}
-    settings.update(params)
+                "max_evals": TABLE2_MAX_EVALS, "polish": False, **params}
     # load the compiled kernels before the clock matters (004 times the search alone)
     solve(solver_name, model, legs, rng=seed0, **{**settings, "max_evals": WARMUP_EVALS})
     done = [solve(solver_name, model, legs, rng=seed0 + k, **settings) for k in range(runs)]
     ok = [r for r in done if r.fun < settings["tolerance"]]
-    mean_it, ci_it = mean_ci([r.nit for r in ok], Z_95)
-    mean_ev, ci_ev = mean_ci([r.nfev for r in ok], Z_95)
-    fits = [r.fun for r in done]
-    return Table2Result(solver=solver_name, runs=len(done), successes=len(ok), mean_iterations=mean_it,
-                        iterations_ci=ci_it, mean_evaluations=mean_ev, evaluations_ci=ci_ev,
-                        mean_fitness=float(np.mean(fits)), mean_time_s=float(np.mean([r.elapsed_s for r in done])),
-                        published=published_row(solver_name, params.get("chain_length")),
-                        iterations=[r.nit for r in done], evaluations=[r.nfev for r in done], fitness=fits)
+    fitness = [r.fun for r in done]
+    return Table2Result(solver_name, len(done), len(ok), *mean_ci([r.nit for r in ok], Z_95),
+                        *mean_ci([r.nfev for r in ok], Z_95), float(np.mean(fitness)),
+                        float(np.mean([r.elapsed_s for r in done])),
+                        published_row(solver_name, params.get("chain_length")), [r.nit for r in done], fitness)
