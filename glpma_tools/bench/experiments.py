@@ -1,7 +1,6 @@
-"""The papers' experiments: their tables (001 Tables 5 and 8), the peers' G3-PCX, the larger-cap
-diagnostics, all assembly modes (002) and the baselines (004 Table II, 003's DE).  Each returns
-plain data; ``report`` turns it into tables.  Timing experiments: :mod:`.tracking`,
-:mod:`.timing`, :mod:`.dds`."""
+"""The papers' experiments: their tables (001 Tables 5 and 8), the peers' G3-PCX, the larger-cap diagnostics, all
+assembly modes (002) and the baselines (004 Table II, 003's DE).  Each returns plain data; ``report`` turns it into
+tables.  Timing experiments: :mod:`.tracking`, :mod:`.timing`, :mod:`.dds`."""
 from __future__ import annotations
 
 import gc
@@ -55,8 +54,8 @@ def timed_solve(solver, model, legs, seed, **options) -> Run:
 
 
 def table_row(sc, cfg: Config, n: int, progress) -> TableRow:
-    """``n`` searches (seeds 0..n-1) of one configuration, after one short solve in which Numba
-    compiles (or loads from its cache) everything the configuration calls."""
+    """``n`` searches (seeds 0..n-1) of one configuration, after one short solve in which Numba compiles (or loads
+    from its cache) everything the configuration calls."""
     options = {"population": cfg.population, "polish": cfg.polish,
                **({"local_population": cfg.local_population} if cfg.local_population else {})}
     solvers.solve(cfg.solver, sc.model, sc.legs, rng=12345, max_evals=50 * cfg.population, **options)
@@ -110,9 +109,8 @@ class AllSolutionsResult:
 
 
 def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
-    """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to
-    the published ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the
-    model's distance)."""
+    """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to the published
+    ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the model's distance)."""
     from .report import FOUND_MM
     model = sc.model
     solve_all(model, sc.legs, runs=2, seed=999)       # warm-up
@@ -138,9 +136,8 @@ class GapDiagnostics:
 
 
 def gap_diagnostics(sc, runs, progress) -> GapDiagnostics:
-    """Our pure G3-PCX with larger evaluation caps: 2 x 10,000 + population (the cap
-    if the paper had counted generations of two children) and 100,000 (how many
-    evaluations a run needs to reach 1e-20 at all)."""
+    """Our pure G3-PCX with larger evaluation caps: 2 x 10,000 + population (the cap if the paper had counted
+    generations of two children) and 100,000 (how many evaluations a run needs to reach 1e-20 at all)."""
     settings = solvers.PAPER_SETTINGS[sc.model.kind]
     pop, cap = settings["population"], settings["max_evals"]
     return GapDiagnostics({max_evals: [timed_solve("g3pcx", sc.model, sc.legs, seed, polish=False, max_evals=max_evals)

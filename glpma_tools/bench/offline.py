@@ -1,9 +1,8 @@
-"""Offline tools, each through its command-line entry point as a user runs it: ``glpma-fk bag``
-throughput on a recorded 3-RPR run and where its time goes, a fleet of bags on each engine;
-``glpma-fk map``: the default 3-RPR map and a 6-6 slice on local processes and on a Dask cluster (a
-``LocalCluster`` of as many workers as local processes), the multistart's mode counts against the
-papers' G3-PCX runs and msolve's certified counts; ``glpma-fk calibrate``'s time and accuracy on
-simulated data."""
+"""Offline tools, each through its command-line entry point as a user runs it: ``glpma-fk bag`` throughput on a
+recorded 3-RPR run and where its time goes, a fleet of bags on each engine; ``glpma-fk map``: the default 3-RPR map
+and a 6-6 slice on local processes and on a Dask cluster (a ``LocalCluster`` of as many workers as local processes),
+the multistart's mode counts against the papers' G3-PCX runs and msolve's certified counts; ``glpma-fk calibrate``'s
+time and accuracy on simulated data."""
 from __future__ import annotations
 
 import contextlib
@@ -19,8 +18,8 @@ from glpma_ros.config import config_dir
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
-#: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default
-#: before the multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
+#: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default before the
+#: multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
 COMPARE_RUNS = 50
 EXACT_POINTS = 50
 QUICK_RUNS = 5
@@ -29,12 +28,11 @@ FLEET_BAGS = 4
 #: log time of the first message and the period of the recorded legs (1 kHz)
 T0_NS = 1_700_000_000_000_000_000
 PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each
-#: this many times (the median and the smallest are reported: a shared machine only adds time)
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each this many times
+#: (the median and the smallest are reported: a shared machine only adds time)
 CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
-#: fresh true poses at which the forward kinematics with the nominal and with the calibrated config
-#: is compared with the truth
+#: fresh true poses at which the forward kinematics with the nominal and the calibrated config is compared with truth
 CALIBRATION_FK_POSES = 20
 PARAMS_3RPR = ["--ros-args", "--params-file", str(config_dir() / "params_3rpr.yaml")]
 
@@ -61,8 +59,7 @@ def _write_legs_bag(path: Path, legs_m) -> None:
 
 
 def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
-    """Run a tool's ``main(argv)`` with ``--json``: wall s, CPU s of this process and its JSON summary (exit
-    statuses ``ok``)."""
+    """A tool's ``main(argv)`` run with ``--json`` (exit statuses ``ok``): wall s, CPU s of this process, its summary."""
     out = io.StringIO()
     t0, c0 = time.perf_counter(), time.process_time()
     with contextlib.redirect_stdout(out):
@@ -73,23 +70,12 @@ def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
     return wall, cpu, json.loads(out.getvalue().strip().splitlines()[-1])
 
 
-def _cpu_per_part(parts) -> dict:
-    """``{name: CPU s of this process}`` of each ``(name, call)``, run in order, each given what the
-    one before returned."""
-    out, value = {}, None
-    for name, call in parts:
-        c = time.process_time()
-        value = call(value)
-        out[name] = time.process_time() - c
-    return out
-
-
 def bag_breakdown(messages: int) -> dict:
     """``glpma-fk bag`` on a recorded 3-RPR run of ``messages`` inputs (the node's parameters of
-    ``config/params_3rpr.yaml``): poses per second of wall and of CPU time; and where its CPU time
-    goes, per input (µs): reading the bag, decoding the legs, the node's service (validation,
-    estimator, statistics), the assembly-mode watch, encoding the pose and /tf and writing the four
-    messages of an input (the copy, pose, /tf, status), measured one part at a time on the same run."""
+    ``config/params_3rpr.yaml``): poses per second of wall and of CPU time; and where its CPU time goes, per input
+    (µs): reading the bag, decoding the legs, the node's service (validation, estimator, statistics), the
+    assembly-mode watch, encoding the pose and /tf and writing the four messages of an input (the copy, pose, /tf,
+    status), measured one part at a time on the same run."""
     import logging
 
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
@@ -131,7 +117,7 @@ def bag_breakdown(messages: int) -> dict:
         def decode(read_raws):
             raws.extend(read_raws)
             return [decode_float64_multi_array(raw, ts) for _, raw in read_raws]
-        per = _cpu_per_part([
+        parts = [
             ("read the bag", read), ("decode the legs", decode),
             ("the node's service (validate, estimate, statistics)",
              lambda legs: [service.handle(l, t) for l, (t, _) in zip(legs, raws)]),
@@ -140,7 +126,12 @@ def bag_breakdown(messages: int) -> dict:
                 (raw, encode.pose_stamped(o.pose.stamp_ns, "base", o.pose.position, o.pose.orientation),
                  encode.tf_message(o.pose.stamp_ns, "base", "platform", o.pose.position, o.pose.orientation))
                 for raw, o in zip(raws, outcomes)]),
-            ("write 4 messages (rosbags MCAP writer)", write)])
+            ("write 4 messages (rosbags MCAP writer)", write)]
+        per, value = {}, None        # CPU s of this process per part, each part given what the one before returned
+        for name, part in parts:
+            c0 = time.process_time()
+            value = part(value)
+            per[name] = time.process_time() - c0
         wall, _, summary = _run_json(bag.main, [str(src), str(dst), "--json", "--no-progress", *PARAMS_3RPR])
     per_cpu_s = summary["converged"] / summary["cpu_s"] if summary["cpu_s"] else None
     run = {"messages": messages, "converged": summary["converged"], "rejected": summary["rejected"],
@@ -152,8 +143,8 @@ def bag_breakdown(messages: int) -> dict:
 
 @contextlib.contextmanager
 def _engines(workers=MAP_WORKERS):
-    """``[(label, options)]`` of the engines: ``--workers N`` local processes, and a local Dask cluster
-    of ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
+    """``[(label, options)]`` of the engines: ``--workers N`` local processes, and a local Dask cluster of
+    ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
     engines = [(f"{n} process(es)", ["--workers", str(n)]) for n in workers]
     try:
         import distributed
@@ -166,8 +157,8 @@ def _engines(workers=MAP_WORKERS):
 
 
 def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
-    """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each
-    engine: wall time and whether every engine wrote the same statuses."""
+    """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each engine: wall
+    time and whether every engine wrote the same statuses."""
     from rosbags.rosbag2 import Reader
 
     from glpma_tools import bag
@@ -193,8 +184,8 @@ def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
 
 
 def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple]:
-    """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each
-    point (shape 2 x rows x columns) and the grid's axes."""
+    """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each point
+    (shape 2 x rows x columns) and the grid's axes."""
     from glpma_tools import workspace_map
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
         # with --exact, exit status 1 says a count differs from msolve's: a result, reported in the table
@@ -205,9 +196,9 @@ def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple
 
 
 def map_scaling(resolution: int, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
-    """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each
-    engine: wall time (spawning and loading the workers included), points per second, and whether the
-    mode counts (and the double modes of the points on a singularity) are identical."""
+    """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each engine: wall time
+    (spawning and loading the workers included), points per second, and whether the mode counts (and the double modes
+    of the points on a singularity) are identical."""
     rows, counts = [], []
     with _engines(workers) as engines:
         for label, extra in engines:
@@ -221,9 +212,9 @@ def map_scaling(resolution: int, workers=MAP_WORKERS, config: str = "planar_3rpr
 
 
 def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_POINTS) -> dict:
-    """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers'
-    ``runs`` polished G3-PCX searches per point; where they differ, and msolve's certified count at
-    ``exact`` points of the multistart's map (``--exact``) when the extra is installed."""
+    """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers' ``runs``
+    polished G3-PCX searches per point; where they differ, and msolve's certified count at ``exact`` points of the
+    multistart's map (``--exact``) when the extra is installed."""
     from glpma_ros.exact import ExactUnavailableError, msolve_executable
     options = ["--resolution", str(resolution), "--workers", str(max(MAP_WORKERS))]
     wall_g, _, (g, _), _ = _map_run("planar_3rpr_seed", [*options, "--method", "g3pcx", "--runs", str(runs)])
@@ -246,8 +237,8 @@ def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_PO
 
 
 def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod: bool = True) -> dict:
-    """The offline section: the bag's breakdown and fleet, the maps on each engine (the 6-6 slice when
-    ``hexapod``), the methods, the calibration."""
+    """The offline section: the bag's breakdown and fleet, the maps on each engine (the 6-6 slice when ``hexapod``),
+    the methods, the calibration."""
     return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages),
             "map": map_scaling(map_resolution),
             "hexapod map": map_scaling(map_resolution, workers=(max(MAP_WORKERS),), config="hexapod_66_rolland")
@@ -257,8 +248,8 @@ def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod
 
 
 def _fk_error(model, sim, legs, p, R) -> float:
-    """The largest displacement of a platform joint between the forward kinematics (the node's
-    estimator, started at the true pose) of ``legs`` with ``model`` and the true pose ``p, R``."""
+    """The largest displacement of a platform joint between the forward kinematics (the node's estimator, started at
+    the true pose) of ``legs`` with ``model`` and the true pose ``p, R``."""
     from glpma_ros.estimator import Estimator
     from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
     d = len(p)
@@ -272,11 +263,10 @@ def _fk_error(model, sim, legs, p, R) -> float:
 
 def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
-    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`)
-    for the 3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command
-    (CSV read, identification, NEW.yaml) and of the identification alone, the leg residual RMS on the
-    held-out measurements, and the forward kinematics' pose error (:func:`_fk_error`) with the nominal
-    and with the calibrated config at fresh poses."""
+    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
+    3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
+    NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
+    kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses."""
     from glpma_ros.config import load_document, model_from_dict
     from glpma_tools.calibrate import main as calibrate_main
     from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv

@@ -1,10 +1,9 @@
-"""Peer implementations on the identical fitness: pypop7 and pymoo G3-PCX, and
-``scipy.optimize.least_squares`` for the warm (tracking) case.
+"""Peer implementations on the identical fitness: pypop7 and pymoo G3-PCX, and ``scipy.optimize.least_squares`` for
+the warm (tracking) case.
 
-All peers are benchmark-only dependencies, imported lazily.  They call the same
-compiled fitness as our solvers (``models.kernels.population_fitness``), through a
-counter that records every evaluation, the first one below the success threshold
-and the best-so-far trace, so evaluations are counted the same way for everyone.
+All peers are benchmark-only dependencies, imported lazily.  They call the same compiled fitness as our solvers
+(``models.kernels.population_fitness``), through a counter that records every evaluation, the first one below the
+success threshold and the best-so-far trace, so evaluations are counted the same way for everyone.
 """
 from __future__ import annotations
 
@@ -20,8 +19,8 @@ from glpma_ros.models.kernels import population_fitness
 
 from .common import SUCCESS_TOLERANCE, Run
 
-#: pymoo needs bounds (its PM mutation scales with them): this many init half-widths
-#: around the init range's centre, so that every solution is well inside
+#: pymoo needs bounds (its PM mutation scales with them): this many init half-widths around the init range's centre,
+#: so that every solution is well inside
 PYMOO_BOUND_FACTOR = 10.0
 
 
@@ -40,8 +39,8 @@ def available(name: str) -> str | None:
 
 
 class CountingFitness:
-    """The model's fitness, counting evaluations in call order: the best so far (a history point each time
-    it halves) and the first evaluation below :data:`SUCCESS_TOLERANCE` within ``max_evals``."""
+    """The model's fitness, counting evaluations in call order: the best so far (a history point each time it halves)
+    and the first evaluation below :data:`SUCCESS_TOLERANCE` within ``max_evals``."""
 
     def __init__(self, model, legs, max_evals):
         self.args = (model.kind_id, model.data, np.ascontiguousarray(legs, dtype=float), model.n_res)
@@ -75,8 +74,8 @@ class CountingFitness:
 
 
 def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
-    """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1),
-    unbounded search, initial population uniform in ``init_range``."""
+    """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1), unbounded search, initial population
+    uniform in ``init_range``."""
     from pypop7.optimizers.ga.g3pcx import G3PCX
     fit, n = CountingFitness(model, legs, max_evals), model.n_vars
     problem = {"fitness_function": fit.one, "ndim_problem": n,
@@ -88,8 +87,8 @@ def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run
 
 
 def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
-    """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial
-    population uniform in ``init_range``, bounds ``PYMOO_BOUND_FACTOR`` times wider."""
+    """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial population uniform in ``init_range``,
+    bounds ``PYMOO_BOUND_FACTOR`` times wider."""
     from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX
     from pymoo.config import Config
     from pymoo.core.problem import Problem
@@ -132,12 +131,10 @@ def _left_jacobian(w):
 class ScipyWarm:
     """One warm-started ``least_squares`` solve per call.
 
-    ``jac="analytic"``: leg residuals in the model's pose parameterisation with the
-    model's analytic Jacobian (3-RPR: the variables; hexapod: position plus a
-    rotation vector ``w`` applied as ``exp(w) R0`` (``pose_retract``), Jacobian composed with the
-    left Jacobian of SO(3), exact).  ``jac="2-point"``: the solver's own residual
-    vector of the solver variables (hexapod: the nine-variable model with its
-    rigidity terms) and finite differences."""
+    ``jac="analytic"``: leg residuals in the model's pose parameterisation with the model's analytic Jacobian (3-RPR:
+    the variables; hexapod: position plus a rotation vector ``w`` applied as ``exp(w) R0`` (``pose_retract``),
+    Jacobian composed with the left Jacobian of SO(3), exact).  ``jac="2-point"``: the solver's own residual vector of
+    the solver variables (hexapod: the nine-variable model with its rigidity terms) and finite differences."""
 
     def __init__(self, model, method, jac, tol=1e-15):
         from scipy.optimize import least_squares
@@ -171,10 +168,10 @@ SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("
 
 
 class NumpyNewton:
-    """A plain NumPy Gauss-Newton iteration from the warm start: what a user writes in a few lines
-    with the model's pose parameterisation and analytic Jacobian (``pose_residuals_jacobian``,
-    ``pose_retract``), undamped, stopped by the same leg criterion as ours
-    (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after ``max_iter`` steps."""
+    """A plain NumPy Gauss-Newton iteration from the warm start: what a user writes in a few lines with the model's
+    pose parameterisation and analytic Jacobian (``pose_residuals_jacobian``, ``pose_retract``), undamped, stopped by
+    the same leg criterion as ours (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after
+    ``max_iter`` steps."""
 
     method, jac = "newton", "numpy"
 

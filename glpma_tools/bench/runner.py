@@ -60,29 +60,28 @@ def build_parser() -> OneLineParser:
     p.add_argument("--quick", action="store_true",
                    help="few runs per row (a few minutes); writes into a scratch directory unless --out or "
                         "--markdown is given")
-    p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", default=None,
-                   help="restrict to these manipulators")
-    p.add_argument("--sections", choices=SECTIONS, nargs="+", default=None,
+    p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", help="restrict to these manipulators")
+    p.add_argument("--sections", choices=SECTIONS, nargs="+",
                    help=f"run only these sections (default: all of {', '.join(SECTIONS)})")
     p.add_argument("--track-budget-ms", type=float, default=20.0,
                    help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
     p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
-    p.add_argument("--deadline-solvers", nargs="+", default=None, metavar="SOLVER",
+    p.add_argument("--deadline-solvers", nargs="+", metavar="SOLVER",
                    help="solvers of the deadline section (default: every registered solver)")
     p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     for name, (full, quick, kind, what) in DEFAULTS.items():
         default = "" if full is None else f" (default {full:,}; --quick {quick:,})"
         p.add_argument("--" + name.replace("_", "-"), type=kind, metavar="N", help=what + default)
-    p.add_argument("--out", type=Path, default=None,
+    p.add_argument("--out", type=Path,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
                         "scratch directory)")
-    p.add_argument("--markdown", type=Path, default=None,
+    p.add_argument("--markdown", type=Path,
                    help="report path (default BENCHMARKS.md; --quick: BENCHMARKS.md in the --out directory)")
     p.add_argument("--reliability", type=Path, default=DEFAULT_RELIABILITY, metavar="JSON",
                    help="figures of `glpma-fk stress` for the Reliability section (default doc/bench/reliability.json)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
-    p.add_argument("--save-data", type=Path, default=None, help="also pickle the measurements to this file")
-    p.add_argument("--render", type=Path, default=None, metavar="PICKLE",
+    p.add_argument("--save-data", type=Path, help="also pickle the measurements to this file")
+    p.add_argument("--render", type=Path, metavar="PICKLE",
                    help="run nothing: redraw the figures and rewrite the report from --save-data output")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
