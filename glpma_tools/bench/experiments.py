@@ -164,6 +164,7 @@ def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> Baselines:
     if "3rpr" in scenarios and table2_runs > 0:
         table2 = [table2_protocol(scenarios["3rpr"].model, name, runs=table2_runs, **params)
                   for name, params in _bar(TABLE2_CONFIGS, "004 Table II", progress)]
-    return Baselines(table2, {key: [table_row(sc, Config("de", solvers.DEFAULT_POPULATION["de"](sc.model), None, polish),
-                                              hex_runs if key == "hexapod" and not polish else runs, progress)
-                                    for polish in (False, True)] for key, sc in scenarios.items()})
+    de = {key: [table_row(sc, Config("de", solvers.DEFAULT_POPULATION["de"](sc.model), None, polish),
+                          hex_runs if key == "hexapod" and not polish else runs, progress) for polish in (False, True)]
+          for key, sc in scenarios.items()}
+    return Baselines(table2, de)

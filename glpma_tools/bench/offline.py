@@ -59,7 +59,7 @@ def _write_legs_bag(path: Path, legs_m) -> None:
 
 
 def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
-    """A tool's ``main(argv)`` run with ``--json`` (exit statuses ``ok``): wall s, CPU s of this process, its summary."""
+    """A tool's ``main(argv)`` run with ``--json`` (exit statuses ``ok``): wall s, CPU s of this process, summary."""
     out = io.StringIO()
     t0, c0 = time.perf_counter(), time.process_time()
     with contextlib.redirect_stdout(out):
@@ -239,12 +239,11 @@ def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_PO
 def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod: bool = True) -> dict:
     """The offline section: the bag's breakdown and fleet, the maps on each engine (the 6-6 slice when ``hexapod``),
     the methods, the calibration."""
-    return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages),
-            "map": map_scaling(map_resolution),
+    runs, exact = (QUICK_RUNS, QUICK_RUNS) if quick else (COMPARE_RUNS, EXACT_POINTS)
+    return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages), "map": map_scaling(map_resolution),
             "hexapod map": map_scaling(map_resolution, workers=(max(MAP_WORKERS),), config="hexapod_66_rolland")
             if hexapod else None,
-            "methods": map_methods(map_resolution, *((QUICK_RUNS, QUICK_RUNS) if quick else (COMPARE_RUNS, EXACT_POINTS))),
-            "calibration": calibration()}
+            "methods": map_methods(map_resolution, runs, exact), "calibration": calibration()}
 
 
 def _fk_error(model, sim, legs, p, R) -> float:
@@ -292,10 +291,12 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                       for label, m in (("nominal", model), ("calibrated", calibrated))}
             rows.append({"manipulator": name, "measurements": size, "fitted": out["fitted"],
                          "wall s median": float(np.median(walls)), "wall s min": float(min(walls)),
-                         "cpu s median": float(np.median(cpus)), "identify s median": float(np.median([o["identify_s"] for o in outs])),
+                         "cpu s median": float(np.median(cpus)),
+                         "identify s median": float(np.median([o["identify_s"] for o in outs])),
                          "iterations": out["iterations"],
                          "held-out RMS before mm": out["holdout_rms_before"] * mm,
                          "held-out RMS after mm": out["holdout_rms_after"] * mm,
-                         **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v)) for k, v in errors.items()},
+                         **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v))
+                            for k, v in errors.items()},
                          "weak directions": len(out["weak"])})
     return rows

@@ -117,6 +117,13 @@ def _peer_runs(args, counts, key) -> dict:
                                                       "Python overhead per run)" for n in PEER_HEXAPOD_RUNS}}
 
 
+def _load_average() -> str:
+    try:
+        return "/".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
 @command_main
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -138,15 +145,15 @@ def main(argv=None) -> int:
 
     def say(msg, section=None):
         if section:
-            res["load"].append((section, "/".join(f"{v:.2f}" for v in os.getloadavg())))
+            res["load"].append((section, _load_average()))
         print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     out_dir, args.markdown = output_paths(args)
     say(f"report: {args.markdown}; figures: {out_dir}")
     if args.render:                 # the models hold compiled functions: the pickle names the scenarios
         saved = pickle.loads(args.render.read_bytes())
-        return finish({**saved, "scenarios": {k: load(k) for k in saved["scenarios"]}, "figures": {}}, args, out_dir,
-                      say)
+        saved.update(scenarios={k: load(k) for k in saved["scenarios"]}, figures={})
+        return finish(saved, args, out_dir, say)
     sections, progress = set(args.sections or SECTIONS), not args.no_progress
     scenarios = {k: load(k) for k in args.only or ["3rpr", "hexapod"]}
     runs, hex_runs, listed = counts["runs"], counts["hexapod_runs"], list(scenarios.values())

@@ -51,7 +51,8 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRo
             for solver in names:
                 for b in budgets_ms:
                     def call(seed, solver=solver, legs=legs, polish=polish, b=b, model=model):
-                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3, max_evals=timing.NO_CAP)
+                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3,
+                                      max_evals=timing.NO_CAP)
                     rows.append(_row(case, solver, b, short, call, n, progress))
         # the estimator, cold, on legs without a solution: every stage runs until the deadline
         case = f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)"

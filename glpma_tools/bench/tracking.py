@@ -86,7 +86,7 @@ def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
         warm_up(lambda i, solver=solver: solver.solve(trk.starts[i % m], trk.legs[i % m]), trk.budget_ms)
         calls = timed_calls(lambda k, solver=solver: solver.solve(trk.starts[k], trk.legs[k]), len(trk.legs),
                             trk.budget_ms, f"{sc.label} {solver.method}/{solver.jac}", progress, stop_early=False)
-        out.append(ScipyRow(solver.method, solver.jac, calls.elapsed_s,
-                            np.array([max_leg_residual(model, x, legs) for (x, _), legs in zip(calls.results, trk.legs)]),
+        residual = [max_leg_residual(model, x, legs) for (x, _), legs in zip(calls.results, trk.legs)]
+        out.append(ScipyRow(solver.method, solver.jac, calls.elapsed_s, np.array(residual),
                             np.array([n for _, n in calls.results]), calls.preempted))
     return out + [ScipyRow(*variant, status="not installed", note=why) for variant in SCIPY_VARIANTS if why is not None]
