@@ -42,21 +42,19 @@ def draw(res, out_dir: Path) -> dict:
     return figures
 
 
-def _subplots(*args, **kwargs):
-    """A new figure and its axes, drawn by matplotlib's Agg backend (files, no window)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt.subplots(*args, **kwargs)
+def _subplots(*args, figsize, **kwargs):
+    """A new figure and its axes: a bare ``Figure``, which saves through matplotlib's Agg canvas (no window,
+    no pyplot state to close)."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*args, **kwargs)
 
 
 def _save(fig, path: Path, title: str | None = None) -> Path:
-    import matplotlib.pyplot as plt
     if title:
         fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 

@@ -170,7 +170,6 @@ def peers_section(res, md_path) -> list[str]:
         runs = _ours_pure_g3pcx(res, key)
         ours = summarize(runs) if runs else None
         p = PUBLISHED[sc.model.kind][("g3pcx", solvers.PAPER_SETTINGS[sc.model.kind]["population"], None)]
-
         body = ([_peer_row("ours `g3pcx` (pure)", ours, ours)] if ours else []) + [
             _peer_row(PEER_LABEL[r.name], summarize(r.runs), ours) if r.status == "run"
             else [PEER_LABEL[r.name], MISSING, r.status] + [MISSING] * 6 for r in data]

@@ -1,16 +1,11 @@
 """How long an input waits for anything but its own solve, in-process.
 
-An input's wall time in the solving thread is its own work (the thread's CPU time) plus the time the
-thread did not run: *blocked* -- waiting for a lock or for the interpreter (the GIL) held by another
-thread (a report, the extras thread) -- or *runnable* but waiting for a CPU the machine gave another
-process (the kernel's run delay, ``/proc/self/task/<tid>/schedstat``).  Per input,
-``blocked = wall - thread CPU - run delay`` is the wait the node causes itself.  Setups
-(:data:`SETUPS`), with the same warm 3-RPR inputs: ``FkService.handle`` alone, back to back (the
-machine's noise); the same with a :class:`~glpma_ros.node.loops.ReportLoop` every
-:data:`REPORT_PERIOD_S`; the node's path at 1 kHz (``SolveLoop.offer``, the extras thread building
-TF, covariance and twist, the ``ReportLoop`` at the default period).  Rounds alternate between the
-setups; the quietest round of each (fewest inputs over :data:`SLOW_S`) is reported, as the machine's
-load varies between rounds."""
+An input's wall time in the solving thread is its own work (the thread's CPU time) plus the time the thread
+did not run: *blocked* (waiting for a lock or for the interpreter held by another thread of the node) or
+*runnable* but waiting for a CPU the machine gave another process (the kernel's run delay).  Per input,
+``blocked = wall - thread CPU - run delay`` is the wait the node causes itself, in each of :data:`SETUPS`
+(what they run and why: ``templates/waits.md``); rounds alternate between the setups and the quietest
+round of each (fewest inputs over :data:`SLOW_S`) is reported, as the machine's load varies."""
 from __future__ import annotations
 
 import os
@@ -107,8 +102,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                         reporter.stop()
                 loop.extras.flush(FLUSH_S)
                 row = _row(setup, wall, cpu, delay, len(made))
-                if setup not in best or row["slow"] < best[setup]["slow"]:
-                    best[setup] = row
+                best[setup] = min(best.get(setup, row), row, key=lambda r: r["slow"])     # the first of the quietest
     finally:
         loop.stop()
     return [best[s] for s in SETUPS]
