@@ -81,7 +81,9 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
     fig, (ax1, ax2) = _subplots(1, 2, figsize=(12, 4.5))
     grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
     coarse = []
-    for label, color, ls, runs in filter(lambda s: s[3], series):
+    for label, color, ls, runs in series:
+        if not runs:
+            continue
         ok = np.sort([r.nfev for r in runs if r.success])
         ax1.step(grid, 100 * np.searchsorted(ok, grid, side="right") / len(runs), where="post", color=color, ls=ls,
                  label=f"{label} ({len(runs)} runs)")

@@ -51,8 +51,8 @@ def prose(section: str, block: str = "intro", **values) -> str:
     return Template(_blocks(section)[block]).substitute(values)
 
 
-def _md(*blocks) -> list[str]:
-    """Lines of Markdown: each block (a paragraph, heading or table; empty or None: left out) and a blank line."""
+def md_blocks(*blocks) -> list[str]:
+    """Lines of Markdown: each block (a heading, paragraph or table; empty or None: left out) and a blank line."""
     return [line for block in blocks if block for line in (block, "")]
 
 
@@ -92,7 +92,7 @@ def _worst(over) -> str:
 
 def header(res) -> list[str]:
     canonical, invoked = res["command"]
-    return _md(prose("header", **res["machine"], date=res["date"], minutes=f"{res['wall_s'] / 60:.1f}",
+    return md_blocks(prose("header", **res["machine"], date=res["date"], minutes=f"{res['wall_s'] / 60:.1f}",
                      command=canonical, invoked=f" (invoked as `{invoked}`)" if invoked else "",
                      revision=res["revision"], loads="; ".join(f"{name} {load}" for name, load in res.get("load", []))),
                res.get("quick") and prose("header", "quick"))
@@ -119,7 +119,7 @@ def summary_section(res, md_path) -> list[str]:
 
 
 def paper_tables_section(res, md_path) -> list[str]:
-    out = _md(res["tables"] and "## The papers' tables (001 Tables 5 and 8)")
+    out = md_blocks(res["tables"] and "## The papers' tables (001 Tables 5 and 8)")
     for key, rows in res["tables"].items():
         sc = res["scenarios"][key]
         kind, st = sc.model.kind, solvers.PAPER_SETTINGS[sc.model.kind]
@@ -130,7 +130,7 @@ def paper_tables_section(res, md_path) -> list[str]:
                  ratio(s.evals_mean, p.evals), fmt(s.time_median_ms), fmt(s.time_mean_ms), fmt(p.time_s * 1e3),
                  ratio(s.time_mean_ms, p.time_s * 1e3), fmt(s.fun_median, 2)]
                 for row in rows for s, p in [(summarize(row.runs), PUBLISHED[kind].get(row.config.key, UNPUBLISHED))]]
-        out += _md(f"### {sc.label}: {TABLE_NAME[kind]}",
+        out += md_blocks(f"### {sc.label}: {TABLE_NAME[kind]}",
                    f"Init U[{st['init_range'][0]:g}, {st['init_range'][1]:g}]^{sc.model.n_vars}, unbounded search, "
                    f"success = fitness < 1e-20 within {st['max_evals']:,} evaluations; {runs[False]} runs per pure row "
                    f"and {runs[True]} per default row (the paper: 100)."
@@ -143,7 +143,7 @@ def paper_tables_section(res, md_path) -> list[str]:
 
 def figures_section(res, md_path) -> list[str]:
     links = [_figure(res, name, md_path) for name in res["figures"] if name.startswith("success_")]
-    return _md("## Success vs evaluations", prose("figures"), *links) if links else []
+    return md_blocks("## Success vs evaluations", prose("figures"), *links) if links else []
 
 
 def _ours_pure_g3pcx(res, key):
@@ -164,7 +164,7 @@ def _peer_row(label, s, ours) -> list:
 def peers_section(res, md_path) -> list[str]:
     if not res["peers"]:
         return []
-    out = _md("## Pure G3-PCX against peer implementations", prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
+    out = md_blocks("## Pure G3-PCX against peer implementations", prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
     for key, data in res["peers"].items():
         sc = res["scenarios"][key]
         runs = _ours_pure_g3pcx(res, key)
@@ -176,7 +176,7 @@ def peers_section(res, md_path) -> list[str]:
         body.append([f"paper ({TABLE_NAME[sc.model.kind]})", 100, fmt(p.success, unit=" %"),
                      fmt_ci(p.evals, p.evals_pm), MISSING, MISSING, fmt(p.time_s * 1e3), MISSING, MISSING])
         notes = [f"{PEER_LABEL[r.name]}: {r.note}" for r in data if r.status != "run" and r.note]
-        out += _md(f"### {sc.label}", table(["implementation", "runs", "success", "evals to success",
+        out += md_blocks(f"### {sc.label}", table(["implementation", "runs", "success", "evals to success",
                                              "mean evals (all runs)", "median final f", "time/run ms", "time vs ours",
                                              "evals vs ours"], body),
                    notes and "Not run: " + "; ".join(notes) + ".")
@@ -192,7 +192,7 @@ def gap_section(res, md_path) -> list[str]:
                                                     if r.status == "run"]
     measured = {label: 100.0 * sum(r.success for r in runs) / len(runs) for label, runs in series}
     shown = {label: pct(v) for label, v in measured.items()}
-    out = _md("## Why the papers' pure G3-PCX figures do not reproduce",
+    out = md_blocks("## Why the papers' pure G3-PCX figures do not reproduce",
               prose("gap", population=pop, cap=f"{cap:,}", ours=shown.get("ours", "not run"),
                     pypop7=shown.get(PEER_LABEL["pypop7"], "not run"), pymoo=shown.get(PEER_LABEL["pymoo"], "not run"),
                     reference=", ".join(f"{k} {v} %" for k, v in FAITHFUL_3RPR.items())),
@@ -213,7 +213,7 @@ def gap_section(res, md_path) -> list[str]:
             q = np.percentile([r.nfev for r in runs if r.success], [50, 90]) if s.successes else (math.nan,) * 2
             rows.append([f"{max_evals:,}", s.runs, pct(s.success_pct), fmt_ci(s.evals_mean, s.evals_ci),
                          fmt(float(q[0])), fmt(float(q[1]))])
-        out += _md(prose("gap", "caps", generation_cap=f"{2 * cap + pop:,}", large_cap=f"{10 * cap:,}"),
+        out += md_blocks(prose("gap", "caps", generation_cap=f"{2 * cap + pop:,}", large_cap=f"{10 * cap:,}"),
                    table(["cap", "runs", "success", "evals to success", "median", "90th percentile"], rows))
         s2, s10 = summarize(diag.caps[min(diag.caps)]), summarize(diag.caps[max(diag.caps)])
         text.append(prose("gap", "reading_caps", cap2=f"{min(diag.caps):,}", success2=f"{s2.success_pct:.0f}",
@@ -225,7 +225,7 @@ def gap_section(res, md_path) -> list[str]:
         lo, hi = min(x.success_pct for x in sums), max(x.success_pct for x in sums)
         text.append(prose("gap", "reading_refined", rate=f"{lo:.0f} %" if lo == hi else f"{lo:.0f}–{hi:.0f} %",
                           fewest=f"{min(x.evals_mean for x in sums):,.0f}", most=f"{max(x.evals_mean for x in sums):,.0f}"))
-    return out + _md(" ".join(text))
+    return out + md_blocks(" ".join(text))
 
 
 def all_solutions_section(res, md_path) -> list[str]:
@@ -245,7 +245,7 @@ def all_solutions_section(res, md_path) -> list[str]:
                      f"{sum(d < FOUND_MM for d in devs)}/{len(sc.published)}",
                      f"{min(devs):.3g} – {max(devs):.3g}" if devs and all(map(math.isfinite, devs)) else MISSING,
                      r.unmatched_found, paper])
-    return _md("## All real assembly modes (002 section 5.5.2)", prose("all_solutions"),
+    return md_blocks("## All real assembly modes (002 section 5.5.2)", prose("all_solutions"),
                table(["manipulator", "runs", "init range", "repeats", "distinct found (per repeat)",
                       "wall s median (min – max)", f"published matched (< {FOUND_MM:g} mm)",
                       "deviation mm (min – max)", "found, not published", "paper"], body),
@@ -270,7 +270,7 @@ def tracking_section(res, md_path) -> list[str]:
                      verdict, f"{np.max(t.errors):.2e}", f"{np.max(t.leg_residual):.2e}",
                      ", ".join(f"{k} {v}" for k, v in sorted(t.statuses.items())),
                      ", ".join(f"{k} {v}" for k, v in sorted(t.stages.items())), fmt(float(np.mean(t.evaluations)))])
-    return _md("## Warm tracking latency (solve only)",
+    return md_blocks("## Warm tracking latency (solve only)",
                prose("tracking", planar_radius=size("planar_3rpr", traj.PLANAR_RADIUS),
                      planar_swing=f"{math.degrees(traj.PLANAR_SWING_RAD):.2g}",
                      spatial_radius=size("hexapod_66", traj.SPATIAL_RADIUS),
@@ -296,7 +296,7 @@ def _scipy_row(label, ours, latency_s, preempted, residual, evals) -> list:
 def scipy_section(res, md_path) -> list[str]:
     if not res["scipy"]:
         return []
-    out = _md("## Warm solve against `scipy.optimize.least_squares`", prose("scipy"))
+    out = md_blocks("## Warm solve against `scipy.optimize.least_squares`", prose("scipy"))
     for key, rows in res["scipy"].items():
         t = res["tracking"][key]
         ours = distribution(t.latency_s, 1e3)
@@ -305,10 +305,10 @@ def scipy_section(res, md_path) -> list[str]:
                            t.evaluations)]
         body += [_scipy_row(label, ours, r.latency_s, r.preempted, r.leg_residual, r.nfev) if r.status == "run"
                  else [label] + [MISSING] * 7 + [r.status, ""] for label, r in zip(labels, rows)]
-        out += _md(f"### {res['scenarios'][key].label} ({t.steps} steps)",
+        out += md_blocks(f"### {res['scenarios'][key].label} ({t.steps} steps)",
                    table(["solver", "p50 ms", "p99 ms", "p99 ms not preempted", "mean ms", "median max leg residual",
                           "worst max leg residual", "mean evals", "ours/row (p50)", "ours/row (p99)"], body))
-    return out + _md(prose("scipy", "note"))
+    return out + md_blocks(prose("scipy", "note"))
 
 
 def deadline_section(res, md_path) -> list[str]:
@@ -324,7 +324,7 @@ def deadline_section(res, md_path) -> list[str]:
             for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~r.preempted])]]
     total, calm = _overruns(rows)
     late = sorted({r.solver for r in rows if np.any(r.overrun_ms[~r.preempted] > DEADLINE_MARGIN_MS)})
-    return _md("## Deadline honouring",
+    return md_blocks("## Deadline honouring",
                prose("deadline", margin=DEADLINE_MARGIN_MS, stop_after=STOP_AFTER, stop_factor=f"{STOP_OVERRUN_FACTOR:g}"),
                calm.size and f"Overall: {on_time(total)} of {total.size} solves on time, worst overrun {_worst(total)} "
                f"ms; {total.size - calm.size} solves were preempted by other processes, and without them "
@@ -350,7 +350,7 @@ def baselines_section(res, md_path) -> list[str]:
     de = [[res["scenarios"][key].label, row.config.mode, row.config.population, s.runs, f"{s.success_pct:.0f} %",
            fmt_ci(s.evals_mean, s.evals_ci), fmt(s.time_median_ms), fmt(s.fun_median)]
           for key, trows in (b.de or {}).items() for row in trows for s in [summarize(row.runs)]]
-    return _md("## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE",
+    return md_blocks("## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE",
                rows and prose("baselines", "table2"),
                rows and table(["solver", "chain", "runs", "success", "paper", "iterations (ours)", "iterations (paper)",
                                "evaluations (ours)", "mean f", "paper f", "time ms", "paper ms"], rows),
@@ -392,7 +392,7 @@ def offline_section(res, md_path) -> list[str]:
     if o is None:
         return []
     bag, fleet, methods = o["bag"], o["fleet"], o["methods"]
-    out = _md("## Offline: bag processing and workspace maps", prose("offline"),
+    out = md_blocks("## Offline: bag processing and workspace maps", prose("offline"),
               table(["glpma-fk bag (3-RPR, MCAP)", "value"],
                     [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag["run"].items()]),
               table(["where the CPU time of one input goes", "µs"],
@@ -406,13 +406,13 @@ def offline_section(res, md_path) -> list[str]:
         sing = first.get("on_singularity") or {}
         singular = (f"; on a singularity (a double mode): {sum(sing.values()):,} ("
                     + ", ".join(f"{k} distinct: {v:,}" for k, v in sing.items()) + ")") if sing else ""
-        out += _md(table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})",
+        out += md_blocks(table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})",
                           "wall s", "points/s", "speed-up"],
                          [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
                    "Mode counts (points per count, first engine): " + ", ".join(
                        f"{k}: {v:,}" for k, v in first["modes"].items()) + singular
                    + f"; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.")
-    out += _md(table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
+    out += md_blocks(table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
                      [[k, fmt(v) if isinstance(v, (int, float)) else str(v)] for k, v in methods.items() if k != "grid"]))
     return out + (calibration_section(o["calibration"]) if o.get("calibration") else [])
 
@@ -426,7 +426,7 @@ def calibration_section(rows) -> list[str]:
              " / ".join(fmt(v) for v in r["FK error nominal mm (median / max)"]),
              " / ".join(fmt(v) for v in r["FK error calibrated mm (median / max)"]), r["weak directions"]]
             for r in rows]
-    return _md("### Calibration", prose("offline", "calibration", repeats=CALIBRATION_REPEATS,
+    return md_blocks("### Calibration", prose("offline", "calibration", repeats=CALIBRATION_REPEATS,
                                         fk_poses=CALIBRATION_FK_POSES),
                table(["config", "measurements", "command wall s", "command CPU s", "identification ms",
                       "Gauss-Newton iterations", "held-out leg RMS mm, before -> after",
@@ -449,11 +449,11 @@ def reliability_section(res: dict | None, source=None) -> list[str]:
 
     from .timing import WARM_UP_QUIET
     if res is None:
-        return _md("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
+        return md_blocks("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
     secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")
     floods = [k for k in stress.FLOOD_SECTIONS if k in secs]
     restarts = stress.restart_rows(secs)
-    return _md("## Reliability",
+    return md_blocks("## Reliability",
                prose("reliability", **res["machine"], command=res.get("command") or "glpma-fk stress", date=res["date"],
                      minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"],
                      load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
@@ -479,7 +479,7 @@ def measured_apart(md_path) -> list[str]:
     if md_path is None:
         return []
     paths = [Path(os.path.dirname(os.path.abspath(md_path)), name) for name in APART]
-    return _md(*(p.read_text(encoding="utf-8").rstrip() for p in paths if p.is_file()))
+    return md_blocks(*(p.read_text(encoding="utf-8").rstrip() for p in paths if p.is_file()))
 
 
 def render(res, md_path, reliability=None, reliability_source=None) -> str:
@@ -492,4 +492,4 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
                     baselines_section, dds_section, outputs.section, waits.section, offline_section):
         parts += section(res, md_path)
     parts += reliability_section(reliability, reliability_source)
-    return "\n".join(parts + _md("## Design measurements", prose("design")) + measured_apart(md_path)).rstrip() + "\n"
+    return "\n".join(parts + md_blocks("## Design measurements", prose("design")) + measured_apart(md_path)).rstrip() + "\n"

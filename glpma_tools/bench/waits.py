@@ -110,15 +110,16 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
 
 def section(res, md_path=None) -> list[str]:
     """The BENCHMARKS.md section (``res["waits"]``: :func:`measure`'s rows), prose from templates/waits.md."""
-    from .report import prose
+    from .report import md_blocks, prose
     rows = res.get("waits")
     if not rows:
         return []
     blocked = {r["setup"]: r for r in rows}["node at 1 kHz"]["blocked p99.9 us"]
-    return ["## Waits of an input for anything but its own solve", "",
-            prose("waits", period_ms=f"{REPORT_PERIOD_S * 1e3:g}", slow_ms=f"{SLOW_S * 1e3:g}"), "",
-            table(["setup", "inputs", "reports", f"over {SLOW_S * 1e3:g} ms",
-                   *(k.replace("off-cpu", "off-CPU") for k in COLUMNS)],
-                  [[r["setup"], r["inputs"], r["reports"], r["slow"], *(fmt(r[k]) for k in COLUMNS)] for r in rows]),
-            "", prose("waits", "reading", blocked=fmt(blocked), goal=f"{WAIT_GOAL_US:g}",
-                      met="met" if blocked <= WAIT_GOAL_US else "missed"), ""]
+    return md_blocks("## Waits of an input for anything but its own solve",
+                     prose("waits", period_ms=f"{REPORT_PERIOD_S * 1e3:g}", slow_ms=f"{SLOW_S * 1e3:g}"),
+                     table(["setup", "inputs", "reports", f"over {SLOW_S * 1e3:g} ms",
+                            *(k.replace("off-cpu", "off-CPU") for k in COLUMNS)],
+                           [[r["setup"], r["inputs"], r["reports"], r["slow"], *(fmt(r[k]) for k in COLUMNS)]
+                            for r in rows]),
+                     prose("waits", "reading", blocked=fmt(blocked), goal=f"{WAIT_GOAL_US:g}",
+                           met="met" if blocked <= WAIT_GOAL_US else "missed"))
