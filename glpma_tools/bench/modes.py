@@ -118,10 +118,9 @@ def _kind_summary(name, rows) -> str:
 
 
 def section(res, md_path=None) -> list[str]:
-    data = res.get("modes_comparison")
-    if not data:
-        return []
+    """The BENCHMARKS.md section (``res["modes_comparison"]``: :func:`compare`'s result), prose from templates/modes.md."""
     from .report import md_blocks, prose
+    data = res["modes_comparison"]
     body = [[r.label, fmt(r.certified), fmt(r.complex_solutions), r.fast_found,
              MISSING if r.fast_matches is None else ("yes" if r.fast_matches else "**no**"), r.fast_starts,
              f"{r.fast_evaluations:,}", _s(r.fast_s), f"{r.fast_miss:.3g} / {r.fast_bound:.3g}", _s(r.exact_s),

@@ -119,7 +119,7 @@ def summary_section(res, md_path) -> list[str]:
 
 
 def paper_tables_section(res, md_path) -> list[str]:
-    out = md_blocks(res["tables"] and "## The papers' tables (001 Tables 5 and 8)")
+    out = md_blocks("## The papers' tables (001 Tables 5 and 8)")
     for key, rows in res["tables"].items():
         sc = res["scenarios"][key]
         kind, st = sc.model.kind, solvers.PAPER_SETTINGS[sc.model.kind]
@@ -162,8 +162,6 @@ def _peer_row(label, s, ours) -> list:
 
 
 def peers_section(res, md_path) -> list[str]:
-    if not res["peers"]:
-        return []
     out = md_blocks("## Pure G3-PCX against peer implementations", prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
     for key, data in res["peers"].items():
         sc = res["scenarios"][key]
@@ -229,8 +227,6 @@ def gap_section(res, md_path) -> list[str]:
 
 
 def all_solutions_section(res, md_path) -> list[str]:
-    if not res["all_solutions"]:
-        return []
     body = []
     for key, r in res["all_solutions"].items():
         sc = res["scenarios"][key]
@@ -253,8 +249,6 @@ def all_solutions_section(res, md_path) -> list[str]:
 
 
 def tracking_section(res, md_path) -> list[str]:
-    if not res["tracking"]:
-        return []
     scales = {sc.model.kind: (sc.model.scale, sc.model.unit) for sc in res["scenarios"].values()}
 
     def size(kind, share):
@@ -294,8 +288,6 @@ def _scipy_row(label, ours, latency_s, preempted, residual, evals) -> list:
 
 
 def scipy_section(res, md_path) -> list[str]:
-    if not res["scipy"]:
-        return []
     out = md_blocks("## Warm solve against `scipy.optimize.least_squares`", prose("scipy"))
     for key, rows in res["scipy"].items():
         t = res["tracking"][key]
@@ -313,8 +305,6 @@ def scipy_section(res, md_path) -> list[str]:
 
 def deadline_section(res, md_path) -> list[str]:
     rows = res["deadline"]
-    if not rows:
-        return []
 
     def on_time(over):
         return fmt(_on_time(over), 4) + " %" if over.size else MISSING
@@ -336,9 +326,7 @@ def deadline_section(res, md_path) -> list[str]:
 
 
 def baselines_section(res, md_path) -> list[str]:
-    b = res.get("baselines")
-    if b is None:
-        return []
+    b = res["baselines"]
     rows = []
     for r in b.table2 or []:
         p = r.published or PublishedRow("", None, *[math.nan] * 6, 0, 0)      # no row in Table II: dashes
@@ -388,9 +376,7 @@ def dds_section(res, md_path) -> list[str]:
 def offline_section(res, md_path) -> list[str]:
     """``glpma-fk bag``: throughput, where the time goes, a fleet on each engine; ``glpma-fk map``: the
     default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
-    o = res.get("offline")
-    if o is None:
-        return []
+    o = res["offline"]
     bag, fleet, methods = o["bag"], o["fleet"], o["methods"]
     out = md_blocks("## Offline: bag processing and workspace maps", prose("offline"),
               table(["glpma-fk bag (3-RPR, MCAP)", "value"],
@@ -486,10 +472,14 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
     from . import modes, outputs, waits
+    # the sections in the report's order, each with the measurements it renders (None: it looks for them itself)
+    sections = ((None, summary_section), ("tables", paper_tables_section), (None, figures_section),
+                ("peers", peers_section), (None, gap_section), ("all_solutions", all_solutions_section),
+                ("modes_comparison", modes.section), ("tracking", tracking_section), ("scipy", scipy_section),
+                ("deadline", deadline_section), ("baselines", baselines_section), (None, dds_section),
+                (None, outputs.section), ("waits", waits.section), ("offline", offline_section))
     parts = header(res)
-    for section in (summary_section, paper_tables_section, figures_section, peers_section, gap_section,
-                    all_solutions_section, modes.section, tracking_section, scipy_section, deadline_section,
-                    baselines_section, dds_section, outputs.section, waits.section, offline_section):
-        parts += section(res, md_path)
+    for key, section in sections:
+        parts += section(res, md_path) if key is None or res.get(key) else []
     parts += reliability_section(reliability, reliability_source)
     return "\n".join(parts + md_blocks("## Design measurements", prose("design")) + measured_apart(md_path)).rstrip() + "\n"

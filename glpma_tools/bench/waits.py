@@ -111,9 +111,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
 def section(res, md_path=None) -> list[str]:
     """The BENCHMARKS.md section (``res["waits"]``: :func:`measure`'s rows), prose from templates/waits.md."""
     from .report import md_blocks, prose
-    rows = res.get("waits")
-    if not rows:
-        return []
+    rows = res["waits"]
     blocked = {r["setup"]: r for r in rows}["node at 1 kHz"]["blocked p99.9 us"]
     return md_blocks("## Waits of an input for anything but its own solve",
                      prose("waits", period_ms=f"{REPORT_PERIOD_S * 1e3:g}", slow_ms=f"{SLOW_S * 1e3:g}"),
