@@ -47,7 +47,8 @@ def _cases(scenarios, per_kind) -> list[tuple]:
     kinds = {sc.model.kind for sc in scenarios.values()}
     stored = json.loads(CASES_PATH.read_text())["cases"] if CASES_PATH.exists() else []
     chosen = [c for kind in NAMES if kind in kinds for c in [c for c in stored if c["kind"] == kind][:per_kind]]
-    seeds = [(f"{sc.label} (seed example)", sc.model, np.asarray(sc.legs, dtype=float), None) for sc in scenarios.values()]
+    seeds = [(f"{sc.label} (seed example)", sc.model, np.asarray(sc.legs, dtype=float), None)
+             for sc in scenarios.values()]
     return seeds + [(f"{NAMES[c['kind']]} random seed {c['seed']}",
                      MODELS[c["kind"]](np.array(c["base"]), np.array(c["platform"])), np.array(c["legs"]), c)
                     for c in chosen]
@@ -118,7 +119,8 @@ def _kind_summary(name, rows) -> str:
 
 
 def section(res, md_path=None) -> list[str]:
-    """The BENCHMARKS.md section (``res["modes_comparison"]``: :func:`compare`'s result), prose from templates/modes.md."""
+    """The BENCHMARKS.md section (``res["modes_comparison"]``: :func:`compare`'s result), prose from
+    templates/modes.md."""
     from .report import md_blocks, prose
     data = res["modes_comparison"]
     body = [[r.label, fmt(r.certified), fmt(r.complex_solutions), r.fast_found,
@@ -126,9 +128,10 @@ def section(res, md_path=None) -> list[str]:
              f"{r.fast_evaluations:,}", _s(r.fast_s), f"{r.fast_miss:.3g} / {r.fast_bound:.3g}", _s(r.exact_s),
              fmt(r.g3pcx_found), _s(r.g3pcx_s)] for r in data["rows"]]
     by_kind = {name: [r for r in data["rows"] if r.kind == kind] for kind, name in NAMES.items()}
-    return md_blocks(HEADING, prose("modes", runs=G3PCX_RUNS),
-                     data["exact"] != "run" and f"msolve not run ({data['exact']}); certified counts are the stored ones.",
-                     table(["case", "real (certified)", "complex", "multistart found", "same as certified", "starts",
-                            "LM evaluations", "multistart s", "miss: Good-Turing / 95 % bound", "msolve s",
-                            f"G3-PCX {G3PCX_RUNS} found", f"G3-PCX {G3PCX_RUNS} s"], body),
-                     "\n".join(_kind_summary(name, rows) for name, rows in by_kind.items() if rows))
+    return md_blocks(
+        HEADING, prose("modes", runs=G3PCX_RUNS),
+        data["exact"] != "run" and f"msolve not run ({data['exact']}); certified counts are the stored ones.",
+        table(["case", "real (certified)", "complex", "multistart found", "same as certified", "starts",
+               "LM evaluations", "multistart s", "miss: Good-Turing / 95 % bound", "msolve s",
+               f"G3-PCX {G3PCX_RUNS} found", f"G3-PCX {G3PCX_RUNS} s"], body),
+        "\n".join(_kind_summary(name, rows) for name, rows in by_kind.items() if rows))

@@ -28,7 +28,8 @@ def draw(res, out_dir: Path) -> dict:
         series = [(f"{SOLVER_LABEL[c.solver]} {c.pop_label} {'default' if c.polish else 'pure'}",
                    EXTRA_COLORS.get((c.solver, c.population), COLORS[c.solver]), "--" if c.polish else "-", r.runs)
                   for r in res["tables"].get(k, []) for c in [r.config]]
-        series += [(f"{r.name} G3PCX", COLORS[r.name], ":", r.runs) for r in res["peers"].get(k, []) if r.status == "run"]
+        series += [(f"{r.name} G3PCX", COLORS[r.name], ":", r.runs) for r in res["peers"].get(k, [])
+                   if r.status == "run"]
         if series:
             figures[f"success_{k}"] = success_curves(out_dir / f"success_vs_evals_{k}.png",
                                                      f"{sc.label}: success and convergence",

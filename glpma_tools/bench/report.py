@@ -92,10 +92,11 @@ def _worst(over) -> str:
 
 def header(res) -> list[str]:
     canonical, invoked = res["command"]
+    loads = "; ".join(f"{name} {load}" for name, load in res.get("load", []))
     return md_blocks(prose("header", **res["machine"], date=res["date"], minutes=f"{res['wall_s'] / 60:.1f}",
-                     command=canonical, invoked=f" (invoked as `{invoked}`)" if invoked else "",
-                     revision=res["revision"], loads="; ".join(f"{name} {load}" for name, load in res.get("load", []))),
-               res.get("quick") and prose("header", "quick"))
+                           command=canonical, invoked=f" (invoked as `{invoked}`)" if invoked else "",
+                           revision=res["revision"], loads=loads),
+                     res.get("quick") and prose("header", "quick"))
 
 
 def summary_section(res, md_path) -> list[str]:
@@ -130,14 +131,15 @@ def paper_tables_section(res, md_path) -> list[str]:
                  ratio(s.evals_mean, p.evals), fmt(s.time_median_ms), fmt(s.time_mean_ms), fmt(p.time_s * 1e3),
                  ratio(s.time_mean_ms, p.time_s * 1e3), fmt(s.fun_median, 2)]
                 for row in rows for s, p in [(summarize(row.runs), PUBLISHED[kind].get(row.config.key, UNPUBLISHED))]]
-        out += md_blocks(f"### {sc.label}: {TABLE_NAME[kind]}",
-                   f"Init U[{st['init_range'][0]:g}, {st['init_range'][1]:g}]^{sc.model.n_vars}, unbounded search, "
-                   f"success = fitness < 1e-20 within {st['max_evals']:,} evaluations; {runs[False]} runs per pure row "
-                   f"and {runs[True]} per default row (the paper: 100)."
-                   + (f" GLPMA: ls_interval 5, ls_intensity {st['ls_intensity']}." if "ls_intensity" in st else ""),
-                   table(["method", "pop", "mode", "runs", "success", "paper", "evals (ours)", "evals (paper)",
-                          "evals ours/paper", "time median ms", "time mean ms", "paper ms", "time ours/paper",
-                          "median final f"], body))
+        out += md_blocks(
+            f"### {sc.label}: {TABLE_NAME[kind]}",
+            f"Init U[{st['init_range'][0]:g}, {st['init_range'][1]:g}]^{sc.model.n_vars}, unbounded search, success = "
+            f"fitness < 1e-20 within {st['max_evals']:,} evaluations; {runs[False]} runs per pure row and {runs[True]} "
+            "per default row (the paper: 100)."
+            + (f" GLPMA: ls_interval 5, ls_intensity {st['ls_intensity']}." if "ls_intensity" in st else ""),
+            table(["method", "pop", "mode", "runs", "success", "paper", "evals (ours)", "evals (paper)",
+                   "evals ours/paper", "time median ms", "time mean ms", "paper ms", "time ours/paper",
+                   "median final f"], body))
     return out
 
 
@@ -162,7 +164,8 @@ def _peer_row(label, s, ours) -> list:
 
 
 def peers_section(res, md_path) -> list[str]:
-    out = md_blocks("## Pure G3-PCX against peer implementations", prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
+    out = md_blocks("## Pure G3-PCX against peer implementations",
+                    prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
     for key, data in res["peers"].items():
         sc = res["scenarios"][key]
         runs = _ours_pure_g3pcx(res, key)
@@ -174,10 +177,10 @@ def peers_section(res, md_path) -> list[str]:
         body.append([f"paper ({TABLE_NAME[sc.model.kind]})", 100, fmt(p.success, unit=" %"),
                      fmt_ci(p.evals, p.evals_pm), MISSING, MISSING, fmt(p.time_s * 1e3), MISSING, MISSING])
         notes = [f"{PEER_LABEL[r.name]}: {r.note}" for r in data if r.status != "run" and r.note]
-        out += md_blocks(f"### {sc.label}", table(["implementation", "runs", "success", "evals to success",
-                                             "mean evals (all runs)", "median final f", "time/run ms", "time vs ours",
-                                             "evals vs ours"], body),
-                   notes and "Not run: " + "; ".join(notes) + ".")
+        out += md_blocks(f"### {sc.label}",
+                         table(["implementation", "runs", "success", "evals to success", "mean evals (all runs)",
+                                "median final f", "time/run ms", "time vs ours", "evals vs ours"], body),
+                         notes and "Not run: " + "; ".join(notes) + ".")
     return out
 
 
@@ -186,18 +189,20 @@ def gap_section(res, md_path) -> list[str]:
         return []
     pop, cap = (solvers.PAPER_SETTINGS["planar_3rpr"][k] for k in ("population", "max_evals"))
     ours = _ours_pure_g3pcx(res, "3rpr") if "3rpr" in res["scenarios"] else None
-    series = ([("ours", ours)] if ours else []) + [(PEER_LABEL[r.name], r.runs) for r in res["peers"].get("3rpr", [])
-                                                    if r.status == "run"]
-    measured = {label: 100.0 * sum(r.success for r in runs) / len(runs) for label, runs in series}
-    shown = {label: pct(v) for label, v in measured.items()}
-    out = md_blocks("## Why the papers' pure G3-PCX figures do not reproduce",
-              prose("gap", population=pop, cap=f"{cap:,}", ours=shown.get("ours", "not run"),
-                    pypop7=shown.get(PEER_LABEL["pypop7"], "not run"), pymoo=shown.get(PEER_LABEL["pymoo"], "not run"),
-                    reference=", ".join(f"{k} {v} %" for k, v in FAITHFUL_3RPR.items())),
-              prose("gap", "thresholds"),
-              table(["implementation", "runs"] + [f"f < {t:.0e}" for t in GAP_THRESHOLDS],
-                    [[label, len(runs)] + [pct(100.0 * sum(r.fun < t for r in runs) / len(runs))
-                                           for t in GAP_THRESHOLDS] for label, runs in series]))
+    series = {"ours": ours} if ours else {}
+    series.update({PEER_LABEL[r.name]: r.runs for r in res["peers"].get("3rpr", []) if r.status == "run"})
+    measured = {label: 100.0 * sum(r.success for r in runs) / len(runs) for label, runs in series.items()}
+
+    def rate(label):
+        return pct(measured[label]) if label in measured else "not run"
+    out = md_blocks(
+        "## Why the papers' pure G3-PCX figures do not reproduce",
+        prose("gap", population=pop, cap=f"{cap:,}", ours=rate("ours"), pypop7=rate(PEER_LABEL["pypop7"]),
+              pymoo=rate(PEER_LABEL["pymoo"]), reference=", ".join(f"{k} {v} %" for k, v in FAITHFUL_3RPR.items())),
+        prose("gap", "thresholds"),
+        table(["implementation", "runs"] + [f"f < {t:.0e}" for t in GAP_THRESHOLDS],
+              [[label, len(runs)] + [pct(100.0 * sum(r.fun < t for r in runs) / len(runs)) for t in GAP_THRESHOLDS]
+               for label, runs in series.items()]))
     # the conclusion, written from the measured figures
     far = measured and max(measured.values()) < 50      # every implementation far below the paper's 90 %
     text = [prose("gap", "reading", cap=f"{cap:,}", rates=", ".join(f"{k} {v:.0f} %" for k, v in measured.items())
@@ -212,17 +217,19 @@ def gap_section(res, md_path) -> list[str]:
             rows.append([f"{max_evals:,}", s.runs, pct(s.success_pct), fmt_ci(s.evals_mean, s.evals_ci),
                          fmt(float(q[0])), fmt(float(q[1]))])
         out += md_blocks(prose("gap", "caps", generation_cap=f"{2 * cap + pop:,}", large_cap=f"{10 * cap:,}"),
-                   table(["cap", "runs", "success", "evals to success", "median", "90th percentile"], rows))
+                         table(["cap", "runs", "success", "evals to success", "median", "90th percentile"], rows))
         s2, s10 = summarize(diag.caps[min(diag.caps)]), summarize(diag.caps[max(diag.caps)])
         text.append(prose("gap", "reading_caps", cap2=f"{min(diag.caps):,}", success2=f"{s2.success_pct:.0f}",
-                          cap10=f"{max(diag.caps):,}", success10=f"{s10.success_pct:.0f}", evals=f"{s10.evals_mean:,.0f}",
+                          cap10=f"{max(diag.caps):,}", success10=f"{s10.success_pct:.0f}",
+                          evals=f"{s10.evals_mean:,.0f}",
                           ratio=ratio(s10.evals_mean, PUBLISHED["planar_3rpr"][("g3pcx", pop, None)].evals)))
     text.append(prose("gap", "unknowns"))
     sums = [summarize(r.runs) for r in res["tables"].get("3rpr", []) if r.config.polish]
     if sums:
         lo, hi = min(x.success_pct for x in sums), max(x.success_pct for x in sums)
         text.append(prose("gap", "reading_refined", rate=f"{lo:.0f} %" if lo == hi else f"{lo:.0f}–{hi:.0f} %",
-                          fewest=f"{min(x.evals_mean for x in sums):,.0f}", most=f"{max(x.evals_mean for x in sums):,.0f}"))
+                          fewest=f"{min(x.evals_mean for x in sums):,.0f}",
+                          most=f"{max(x.evals_mean for x in sums):,.0f}"))
     return out + md_blocks(" ".join(text))
 
 
@@ -242,10 +249,10 @@ def all_solutions_section(res, md_path) -> list[str]:
                      f"{min(devs):.3g} – {max(devs):.3g}" if devs and all(map(math.isfinite, devs)) else MISSING,
                      r.unmatched_found, paper])
     return md_blocks("## All real assembly modes (002 section 5.5.2)", prose("all_solutions"),
-               table(["manipulator", "runs", "init range", "repeats", "distinct found (per repeat)",
-                      "wall s median (min – max)", f"published matched (< {FOUND_MM:g} mm)",
-                      "deviation mm (min – max)", "found, not published", "paper"], body),
-               "hexapod" in res["all_solutions"] and prose("all_solutions", "hexapod"))
+                     table(["manipulator", "runs", "init range", "repeats", "distinct found (per repeat)",
+                            "wall s median (min – max)", f"published matched (< {FOUND_MM:g} mm)",
+                            "deviation mm (min – max)", "found, not published", "paper"], body),
+                     "hexapod" in res["all_solutions"] and prose("all_solutions", "hexapod"))
 
 
 def tracking_section(res, md_path) -> list[str]:
@@ -253,7 +260,8 @@ def tracking_section(res, md_path) -> list[str]:
 
     def size(kind, share):
         """A size of the loop: in the config's unit when its scenario ran, else as a share of the scale."""
-        return f"{share * scales[kind][0]:.3g} {scales[kind][1]}" if kind in scales else f"{100 * share:g} % of the scale"
+        return (f"{share * scales[kind][0]:.3g} {scales[kind][1]}" if kind in scales
+                else f"{100 * share:g} % of the scale")
     body = []
     for key, t in res["tracking"].items():
         st, calm, target = t.stats, _calm(t.latency_s, t.preempted), LATENCY_TARGET_MS[key]
@@ -265,16 +273,16 @@ def tracking_section(res, md_path) -> list[str]:
                      ", ".join(f"{k} {v}" for k, v in sorted(t.statuses.items())),
                      ", ".join(f"{k} {v}" for k, v in sorted(t.stages.items())), fmt(float(np.mean(t.evaluations)))])
     return md_blocks("## Warm tracking latency (solve only)",
-               prose("tracking", planar_radius=size("planar_3rpr", traj.PLANAR_RADIUS),
-                     planar_swing=f"{math.degrees(traj.PLANAR_SWING_RAD):.2g}",
-                     spatial_radius=size("hexapod_66", traj.SPATIAL_RADIUS),
-                     spatial_rise=size("hexapod_66", traj.SPATIAL_RISE),
-                     spatial_twist=f"{math.degrees(traj.SPATIAL_TWIST_RAD):.2g}"),
-               table(["manipulator", "steps", "budget ms", "p50 ms", "p99 ms", "max ms", "preempted steps",
-                      "p99 ms not preempted", "max ms not preempted", "target p99", "",
-                      "max error mm", "max leg residual mm", "status", "stage", "mean evals"], body),
-               *(_figure(res, f"latency_{key}", md_path, f"{res['scenarios'][key].label} latency")
-                 for key in res["tracking"]))
+                     prose("tracking", planar_radius=size("planar_3rpr", traj.PLANAR_RADIUS),
+                           planar_swing=f"{math.degrees(traj.PLANAR_SWING_RAD):.2g}",
+                           spatial_radius=size("hexapod_66", traj.SPATIAL_RADIUS),
+                           spatial_rise=size("hexapod_66", traj.SPATIAL_RISE),
+                           spatial_twist=f"{math.degrees(traj.SPATIAL_TWIST_RAD):.2g}"),
+                     table(["manipulator", "steps", "budget ms", "p50 ms", "p99 ms", "max ms", "preempted steps",
+                            "p99 ms not preempted", "max ms not preempted", "target p99", "",
+                            "max error mm", "max leg residual mm", "status", "stage", "mean evals"], body),
+                     *(_figure(res, f"latency_{key}", md_path, f"{res['scenarios'][key].label} latency")
+                       for key in res["tracking"]))
 
 
 def _scipy_row(label, ours, latency_s, preempted, residual, evals) -> list:
@@ -298,8 +306,9 @@ def scipy_section(res, md_path) -> list[str]:
         body += [_scipy_row(label, ours, r.latency_s, r.preempted, r.leg_residual, r.nfev) if r.status == "run"
                  else [label] + [MISSING] * 7 + [r.status, ""] for label, r in zip(labels, rows)]
         out += md_blocks(f"### {res['scenarios'][key].label} ({t.steps} steps)",
-                   table(["solver", "p50 ms", "p99 ms", "p99 ms not preempted", "mean ms", "median max leg residual",
-                          "worst max leg residual", "mean evals", "ours/row (p50)", "ours/row (p99)"], body))
+                         table(["solver", "p50 ms", "p99 ms", "p99 ms not preempted", "mean ms",
+                                "median max leg residual", "worst max leg residual", "mean evals", "ours/row (p50)",
+                                "ours/row (p99)"], body))
     return out + md_blocks(prose("scipy", "note"))
 
 
@@ -314,15 +323,16 @@ def deadline_section(res, md_path) -> list[str]:
             for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~r.preempted])]]
     total, calm = _overruns(rows)
     late = sorted({r.solver for r in rows if np.any(r.overrun_ms[~r.preempted] > DEADLINE_MARGIN_MS)})
-    return md_blocks("## Deadline honouring",
-               prose("deadline", margin=DEADLINE_MARGIN_MS, stop_after=STOP_AFTER, stop_factor=f"{STOP_OVERRUN_FACTOR:g}"),
-               calm.size and f"Overall: {on_time(total)} of {total.size} solves on time, worst overrun {_worst(total)} "
-               f"ms; {total.size - calm.size} solves were preempted by other processes, and without them "
-               f"{on_time(calm)} are on time, worst overrun {_worst(calm)} ms.",
-               late and "Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
-               table(["case", "solver", "budget ms", "solves", "on time", "p99 elapsed ms", "worst overrun ms",
-                      "preempted", "on time, not preempted", "worst overrun, not preempted"], body),
-               _figure(res, "deadline", md_path, "deadline overruns"))
+    return md_blocks(
+        "## Deadline honouring",
+        prose("deadline", margin=DEADLINE_MARGIN_MS, stop_after=STOP_AFTER, stop_factor=f"{STOP_OVERRUN_FACTOR:g}"),
+        calm.size and f"Overall: {on_time(total)} of {total.size} solves on time, worst overrun {_worst(total)} ms; "
+        f"{total.size - calm.size} solves were preempted by other processes, and without them {on_time(calm)} are "
+        f"on time, worst overrun {_worst(calm)} ms.",
+        late and "Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
+        table(["case", "solver", "budget ms", "solves", "on time", "p99 elapsed ms", "worst overrun ms", "preempted",
+               "on time, not preempted", "worst overrun, not preempted"], body),
+        _figure(res, "deadline", md_path, "deadline overruns"))
 
 
 def baselines_section(res, md_path) -> list[str]:
@@ -338,13 +348,14 @@ def baselines_section(res, md_path) -> list[str]:
     de = [[res["scenarios"][key].label, row.config.mode, row.config.population, s.runs, f"{s.success_pct:.0f} %",
            fmt_ci(s.evals_mean, s.evals_ci), fmt(s.time_median_ms), fmt(s.fun_median)]
           for key, trows in (b.de or {}).items() for row in trows for s in [summarize(row.runs)]]
-    return md_blocks("## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE",
-               rows and prose("baselines", "table2"),
-               rows and table(["solver", "chain", "runs", "success", "paper", "iterations (ours)", "iterations (paper)",
-                               "evaluations (ours)", "mean f", "paper f", "time ms", "paper ms"], rows),
-               de and prose("baselines", "de"),
-               de and table(["manipulator", "mode", "Np", "runs", "success", "evals to success", "time median ms",
-                             "median final f"], de))
+    return md_blocks(
+        "## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE",
+        rows and prose("baselines", "table2"),
+        rows and table(["solver", "chain", "runs", "success", "paper", "iterations (ours)", "iterations (paper)",
+                        "evaluations (ours)", "mean f", "paper f", "time ms", "paper ms"], rows),
+        de and prose("baselines", "de"),
+        de and table(["manipulator", "mode", "Np", "runs", "success", "evals to success", "time median ms",
+                      "median final f"], de))
 
 
 def _flatten(d, prefix=""):
@@ -378,28 +389,31 @@ def offline_section(res, md_path) -> list[str]:
     default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
     o = res["offline"]
     bag, fleet, methods = o["bag"], o["fleet"], o["methods"]
-    out = md_blocks("## Offline: bag processing and workspace maps", prose("offline"),
-              table(["glpma-fk bag (3-RPR, MCAP)", "value"],
-                    [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag["run"].items()]),
-              table(["where the CPU time of one input goes", "µs"],
-                    [[k, fmt(v)] for k, v in bag["CPU µs per input"].items()]
-                    + [["the whole run (the parts above plus the loop itself)", fmt(bag["whole run CPU µs per input"])]]),
-              table([f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} inputs)", "wall s",
-                     "converged"], [[r["engine"], fmt(r["wall s"]), fmt(r["converged"])] for r in fleet["runs"]]),
-              f"Same statuses on every engine: {'yes' if fleet['same statuses on every engine'] else 'NO'}.")
+    out = md_blocks(
+        "## Offline: bag processing and workspace maps", prose("offline"),
+        table(["glpma-fk bag (3-RPR, MCAP)", "value"],
+              [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag["run"].items()]),
+        table(["where the CPU time of one input goes", "µs"],
+              [[k, fmt(v)] for k, v in bag["CPU µs per input"].items()]
+              + [["the whole run (the parts above plus the loop itself)", fmt(bag["whole run CPU µs per input"])]]),
+        table([f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} inputs)", "wall s",
+               "converged"], [[r["engine"], fmt(r["wall s"]), fmt(r["converged"])] for r in fleet["runs"]]),
+        f"Same statuses on every engine: {'yes' if fleet['same statuses on every engine'] else 'NO'}.")
     for mp in filter(None, (o["map"], o.get("hexapod map"))):
         first = mp["runs"][0]
         sing = first.get("on_singularity") or {}
         singular = (f"; on a singularity (a double mode): {sum(sing.values()):,} ("
                     + ", ".join(f"{k} distinct: {v:,}" for k, v in sing.items()) + ")") if sing else ""
-        out += md_blocks(table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})",
-                          "wall s", "points/s", "speed-up"],
-                         [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
-                   "Mode counts (points per count, first engine): " + ", ".join(
-                       f"{k}: {v:,}" for k, v in first["modes"].items()) + singular
-                   + f"; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.")
+        out += md_blocks(
+            table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})", "wall s",
+                   "points/s", "speed-up"],
+                  [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
+            "Mode counts (points per count, first engine): "
+            + ", ".join(f"{k}: {v:,}" for k, v in first["modes"].items())
+            + f"{singular}; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.")
     out += md_blocks(table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
-                     [[k, fmt(v) if isinstance(v, (int, float)) else str(v)] for k, v in methods.items() if k != "grid"]))
+                           [[k, fmt(v) if isinstance(v, (int, float)) else str(v)]
+                            for k, v in methods.items() if k != "grid"]))
     return out + (calibration_section(o["calibration"]) if o.get("calibration") else [])
 
 
@@ -413,11 +427,11 @@ def calibration_section(rows) -> list[str]:
              " / ".join(fmt(v) for v in r["FK error calibrated mm (median / max)"]), r["weak directions"]]
             for r in rows]
     return md_blocks("### Calibration", prose("offline", "calibration", repeats=CALIBRATION_REPEATS,
-                                        fk_poses=CALIBRATION_FK_POSES),
-               table(["config", "measurements", "command wall s", "command CPU s", "identification ms",
-                      "Gauss-Newton iterations", "held-out leg RMS mm, before -> after",
-                      "FK error nominal mm (median / max)", "FK error calibrated mm (median / max)",
-                      "weak directions"], body))
+                                              fk_poses=CALIBRATION_FK_POSES),
+                     table(["config", "measurements", "command wall s", "command CPU s", "identification ms",
+                            "Gauss-Newton iterations", "held-out leg RMS mm, before -> after",
+                            "FK error nominal mm (median / max)", "FK error calibrated mm (median / max)",
+                            "weak directions"], body))
 
 
 def load_reliability(path) -> dict | None:
@@ -439,25 +453,26 @@ def reliability_section(res: dict | None, source=None) -> list[str]:
     secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")
     floods = [k for k in stress.FLOOD_SECTIONS if k in secs]
     restarts = stress.restart_rows(secs)
-    return md_blocks("## Reliability",
-               prose("reliability", **res["machine"], command=res.get("command") or "glpma-fk stress", date=res["date"],
-                     minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"],
-                     load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
-                     checks="all passed" if res["passed"] else "some failed (see below)",
-                     expectations="all met" if res.get("expectations_met", True) else "some missed (see below)"),
-               res.get("quick") and prose("reliability", "quick"),
-               node and prose("reliability", "node", command=node["command"], manipulator=node["manipulator"],
-                              budget=f"{node['time_budget_ms']:g}", depth=node["qos_depth"], warmup=f"{ses.WARMUP_S:g}"),
-               floods and table(*stress.flood_rows(secs)),
-               "\n".join(f"- {k}: {stress.check_result(secs[k])}" for k in floods),
-               floods and prose("reliability", "flood", rss_slack=f"{ses.RSS_SLACK_MB:g}",
-                                lost_slack=f"{100 * ses.LOST_SLACK:g}"),
-               restarts and "### Restarts and a jump",
-               restarts and table(["scenario", "what happened", "checks"], restarts),
-               restarts and prose("reliability", "restarts"),
-               d and "### Deadlines (in-process Estimator)",
-               d and prose("reliability", "deadline", manipulator=d["manipulator"], quiet=WARM_UP_QUIET),
-               d and table(stress.DEADLINE_HEAD, stress.deadline_rows(d["rows"])))
+    return md_blocks(
+        "## Reliability",
+        prose("reliability", **res["machine"], command=res.get("command") or "glpma-fk stress", date=res["date"],
+              minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"],
+              load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
+              checks="all passed" if res["passed"] else "some failed (see below)",
+              expectations="all met" if res.get("expectations_met", True) else "some missed (see below)"),
+        res.get("quick") and prose("reliability", "quick"),
+        node and prose("reliability", "node", command=node["command"], manipulator=node["manipulator"],
+                       budget=f"{node['time_budget_ms']:g}", depth=node["qos_depth"], warmup=f"{ses.WARMUP_S:g}"),
+        floods and table(*stress.flood_rows(secs)),
+        "\n".join(f"- {k}: {stress.check_result(secs[k])}" for k in floods),
+        floods and prose("reliability", "flood", rss_slack=f"{ses.RSS_SLACK_MB:g}",
+                         lost_slack=f"{100 * ses.LOST_SLACK:g}"),
+        restarts and "### Restarts and a jump",
+        restarts and table(["scenario", "what happened", "checks"], restarts),
+        restarts and prose("reliability", "restarts"),
+        d and "### Deadlines (in-process Estimator)",
+        d and prose("reliability", "deadline", manipulator=d["manipulator"], quiet=WARM_UP_QUIET),
+        d and table(stress.DEADLINE_HEAD, stress.deadline_rows(d["rows"])))
 
 
 def measured_apart(md_path) -> list[str]:
@@ -481,5 +496,5 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     parts = header(res)
     for key, section in sections:
         parts += section(res, md_path) if key is None or res.get(key) else []
-    parts += reliability_section(reliability, reliability_source)
-    return "\n".join(parts + md_blocks("## Design measurements", prose("design")) + measured_apart(md_path)).rstrip() + "\n"
+    parts += reliability_section(reliability, reliability_source) + md_blocks("## Design measurements", prose("design"))
+    return "\n".join(parts + measured_apart(md_path)).rstrip() + "\n"
