@@ -371,32 +371,6 @@ def baselines_section(res, md_path) -> list[str]:
     return out
 
 
-def _flatten(d, prefix=""):
-    for k, v in d.items():
-        if isinstance(v, dict):
-            yield from _flatten(v, f"{prefix}{k}.")
-        else:
-            yield f"{prefix}{k}", v
-
-
-def _value(v) -> str:
-    return fmt(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
-
-
-def dds_section(res, md_path) -> list[str]:
-    d = res.get("dds")
-    if d is None:
-        return []
-    out = ["## DDS end to end (node + mock controller)", ""]
-    if d.get("status") != "run":
-        return out + [f"Skipped: {d.get('reason', 'not requested')}.", ""]
-    out += [f"From `{d['function']}`.", ""]
-    for label, r in d["results"].items():
-        out += ([f"### {label}", "", table(["quantity", "value"], [[k, _value(v)] for k, v in _flatten(r["stats"])]),
-                 ""] if r["status"] == "run" else [f"- {label}: not run ({r['reason']})"])
-    return out + [""]
-
-
 def offline_section(res, md_path) -> list[str]:
     """``glpma-fk bag``: throughput, where the time goes, a fleet on each engine; ``glpma-fk map``: the
     default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
@@ -512,11 +486,11 @@ def measured_apart(md_path) -> list[str]:
 def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
-    from . import modes, outputs, waits
+    from . import dds, modes, outputs, waits
     parts = header(res)
     for section in (summary_section, paper_tables_section, figures_section, peers_section, gap_section,
                     all_solutions_section, modes.section, tracking_section, scipy_section, deadline_section,
-                    baselines_section, dds_section, outputs.section, waits.section, offline_section):
+                    baselines_section, dds.section, outputs.section, waits.section, offline_section):
         parts += section(res, md_path)
     parts += reliability_section(reliability, reliability_source)
     parts += ["## Design measurements", "", prose("design"), ""] + measured_apart(md_path)
