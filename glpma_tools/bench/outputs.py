@@ -256,11 +256,8 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
             except ImportError as exc:
                 res["rclpy_reason"] = f"{exc.name or 'rclpy'} does not import in the Python that ran the bench"
             else:
-                sc = scenarios[0]
-                say(f"{sc.label}: the rclpy adapter's executors")
-                rate = END_TO_END[sc.model.kind][0]
-                res["rclpy_setup"] = {"manipulator": sc.label, "rate": rate, "seconds": rclpy_seconds}
-                res["rclpy"] = rclpy_client.variants(sc, rclpy_seconds, rate, domain)
+                say(f"{scenarios[0].label}: the rclpy adapter's executors")
+                res["rclpy_setup"], res["rclpy"] = rclpy_client.variants(scenarios[0], rclpy_seconds, domain)
     return res
 
 

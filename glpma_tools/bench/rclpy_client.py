@@ -1,13 +1,10 @@
-"""The outputs section's part 4, the rclpy adapter (importable only where rclpy is): :func:`variants`
-runs the node in the bench's process under each executor set-up of :data:`VARIANTS`, against a client
-process, this module: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``.
-
-The client publishes ``leg_lengths`` (metres) along the simulated loop at ``RATE_HZ`` for ``SECONDS``,
-takes ``pose_estimate``, pairs every pose with the input it answers
-(:func:`glpma_tools.bench.outputs.answers`) and prints one line: inputs sent, poses received, latency
-p50 and p99 (ms), poses unpaired or off the truth.  ``EXTRAS`` = ``extras``: ``/tf`` and
-``pose_estimate_cov`` are subscribed too, as any TF listener or RViz does (the node then builds and
-publishes them); ``VARIANT`` = ``echo``: the other side is the echo floor (:class:`Echo`)."""
+"""The outputs section's part 4, the rclpy adapter (importable where rclpy is): :func:`variants` runs the
+node in this process under each set-up of :data:`VARIANTS` against the client, this module run as a process
+(``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``): it publishes
+``leg_lengths`` along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes ``pose_estimate`` (and, with
+``EXTRAS`` = ``extras``, ``/tf`` and ``pose_estimate_cov``, as any TF listener or RViz does), pairs each pose
+with its input (:func:`~glpma_tools.bench.outputs.answers`; ``VARIANT`` = ``echo``: the echo floor's poses
+carry their legs) and prints: inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
 from __future__ import annotations
 
 import subprocess
@@ -27,6 +24,7 @@ from tf2_msgs.msg import TFMessage
 
 from glpma_ros.node.dds import cdr
 from glpma_ros.node.ros_node import FkNode
+from glpma_tools.bench.dds import END_TO_END
 from glpma_tools.bench.outputs import answers, params_of
 from glpma_tools.sim.controller import Sent
 from glpma_tools.sim.echo_node import POSE_NUMBERS
@@ -41,9 +39,8 @@ POLL_S = 0.1
 CLIENT_SLACK_S = 300.0
 #: a process that keeps one core busy (the "one core busy" rows)
 BUSY_LOOP = "while True:\n    pass\n"
-#: (label, variant, /tf + covariance subscribed, one core busy): the echo floor and the shipped node with
-#: the usual subscribers, idle and with one core busy, then the shipped node alone and two alternative
-#: executor set-ups
+#: (label, variant, /tf + covariance subscribed, one core busy): the echo floor and the shipped node with the
+#: usual subscribers, idle and with one core busy, then the shipped node alone and two other executor set-ups
 VARIANTS = (
     ("echo (the floor: no solve), /tf + cov subscribed", "echo", True, False),
     ("shipped, /tf + cov subscribed", "shipped", True, False),
@@ -97,9 +94,11 @@ def _node(variant: str, values: dict):
     return node
 
 
-def variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
-    """Part 4: legs published by the client process -> pose received, per row of :data:`VARIANTS`
-    (``sc``'s shipped params); ``domain()`` claims a fresh ROS domain for each."""
+def variants(sc, seconds: float, domain) -> tuple[dict, list[dict]]:
+    """Part 4: legs published by the client process at the DDS section's rate -> pose received, per row of
+    :data:`VARIANTS` (``sc``'s shipped params); ``domain()`` claims a fresh ROS domain for each.  Returns
+    (the set-up, the rows)."""
+    rate_hz = END_TO_END[sc.model.kind][0]
     values = {**params_of(sc.model.kind), "manipulator_config": sc.path}
     rows = []
     for label, variant, extras, busy in VARIANTS:
@@ -130,7 +129,7 @@ def variants(sc, seconds: float, rate_hz: float, domain) -> list[dict]:
             spinner.join()
             node.destroy_node()
             rclpy.try_shutdown()
-    return rows
+    return {"manipulator": sc.label, "rate": rate_hz, "seconds": seconds}, rows
 
 
 def main(argv=None) -> int:
