@@ -358,32 +358,6 @@ def baselines_section(res, md_path) -> list[str]:
                       "median final f"], de))
 
 
-def _flatten(d, prefix=""):
-    for k, v in d.items():
-        if isinstance(v, dict):
-            yield from _flatten(v, f"{prefix}{k}.")
-        else:
-            yield f"{prefix}{k}", v
-
-
-def _value(v) -> str:
-    return fmt(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
-
-
-def dds_section(res, md_path) -> list[str]:
-    d = res.get("dds")
-    if d is None:
-        return []
-    out = ["## DDS end to end (node + mock controller)", ""]
-    if d.get("status") != "run":
-        return out + [f"Skipped: {d.get('reason', 'not requested')}.", ""]
-    out += [f"From `{d['function']}`.", ""]
-    for label, r in d["results"].items():
-        out += ([f"### {label}", "", table(["quantity", "value"], [[k, _value(v)] for k, v in _flatten(r["stats"])]),
-                 ""] if r["status"] == "run" else [f"- {label}: not run ({r['reason']})"])
-    return out + [""]
-
-
 def offline_section(res, md_path) -> list[str]:
     """``glpma-fk bag``: throughput, where the time goes, a fleet on each engine; ``glpma-fk map``: the
     default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
@@ -486,12 +460,12 @@ def measured_apart(md_path) -> list[str]:
 def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
-    from . import modes, outputs, waits
+    from . import dds, modes, outputs, waits
     # the sections in the report's order, each with the measurements it renders (None: it looks for them itself)
     sections = ((None, summary_section), ("tables", paper_tables_section), (None, figures_section),
                 ("peers", peers_section), (None, gap_section), ("all_solutions", all_solutions_section),
                 ("modes_comparison", modes.section), ("tracking", tracking_section), ("scipy", scipy_section),
-                ("deadline", deadline_section), ("baselines", baselines_section), (None, dds_section),
+                ("deadline", deadline_section), ("baselines", baselines_section), (None, dds.section),
                 (None, outputs.section), ("waits", waits.section), ("offline", offline_section))
     parts = header(res)
     for key, section in sections:
