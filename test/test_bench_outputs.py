@@ -63,15 +63,17 @@ def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, 
     assert received == echoed + dropped and len(poses) <= echoed and received <= len(sent), counts.group(0)
 
 
-def _fake(key, label, shipped_above_us):
+def _fake(key, label, shipped_above_us, handoff_us=1.5):
     """Measurements of every part for one manipulator, as :func:`outputs.measure` returns them: the
-    shipped extra outputs add ``shipped_above_us`` to the solving thread's CPU per input at p50."""
+    shipped extra outputs add ``shipped_above_us`` to the solving thread's CPU per input at p50 and their
+    hand-off takes ``handoff_us`` wall at p50."""
     d = {"p50": 0.3, "p99": 0.9, "max": 2.0, "mean": 0.35}
     us = {"p50": 15.0, "p99": 40.0, "max": 90.0, "mean": 18.0}
     above = {name: {"none": 0.0, outputs.SHIPPED: shipped_above_us}.get(name, 5.0) for name, _ in outputs.CASES}
     costs = [{"manipulator": label, "outputs": name, "inputs": 50, "published": 50, "solve_us": us,
               "offer_cpu_us": {**us, "p50": 30.0 + above[name]}, "offer_us": us, "above_none_us": above[name],
-              "extras_thread_cpu_us": None if name == "none" else 70.0, "handoff_us": us, "extras_us": us,
+              "extras_thread_cpu_us": None if name == "none" else 70.0, "extras_us": us,
+              "handoff_us": {} if name == "none" else {**us, "p50": handoff_us},
               "extras_dropped": 0} for name, _ in outputs.CASES]
     paths = [{"manipulator": label, "key": key, "target": target, "rate_hz": 1000.0, "seconds": 1.0, "sent": 1000,
               "poses": 990, "paired": 990, "wrong": 0, "late_sends": 0,
@@ -80,11 +82,12 @@ def _fake(key, label, shipped_above_us):
     return costs, paths
 
 
-@pytest.mark.parametrize("shipped_above_us, verdict", [
-    (12.0, "met"), (26.0, "missed by 6.0 µs (1.3×)")])
-def test_the_section_states_targets_figures_and_misses(shipped_above_us, verdict):
+@pytest.mark.parametrize("shipped_above_us, handoff_us, verdict", [
+    (12.0, 1.5, "met"), (-8.0, 26.0, "missed by 6.0 µs (1.3×)")])
+def test_the_section_states_targets_figures_and_misses(shipped_above_us, handoff_us, verdict):
+    """Part 1's verdict judges the hand-off the node times itself, not the noisy CPU difference."""
     import pickle
-    costs, paths = _fake("3rpr", "3-RPR", shipped_above_us)
+    costs, paths = _fake("3rpr", "3-RPR", shipped_above_us, handoff_us)
     profile = {"samples": 10, "wake_us": {"p50": 40.0, "p99": 90.0}, "wake_with": "queue.SimpleQueue",
                "write_alone": {"cpu_us": {"p50": 13.0, "p99": 30.0}, "wall_us": {"p50": 14.0, "p99": 31.0}},
                "write_remote": {"cpu_us": {"p50": 31.0, "p99": 60.0}, "wall_us": {"p50": 35.0, "p99": 70.0}}}
@@ -97,12 +100,14 @@ def test_the_section_states_targets_figures_and_misses(shipped_above_us, verdict
     assert f"p50 0.300 ms (target ≤ {p50:g}: missed by 0.050 ms, 1.2×)" in text
     assert f"p99 0.900 ms (target ≤ {p99:g}: missed by 0.400 ms, 1.8×)" in text
     assert "the floor (echo) 0.100 / 0.900 ms" in text and "+0.200 ms at p50" in text
-    # part 1: the solving thread's CPU above the configuration with no extra output, against the target
-    assert f"with them minus with none is +{shipped_above_us:.1f} µs" in " ".join(text.split())
-    assert f"against the target of {outputs.EXTRAS_TARGET_US:g} µs: {verdict}" in text
-    shipped = f"| 3-RPR | {outputs.SHIPPED} | {30 + shipped_above_us:.1f} / 40.0 | +{shipped_above_us:.1f} | 15.0 / 40.0 |"
+    # part 1: the hand-off (the node's own wall time) against the target, the CPU above none beside it
+    flat = " ".join(text.split())
+    assert f"with them minus with none is {shipped_above_us:+.1f} µs" in flat
+    assert f"the hand-off, {handoff_us:.1f} µs wall at p50 as the node measures it, against the target of " \
+           f"{outputs.EXTRAS_TARGET_US:g} µs: {verdict}" in flat
+    shipped = f"| 3-RPR | {outputs.SHIPPED} | {30 + shipped_above_us:.1f} / 40.0 | {shipped_above_us:+.1f} | 15.0 / 40.0 |"
     assert shipped in text
-    assert "| 3-RPR | none | 30.0 / 40.0 | +0.0 |" in text and "spends 70.0 µs CPU per pose" in text
+    assert "| 3-RPR | none | 30.0 / 40.0 | +0.0 |" in text and "spends 70.0 µs CPU per pose" in flat
     # part 3: the writes and the wake-up round trip the node's design cites
     assert "| one Cyclone DDS write, a reader in another process | 31.0 / 60.0 | 35.0 / 70.0 |" in text
     assert "| Python thread wake-up round trip (`queue.SimpleQueue`) | — | 40.0 / 90.0 |" in text

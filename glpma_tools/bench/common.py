@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from glpma_tools.stats import mean_ci
-from glpma_tools.timing import REPO_ROOT  # noqa: F401 - the bench's modules find the repository through here
 
 #: the papers' success criterion: best fitness below this
 SUCCESS_TOLERANCE = 1e-20

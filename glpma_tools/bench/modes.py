@@ -14,8 +14,7 @@ from glpma_ros.errors import GlpmaError
 from glpma_ros.models import MODELS
 from glpma_ros.solve_all import G3PCX_RUNS, solve_all
 from glpma_tools.tables import MISSING, fmt, table
-
-from .common import REPO_ROOT
+from glpma_tools.timing import REPO_ROOT
 
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"
 #: the manipulators' short names, in the report's order

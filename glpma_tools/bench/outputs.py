@@ -293,8 +293,9 @@ def _costs(rows, pace_s: float) -> list[str]:
                   "extras dropped"], body), ""]
     out += ["- " + prose("outputs", "costs_target", manipulator=r["manipulator"], extra=f"{r['above_none_us']:+.1f}",
                          target=f"{EXTRAS_TARGET_US:g}", handoff=_q(r["handoff_us"], 1, ("p50",)),
-                         verdict=_verdict(r["above_none_us"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
-                         thread=_f(r["extras_thread_cpu_us"], 1)) for r in rows if r["outputs"] == SHIPPED]
+                         verdict=_verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
+                         thread=_f(r["extras_thread_cpu_us"], 1))
+            for r in rows if r["outputs"] == SHIPPED and r["handoff_us"].get("p50") is not None]
     return out + ["", prose("outputs", "costs_reading"), ""]
 
 

@@ -19,10 +19,10 @@ MIN_HISTORY_POINTS = 4
 def draw(res, out_dir: Path) -> dict:
     """Every figure of the measurements ``res`` into ``out_dir``: ``{name: path}``."""
     from glpma_ros import solvers
+    from glpma_tools.timing import DEADLINE_MARGIN_MS
 
     from .report import SOLVER_LABEL
     from .scenarios import LATENCY_TARGET_MS
-    from .timing import DEADLINE_MARGIN_MS
     figures = {}
     for k, sc in res["scenarios"].items():
         series = [(f"{SOLVER_LABEL[c.solver]} {c.pop_label} {'default' if c.polish else 'pure'}",

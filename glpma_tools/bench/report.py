@@ -19,13 +19,13 @@ from glpma_ros import solvers
 from glpma_tools.sim import trajectories as traj
 from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, fmt, fmt_ci, ratio, table
+from glpma_tools.timing import DEADLINE_MARGIN_MS, STOP_AFTER, STOP_OVERRUN_FACTOR
 
 from .common import summarize
 from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE_NAME, Published
 from .peers import PEER_LABEL, PYMOO_BOUND_FACTOR
 from .protocols import PublishedRow
 from .scenarios import LATENCY_TARGET_MS
-from .timing import DEADLINE_MARGIN_MS, STOP_AFTER, STOP_OVERRUN_FACTOR
 
 SOLVER_LABEL = {"rcga": "RCGA", "g3pcx": "G3-PCX", "glpma": "GLPMA", "de": "DE"}
 _BLOCK = re.compile(r"^<!-- (\w+) -->$", re.M)
@@ -420,8 +420,7 @@ def reliability_section(res: dict | None, source=None) -> list[str]:
     ``glpma-fk stress`` puts them."""
     from glpma_tools.stress import report as stress
     from glpma_tools.stress import session as ses
-
-    from .timing import WARM_UP_QUIET
+    from glpma_tools.timing import WARM_UP_QUIET
     if res is None:
         return md_blocks("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
     secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")

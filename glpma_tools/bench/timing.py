@@ -6,9 +6,6 @@ from dataclasses import dataclass
 
 from glpma_tools import timing
 
-# where the report and the figures import the timed calls' constants from
-from glpma_tools.timing import DEADLINE_MARGIN_MS, STOP_AFTER, STOP_OVERRUN_FACTOR, WARM_UP_QUIET  # noqa: F401
-
 #: the bench's deadline cells are small: a short warm-up is enough
 DEADLINE_WARM_UP_QUIET = 3
 DEADLINE_WARM_UP_MAX_CALLS = 30
