@@ -35,8 +35,8 @@ from glpma_ros.covariance import PoseJacobian
 from glpma_ros.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
 from glpma_ros.models.random_geometry import random_hexapod, random_hexapod_33, random_hexapod_63
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
-from glpma_tools.bench.timing import timed_calls, warm_up
 from glpma_tools.sim.trajectories import PERIOD_S, start_pose, trajectory, variables_along
+from glpma_tools.timing import timed_calls, warm_up
 
 #: the designs timed, in the table's order: shipped configs, and random geometries (symmetric designs
 #: like the shipped 6-3 and 3-3 may cost more per evaluation than a general one)

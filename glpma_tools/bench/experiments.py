@@ -1,7 +1,6 @@
-"""The papers' experiments: their tables (001 Tables 5 and 8), the peers' G3-PCX, the larger-cap
-diagnostics, all assembly modes (002) and the baselines (004 Table II, 003's DE).  Each returns
-plain data; ``report`` turns it into tables.  Timing experiments: :mod:`.tracking`,
-:mod:`.deadlines`, :mod:`.dds`."""
+"""The papers' experiments: their tables (001 Tables 5 and 8), the peers' G3-PCX, the larger-cap diagnostics, all
+assembly modes (002) and the baselines (004 Table II, 003's DE).  Each returns plain data; ``report`` turns it into
+tables.  Timing experiments: :mod:`.tracking`, :mod:`.timing`, :mod:`.dds`."""
 from __future__ import annotations
 
 import gc
@@ -13,9 +12,9 @@ import numpy as np
 
 from glpma_ros import solvers
 from glpma_ros.solve_all import solve_all, wide_range
+from glpma_tools.timing import progress_bar as _bar
 
 from .common import Run
-from .common import progress_bar as _bar
 from .papers import PUBLISHED
 from .peers import PEER_SOLVERS, available
 
@@ -55,17 +54,14 @@ def timed_solve(solver, model, legs, seed, **options) -> Run:
 
 
 def table_row(sc, cfg: Config, n: int, progress) -> TableRow:
-    """``n`` searches (seeds 0..n-1) of one configuration, after one short solve in which Numba
-    compiles (or loads from its cache) everything the configuration calls."""
-    options = {"population": cfg.population, "polish": cfg.polish}
-    if cfg.local_population:
-        options["local_population"] = cfg.local_population
+    """``n`` searches (seeds 0..n-1) of one configuration, after one short solve in which Numba compiles (or loads
+    from its cache) everything the configuration calls."""
+    options = {"population": cfg.population, "polish": cfg.polish,
+               **({"local_population": cfg.local_population} if cfg.local_population else {})}
     solvers.solve(cfg.solver, sc.model, sc.legs, rng=12345, max_evals=50 * cfg.population, **options)
     gc.collect()
-    row = TableRow(cfg)
-    for seed in _bar(range(n), f"{sc.label} {cfg.solver} {cfg.pop_label} {cfg.mode}", progress):
-        row.runs.append(timed_solve(cfg.solver, sc.model, sc.legs, seed, **options))
-    return row
+    return TableRow(cfg, [timed_solve(cfg.solver, sc.model, sc.legs, seed, **options)
+                          for seed in _bar(range(n), f"{sc.label} {cfg.solver} {cfg.pop_label} {cfg.mode}", progress)])
 
 
 def paper_tables(sc, runs_pure, runs_polished, progress) -> list[TableRow]:
@@ -84,11 +80,11 @@ class PeerRow:
 
 
 def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
-    settings = solvers.PAPER_SETTINGS[sc.model.kind]
+    """Each peer's runs (seeds 0..) on the paper's protocol, after one short run that imports and compiles."""
+    kw = {k: solvers.PAPER_SETTINGS[sc.model.kind][k] for k in ("population", "init_range", "max_evals")}
     out = []
     for name, fn in PEER_SOLVERS.items():
-        n = runs_by_peer.get(name, 0)
-        why = available(name)
+        n, why = runs_by_peer.get(name, 0), available(name)
         if why is not None:
             print(f"bench: {name} {why}; its rows are marked 'not installed'")
             out.append(PeerRow(name, status="not installed", note=why))
@@ -96,8 +92,7 @@ def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
         if n <= 0:
             out.append(PeerRow(name, status="skipped", note=runs_by_peer.get(f"{name}_why", "0 runs requested")))
             continue
-        kw = {k: settings[k] for k in ("population", "init_range", "max_evals")}
-        fn(sc.model, sc.legs, seed=999, **{**kw, "max_evals": 200})   # import and compile
+        fn(sc.model, sc.legs, seed=999, **{**kw, "max_evals": 200})
         out.append(PeerRow(name, [fn(sc.model, sc.legs, seed=seed, **kw)
                                   for seed in _bar(range(n), f"{sc.label} peer {name}", progress)]))
     return out
@@ -108,16 +103,14 @@ def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
 class AllSolutionsResult:
     runs: int
     repeats: list             # (seed, count, elapsed_s, evaluations)
-    solutions: list           # variables of the first repeat
     init_range: tuple
     deviations: list          # per published solution: (index, nearest found, max coordinate deviation)
     unmatched_found: int
 
 
 def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
-    """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to
-    the published ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the
-    model's distance)."""
+    """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to the published
+    ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the model's distance)."""
     from .report import FOUND_MM
     model = sc.model
     solve_all(model, sc.legs, runs=2, seed=999)       # warm-up
@@ -133,7 +126,7 @@ def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
              else model.distance(x, pub) for x in first]
         devs.append((i, int(np.argmin(d)), min(d)) if d else (i, None, math.inf))
     matched = {j for _, j, d in devs if d < FOUND_MM}
-    return AllSolutionsResult(runs, reps, first, wide_range(model, sc.legs), devs, len(first) - len(matched))
+    return AllSolutionsResult(runs, reps, wide_range(model, sc.legs), devs, len(first) - len(matched))
 
 
 # -- the gap between the papers' pure G3-PCX and faithful implementations --------------------
@@ -143,9 +136,8 @@ class GapDiagnostics:
 
 
 def gap_diagnostics(sc, runs, progress) -> GapDiagnostics:
-    """Our pure G3-PCX with larger evaluation caps: 2 x 10,000 + population (the cap
-    if the paper had counted generations of two children) and 100,000 (how many
-    evaluations a run needs to reach 1e-20 at all)."""
+    """Our pure G3-PCX with larger evaluation caps: 2 x 10,000 + population (the cap if the paper had counted
+    generations of two children) and 100,000 (how many evaluations a run needs to reach 1e-20 at all)."""
     settings = solvers.PAPER_SETTINGS[sc.model.kind]
     pop, cap = settings["population"], settings["max_evals"]
     return GapDiagnostics({max_evals: [timed_solve("g3pcx", sc.model, sc.legs, seed, polish=False, max_evals=max_evals)
@@ -161,21 +153,18 @@ TABLE2_CONFIGS = (("sa", {"chain_length": 20}), ("sa", {"chain_length": 50}), ("
 
 @dataclass
 class Baselines:
-    table2: list = field(default_factory=list)   # solvers.protocols.Table2Result
-    de: dict = field(default_factory=dict)       # scenario key -> [TableRow] (pure, default)
+    table2: list     # protocols.Table2Result
+    de: dict         # scenario key -> [TableRow] (pure, default)
 
 
 def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> Baselines:
     """004's Table II protocol on the 3-RPR; DE/rand/1/bin (003) on 001's protocols."""
     from .protocols import table2_protocol
-    out = Baselines()
+    table2 = []
     if "3rpr" in scenarios and table2_runs > 0:
-        model = scenarios["3rpr"].model
-        for name, params in _bar(TABLE2_CONFIGS, "004 Table II", progress):
-            out.table2.append(table2_protocol(model, name, runs=table2_runs, **params))
-    for key, sc in scenarios.items():
-        population = solvers.DEFAULT_POPULATION["de"](sc.model)
-        out.de[key] = [table_row(sc, Config("de", population, None, polish),
-                                 hex_runs if key == "hexapod" and not polish else runs, progress)
-                       for polish in (False, True)]
-    return out
+        table2 = [table2_protocol(scenarios["3rpr"].model, name, runs=table2_runs, **params)
+                  for name, params in _bar(TABLE2_CONFIGS, "004 Table II", progress)]
+    de = {key: [table_row(sc, Config("de", solvers.DEFAULT_POPULATION["de"](sc.model), None, polish),
+                          hex_runs if key == "hexapod" and not polish else runs, progress) for polish in (False, True)]
+          for key, sc in scenarios.items()}
+    return Baselines(table2, de)

@@ -1,9 +1,8 @@
-"""Offline tools, each through its command-line entry point as a user runs it: ``glpma-fk bag``
-throughput on a recorded 3-RPR run and where its time goes, a fleet of bags on each engine;
-``glpma-fk map``: the default 3-RPR map and a 6-6 slice on local processes and on a Dask cluster (a
-``LocalCluster`` of as many workers as local processes), the multistart's mode counts against the
-papers' G3-PCX runs and msolve's certified counts; ``glpma-fk calibrate``'s time and accuracy on
-simulated data."""
+"""Offline tools, each through its command-line entry point as a user runs it: ``glpma-fk bag`` throughput on a
+recorded 3-RPR run and where its time goes, a fleet of bags on each engine; ``glpma-fk map``: the default 3-RPR map
+and a 6-6 slice on local processes and on a Dask cluster (a ``LocalCluster`` of as many workers as local processes),
+the multistart's mode counts against the papers' G3-PCX runs and msolve's certified counts; ``glpma-fk calibrate``'s
+time and accuracy on simulated data."""
 from __future__ import annotations
 
 import contextlib
@@ -17,13 +16,10 @@ import numpy as np
 
 from glpma_ros.config import config_dir
 
-#: messages of the recorded run (one loop of the simulated motion at 1 kHz)
-BAG_MESSAGES = 10_000
-#: the maps' grids (points per axis; the command's default) and the process counts they are timed with
-MAP_RESOLUTION = 101
+#: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
-#: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default
-#: before the multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
+#: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default before the
+#: multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
 COMPARE_RUNS = 50
 EXACT_POINTS = 50
 QUICK_RUNS = 5
@@ -32,12 +28,11 @@ FLEET_BAGS = 4
 #: log time of the first message and the period of the recorded legs (1 kHz)
 T0_NS = 1_700_000_000_000_000_000
 PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each
-#: this many times (the median and the smallest are reported: a shared machine only adds time)
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each this many times
+#: (the median and the smallest are reported: a shared machine only adds time)
 CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
-#: fresh true poses at which the forward kinematics with the nominal and with the calibrated config
-#: is compared with the truth
+#: fresh true poses at which the forward kinematics with the nominal and the calibrated config is compared with truth
 CALIBRATION_FK_POSES = 20
 PARAMS_3RPR = ["--ros-args", "--params-file", str(config_dir() / "params_3rpr.yaml")]
 
@@ -63,33 +58,24 @@ def _write_legs_bag(path: Path, legs_m) -> None:
             w.write(conn, T0_NS + i * PERIOD_NS, bytes(ts.serialize_cdr(msg, name)))
 
 
-def _quiet_json(main, argv, ok=(0,)) -> dict:
-    """Run a tool's ``main(argv)`` with ``--json`` and return its JSON summary (exit statuses ``ok``)."""
+def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
+    """A tool's ``main(argv)`` run with ``--json`` (exit statuses ``ok``): wall s, CPU s of this process, summary."""
     out = io.StringIO()
+    t0, c0 = time.perf_counter(), time.process_time()
     with contextlib.redirect_stdout(out):
         code = main(argv)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     if code not in ok:
         raise RuntimeError(f"exit status {code}")
-    return json.loads(out.getvalue().strip().splitlines()[-1])
+    return wall, cpu, json.loads(out.getvalue().strip().splitlines()[-1])
 
 
-def _cpu_per_part(parts) -> dict:
-    """``{name: CPU s of this process}`` of each ``(name, call)``, run in order, each given what the
-    one before returned."""
-    out, value = {}, None
-    for name, call in parts:
-        c = time.process_time()
-        value = call(value)
-        out[name] = time.process_time() - c
-    return out
-
-
-def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
+def bag_breakdown(messages: int) -> dict:
     """``glpma-fk bag`` on a recorded 3-RPR run of ``messages`` inputs (the node's parameters of
-    ``config/params_3rpr.yaml``): poses per second of wall and of CPU time; and where its CPU time
-    goes, per input (µs): reading the bag, decoding the legs, the node's service (validation,
-    estimator, statistics), the assembly-mode watch, encoding the pose and /tf and writing the four
-    messages of an input (the copy, pose, /tf, status), measured one part at a time on the same run."""
+    ``config/params_3rpr.yaml``): poses per second of wall and of CPU time; and where its CPU time goes, per input
+    (µs): reading the bag, decoding the legs, the node's service (validation, estimator, statistics), the
+    assembly-mode watch, encoding the pose and /tf and writing the four messages of an input (the copy, pose, /tf,
+    status), measured one part at a time on the same run."""
     import logging
 
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
@@ -131,7 +117,7 @@ def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
         def decode(read_raws):
             raws.extend(read_raws)
             return [decode_float64_multi_array(raw, ts) for _, raw in read_raws]
-        per = _cpu_per_part([
+        parts = [
             ("read the bag", read), ("decode the legs", decode),
             ("the node's service (validate, estimate, statistics)",
              lambda legs: [service.handle(l, t) for l, (t, _) in zip(legs, raws)]),
@@ -140,10 +126,13 @@ def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
                 (raw, encode.pose_stamped(o.pose.stamp_ns, "base", o.pose.position, o.pose.orientation),
                  encode.tf_message(o.pose.stamp_ns, "base", "platform", o.pose.position, o.pose.orientation))
                 for raw, o in zip(raws, outcomes)]),
-            ("write 4 messages (rosbags MCAP writer)", write)])
-        t0 = time.perf_counter()
-        summary = _quiet_json(bag.main, [str(src), str(dst), "--json", "--no-progress", *PARAMS_3RPR])
-        wall = time.perf_counter() - t0
+            ("write 4 messages (rosbags MCAP writer)", write)]
+        per, value = {}, None        # CPU s of this process per part, each part given what the one before returned
+        for name, part in parts:
+            c0 = time.process_time()
+            value = part(value)
+            per[name] = time.process_time() - c0
+        wall, _, summary = _run_json(bag.main, [str(src), str(dst), "--json", "--no-progress", *PARAMS_3RPR])
     per_cpu_s = summary["converged"] / summary["cpu_s"] if summary["cpu_s"] else None
     run = {"messages": messages, "converged": summary["converged"], "rejected": summary["rejected"],
            "assembly-mode changes": summary["assembly_mode_changes"], "wall s (incl. warm-up)": wall,
@@ -154,8 +143,8 @@ def bag_breakdown(messages: int = BAG_MESSAGES) -> dict:
 
 @contextlib.contextmanager
 def _engines(workers=MAP_WORKERS):
-    """``[(label, options)]`` of the engines: ``--workers N`` local processes, and a local Dask cluster
-    of ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
+    """``[(label, options)]`` of the engines: ``--workers N`` local processes, and a local Dask cluster of
+    ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
     engines = [(f"{n} process(es)", ["--workers", str(n)]) for n in workers]
     try:
         import distributed
@@ -167,9 +156,9 @@ def _engines(workers=MAP_WORKERS):
         yield engines + [(f"Dask, {max(workers)} workers", ["--scheduler", cluster.scheduler_address])]
 
 
-def bag_fleet(messages: int = BAG_MESSAGES, bags: int = FLEET_BAGS) -> dict:
-    """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each
-    engine: wall time and whether every engine wrote the same statuses."""
+def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
+    """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each engine: wall
+    time and whether every engine wrote the same statuses."""
     from rosbags.rosbag2 import Reader
 
     from glpma_tools import bag
@@ -182,11 +171,9 @@ def bag_fleet(messages: int = BAG_MESSAGES, bags: int = FLEET_BAGS) -> dict:
             _write_legs_bag(fleet / f"run{k}", legs_m[k * each:(k + 1) * each])
         for label, options in engines:
             out = Path(tmp) / label.replace(" ", "_").replace(",", "")
-            t0 = time.perf_counter()
-            summary = _quiet_json(bag.main, [str(fleet), "--out-dir", str(out), *options, "--json", "--no-progress",
-                                             *PARAMS_3RPR])
-            rows.append({"engine": label, "wall s": time.perf_counter() - t0,
-                         "converged": summary["total"]["converged"]})
+            wall, _, summary = _run_json(bag.main, [str(fleet), "--out-dir", str(out), *options, "--json",
+                                                    "--no-progress", *PARAMS_3RPR])
+            rows.append({"engine": label, "wall s": wall, "converged": summary["total"]["converged"]})
             digest = []
             for k in range(bags):
                 with Reader(out / f"run{k}") as r:
@@ -197,23 +184,21 @@ def bag_fleet(messages: int = BAG_MESSAGES, bags: int = FLEET_BAGS) -> dict:
 
 
 def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple]:
-    """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each
-    point (shape 2 x rows x columns) and the grid's axes."""
+    """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each point
+    (shape 2 x rows x columns) and the grid's axes."""
     from glpma_tools import workspace_map
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
-        t0 = time.perf_counter()
         # with --exact, exit status 1 says a count differs from msolve's: a result, reported in the table
-        summary = _quiet_json(workspace_map.main, [config, "--out", tmp, "--no-progress", "--json", *options],
-                              ok=(0, 1) if "--exact" in options else (0,))
-        wall = time.perf_counter() - t0
+        wall, _, summary = _run_json(workspace_map.main, [config, "--out", tmp, "--no-progress", "--json", *options],
+                                     ok=(0, 1) if "--exact" in options else (0,))
         with np.load(Path(tmp) / "assembly_modes.npz") as f:
             return wall, summary, np.stack((f["counts"], f["double_modes"])), (f["axis_0"], f["axis_1"])
 
 
-def map_scaling(resolution: int = MAP_RESOLUTION, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
-    """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each
-    engine: wall time (spawning and loading the workers included), points per second, and whether the
-    mode counts (and the double modes of the points on a singularity) are identical."""
+def map_scaling(resolution: int, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
+    """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each engine: wall time
+    (spawning and loading the workers included), points per second, and whether the mode counts (and the double modes
+    of the points on a singularity) are identical."""
     rows, counts = [], []
     with _engines(workers) as engines:
         for label, extra in engines:
@@ -226,10 +211,10 @@ def map_scaling(resolution: int = MAP_RESOLUTION, workers=MAP_WORKERS, config: s
             "identical counts": all(np.array_equal(c, counts[0]) for c in counts)}
 
 
-def map_methods(resolution: int = MAP_RESOLUTION, runs: int = COMPARE_RUNS, exact: int = EXACT_POINTS) -> dict:
-    """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers'
-    ``runs`` polished G3-PCX searches per point; where they differ, and msolve's certified count at
-    ``exact`` points of the multistart's map (``--exact``) when the extra is installed."""
+def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_POINTS) -> dict:
+    """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers' ``runs``
+    polished G3-PCX searches per point; where they differ, and msolve's certified count at ``exact`` points of the
+    multistart's map (``--exact``) when the extra is installed."""
     from glpma_ros.exact import ExactUnavailableError, msolve_executable
     options = ["--resolution", str(resolution), "--workers", str(max(MAP_WORKERS))]
     wall_g, _, (g, _), _ = _map_run("planar_3rpr_seed", [*options, "--method", "g3pcx", "--runs", str(runs)])
@@ -252,19 +237,18 @@ def map_methods(resolution: int = MAP_RESOLUTION, runs: int = COMPARE_RUNS, exac
 
 
 def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod: bool = True) -> dict:
-    """The offline section: the bag's breakdown and fleet, the maps on each engine (the 6-6 slice when
-    ``hexapod``), the methods, the calibration."""
-    return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages),
-            "map": map_scaling(map_resolution),
+    """The offline section: the bag's breakdown and fleet, the maps on each engine (the 6-6 slice when ``hexapod``),
+    the methods, the calibration."""
+    runs, exact = (QUICK_RUNS, QUICK_RUNS) if quick else (COMPARE_RUNS, EXACT_POINTS)
+    return {"bag": bag_breakdown(bag_messages), "fleet": bag_fleet(bag_messages), "map": map_scaling(map_resolution),
             "hexapod map": map_scaling(map_resolution, workers=(max(MAP_WORKERS),), config="hexapod_66_rolland")
             if hexapod else None,
-            "methods": map_methods(map_resolution, *((QUICK_RUNS, QUICK_RUNS) if quick else (COMPARE_RUNS, EXACT_POINTS))),
-            "calibration": calibration()}
+            "methods": map_methods(map_resolution, runs, exact), "calibration": calibration()}
 
 
 def _fk_error(model, sim, legs, p, R) -> float:
-    """The largest displacement of a platform joint between the forward kinematics (the node's
-    estimator, started at the true pose) of ``legs`` with ``model`` and the true pose ``p, R``."""
+    """The largest displacement of a platform joint between the forward kinematics (the node's estimator, started at
+    the true pose) of ``legs`` with ``model`` and the true pose ``p, R``."""
     from glpma_ros.estimator import Estimator
     from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
     d = len(p)
@@ -278,11 +262,10 @@ def _fk_error(model, sim, legs, p, R) -> float:
 
 def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
-    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`)
-    for the 3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command
-    (CSV read, identification, NEW.yaml) and of the identification alone, the leg residual RMS on the
-    held-out measurements, and the forward kinematics' pose error (:func:`_fk_error`) with the nominal
-    and with the calibrated config at fresh poses."""
+    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
+    3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
+    NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
+    kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses."""
     from glpma_ros.config import load_document, model_from_dict
     from glpma_tools.calibrate import main as calibrate_main
     from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
@@ -298,24 +281,22 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
             with tempfile.TemporaryDirectory(prefix="glpma_bench_calibrate_") as tmp:
                 data, new = Path(tmp) / "data.csv", Path(tmp) / "new.yaml"
                 write_csv(data, sim.measured)
-                walls, cpus, ident = [], [], []
-                for _ in range(repeats):
-                    t0, c0 = time.perf_counter(), time.process_time()
-                    out = _quiet_json(calibrate_main, [str(path), str(data), "--out", str(new), "--json"])
-                    walls.append(time.perf_counter() - t0)
-                    cpus.append(time.process_time() - c0)
-                    ident.append(out["identify_s"])
+                walls, cpus, outs = zip(*(_run_json(calibrate_main, [str(path), str(data), "--out", str(new), "--json"])
+                                          for _ in range(repeats)))
                 calibrated = model_from_dict(load_document(new), str(new))
+            out = outs[-1]
             fresh = simulate(model, center, np.random.default_rng(1), fk_poses).true_poses
             readings = true_readings(sim.truth, fresh.position, fresh.rotation)
             errors = {label: [_fk_error(m, sim, *args) * mm for args in zip(readings, fresh.position, fresh.rotation)]
                       for label, m in (("nominal", model), ("calibrated", calibrated))}
             rows.append({"manipulator": name, "measurements": size, "fitted": out["fitted"],
                          "wall s median": float(np.median(walls)), "wall s min": float(min(walls)),
-                         "cpu s median": float(np.median(cpus)), "identify s median": float(np.median(ident)),
+                         "cpu s median": float(np.median(cpus)),
+                         "identify s median": float(np.median([o["identify_s"] for o in outs])),
                          "iterations": out["iterations"],
                          "held-out RMS before mm": out["holdout_rms_before"] * mm,
                          "held-out RMS after mm": out["holdout_rms_after"] * mm,
-                         **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v)) for k, v in errors.items()},
+                         **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v))
+                            for k, v in errors.items()},
                          "weak directions": len(out["weak"])})
     return rows

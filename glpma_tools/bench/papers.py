@@ -1,14 +1,11 @@
 """The published figures the benchmark reproduces (mean over 100 runs).
 
-Chandra & Rolland (2014), Table 5 (3-RPR: init U[-50, 50]^3, success = fitness
-< 1e-20 within 10,000 evaluations) and Table 8 (6-6 hexapod: init
-U[-1000, 1000]^9, 500,000 evaluations).  Each entry: mean evaluations, their
-+/- column, mean time (s), its +/- column, success rate (%).  The papers ran the
-pure evolutionary algorithms (no refinement).
+Chandra & Rolland (2014), Table 5 (3-RPR: init U[-50, 50]^3, success = fitness < 1e-20 within 10,000 evaluations) and
+Table 8 (6-6 hexapod: init U[-1000, 1000]^9, 500,000 evaluations).  Each entry: mean evaluations, their +/- column,
+mean time (s), its +/- column, success rate (%).  The papers ran the pure evolutionary algorithms (no refinement).
 
-Rolland & Chandra (2016), section 5.5.2: all 16 real solutions of the hexapod
-from 100 independent G3-PCX runs from U[-2000, 2000]^9, under 35 s in total,
-0.15-2.5 mm from the exact solutions.
+Rolland & Chandra (2016), section 5.5.2: all 16 real solutions of the hexapod from 100 independent G3-PCX runs from
+U[-2000, 2000]^9, under 35 s in total, 0.15-2.5 mm from the exact solutions.
 """
 from __future__ import annotations
 
@@ -46,6 +43,6 @@ TABLE_NAME = {"planar_3rpr": "001 Table 5", "hexapod_66": "001 Table 8"}
 #: 002 section 5.5.2
 ALL_SOLUTIONS = {"count": 16, "runs": 100, "time_s": 35.0, "accuracy_mm": (0.15, 2.5), "init_range": (-2000, 2000)}
 
-#: success (%) of pure G3-PCX on 001 Table 5's protocol in earlier runs of this project with faithful
-#: implementations (pypop7, pymoo, and a minimal one written from Deb's description), for comparison
+#: success (%) of pure G3-PCX on 001 Table 5's protocol in earlier runs of this project with faithful implementations
+#: (pypop7, pymoo, and a minimal one written from Deb's description), for comparison
 FAITHFUL_3RPR = {"pypop7": 10, "pymoo": 0, "minimal faithful": 10}

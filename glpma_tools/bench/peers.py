@@ -1,13 +1,13 @@
-"""Peer implementations on the identical fitness: pypop7 and pymoo G3-PCX, and
-``scipy.optimize.least_squares`` for the warm (tracking) case.
+"""Peer implementations on the identical fitness: pypop7 and pymoo G3-PCX, and ``scipy.optimize.least_squares`` for
+the warm (tracking) case.
 
-All peers are benchmark-only dependencies, imported lazily.  They call the same
-compiled fitness as our solvers (``models.base.population_fitness``), through a
-counter that records every evaluation, the first one below the success threshold
-and the best-so-far trace, so evaluations are counted the same way for everyone.
+All peers are benchmark-only dependencies, imported lazily.  They call the same compiled fitness as our solvers
+(``models.kernels.population_fitness``), through a counter that records every evaluation, the first one below the
+success threshold and the best-so-far trace, so evaluations are counted the same way for everyone.
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import math
 import time
@@ -19,8 +19,8 @@ from glpma_ros.models.kernels import population_fitness
 
 from .common import SUCCESS_TOLERANCE, Run
 
-#: pymoo needs bounds (its PM mutation scales with them): this many init half-widths
-#: around the init range's centre, so that every solution is well inside
+#: pymoo needs bounds (its PM mutation scales with them): this many init half-widths around the init range's centre,
+#: so that every solution is well inside
 PYMOO_BOUND_FACTOR = 10.0
 
 
@@ -39,37 +39,26 @@ def available(name: str) -> str | None:
 
 
 class CountingFitness:
-    """The model's fitness, counting evaluations in call order."""
+    """The model's fitness, counting evaluations in call order: the best so far (a history point each time it halves)
+    and the first evaluation below :data:`SUCCESS_TOLERANCE` within ``max_evals``."""
 
-    def __init__(self, model, legs, tolerance=SUCCESS_TOLERANCE, max_evals=None):
-        self.kind, self.data, self.n_res = model.kind_id, model.data, model.n_res
-        self.legs = np.ascontiguousarray(legs, dtype=float)
-        self.tolerance = tolerance
-        self.max_evals = max_evals
-        self.n = 0
-        self.best = math.inf
-        self.first_success = None
-        self.history = []
-        self._last_logged = math.inf
-
-    def _record(self, F):
-        for f in F:
-            self.n += 1
-            if f < self.best:
-                self.best = float(f)
-                if self.best < 0.5 * self._last_logged:
-                    self.history.append((self.n, self.best))
-                    self._last_logged = self.best
-                if self.first_success is None and f < self.tolerance and (
-                        self.max_evals is None or self.n <= self.max_evals):
-                    self.first_success = self.n
+    def __init__(self, model, legs, max_evals):
+        self.args = (model.kind_id, model.data, np.ascontiguousarray(legs, dtype=float), model.n_res)
+        self.max_evals, self.n, self.best, self.first_success, self.history = max_evals, 0, math.inf, None, []
 
     def one(self, x) -> float:
         return float(self.many(np.asarray(x, dtype=float).reshape(1, -1))[0])
 
     def many(self, X) -> np.ndarray:
-        F = population_fitness(np.ascontiguousarray(X, dtype=float), self.kind, self.data, self.legs, self.n_res)
-        self._record(F)
+        F = population_fitness(np.ascontiguousarray(X, dtype=float), *self.args)
+        for f in F:
+            self.n += 1
+            if f < self.best:
+                self.best = float(f)
+                if not self.history or self.best < 0.5 * self.history[-1][1]:
+                    self.history.append((self.n, self.best))
+                if self.first_success is None and f < SUCCESS_TOLERANCE and self.n <= self.max_evals:
+                    self.first_success = self.n
         return F
 
     def run(self, optimize) -> Run:
@@ -84,24 +73,22 @@ class CountingFitness:
         return Run(ok, self.first_success if ok else self.n, wall_s, self.best, self.history)
 
 
-def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
-    """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1),
-    unbounded search, initial population uniform in ``init_range``."""
+def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
+    """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1), unbounded search, initial population
+    uniform in ``init_range``."""
     from pypop7.optimizers.ga.g3pcx import G3PCX
-    fit = CountingFitness(model, legs, tolerance, max_evals)
-    n = model.n_vars
-    low, high = init_range
+    fit, n = CountingFitness(model, legs, max_evals), model.n_vars
     problem = {"fitness_function": fit.one, "ndim_problem": n,
-               "lower_boundary": np.full(n, float(low)), "upper_boundary": np.full(n, float(high))}
+               "lower_boundary": np.full(n, float(init_range[0])), "upper_boundary": np.full(n, float(init_range[1]))}
     options = {"max_function_evaluations": int(max_evals),
-               "fitness_threshold": float(np.nextafter(tolerance, 0.0)),  # pypop7 stops at <=
+               "fitness_threshold": float(np.nextafter(SUCCESS_TOLERANCE, 0.0)),  # pypop7 stops at <=
                "seed_rng": int(seed), "n_individuals": int(population), "verbose": 0, "saving_fitness": 0}
     return fit.run(lambda: G3PCX(problem, options).optimize())
 
 
-def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals, tolerance=SUCCESS_TOLERANCE) -> Run:
-    """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial
-    population uniform in ``init_range``, bounds ``PYMOO_BOUND_FACTOR`` times wider."""
+def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
+    """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial population uniform in ``init_range``,
+    bounds ``PYMOO_BOUND_FACTOR`` times wider."""
     from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX
     from pymoo.config import Config
     from pymoo.core.problem import Problem
@@ -110,24 +97,20 @@ def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals, toleran
     from pymoo.termination.fmin import MinimumFunctionValueTermination
     from pymoo.termination.max_eval import MaximumFunctionCallTermination
     Config.warnings["not_compiled"] = False
-    fit = CountingFitness(model, legs, tolerance, max_evals)
-    n = model.n_vars
+    fit, n = CountingFitness(model, legs, max_evals), model.n_vars
     low, high = (float(v) for v in init_range)
-    centre, half = 0.5 * (low + high), 0.5 * (high - low)
+    centre, bound = 0.5 * (low + high), PYMOO_BOUND_FACTOR * 0.5 * (high - low)
 
     class FK(Problem):
-        def __init__(self):
-            super().__init__(n_var=n, n_obj=1, xl=np.full(n, centre - PYMOO_BOUND_FACTOR * half),
-                             xu=np.full(n, centre + PYMOO_BOUND_FACTOR * half))
-
         def _evaluate(self, X, out, *args, **kwargs):
             out["F"] = fit.many(X)[:, None]
 
+    problem = FK(n_var=n, n_obj=1, xl=np.full(n, centre - bound), xu=np.full(n, centre + bound))
     X0 = np.random.default_rng(seed).uniform(low, high, size=(population, n))
     termination = TerminationCollection(MaximumFunctionCallTermination(int(max_evals)),
-                                        MinimumFunctionValueTermination(tolerance))
-    return fit.run(lambda: minimize(FK(), G3PCX(pop_size=int(population), sampling=X0), termination, seed=int(seed),
-                                    verbose=False))
+                                        MinimumFunctionValueTermination(SUCCESS_TOLERANCE))
+    return fit.run(lambda: minimize(problem, G3PCX(pop_size=int(population), sampling=X0), termination,
+                                    seed=int(seed), verbose=False))
 
 
 PEER_SOLVERS = {"pypop7": pypop7_g3pcx, "pymoo": pymoo_g3pcx}
@@ -148,12 +131,10 @@ def _left_jacobian(w):
 class ScipyWarm:
     """One warm-started ``least_squares`` solve per call.
 
-    ``jac="analytic"``: leg residuals in the model's pose parameterisation with the
-    model's analytic Jacobian (3-RPR: the variables; hexapod: position plus a
-    rotation vector ``w`` applied as ``exp(w) R0``, Jacobian composed with the
-    left Jacobian of SO(3), exact).  ``jac="2-point"``: the solver's own residual
-    vector of the solver variables (hexapod: the nine-variable model with its
-    rigidity terms) and finite differences."""
+    ``jac="analytic"``: leg residuals in the model's pose parameterisation with the model's analytic Jacobian (3-RPR:
+    the variables; hexapod: position plus a rotation vector ``w`` applied as ``exp(w) R0`` (``pose_retract``),
+    Jacobian composed with the left Jacobian of SO(3), exact).  ``jac="2-point"``: the solver's own residual vector of
+    the solver variables (hexapod: the nine-variable model with its rigidity terms) and finite differences."""
 
     def __init__(self, model, method, jac, tol=1e-15):
         from scipy.optimize import least_squares
@@ -162,48 +143,35 @@ class ScipyWarm:
 
     def solve(self, x_start, legs):
         """Returns (variables, nfev)."""
-        model, ls = self.model, self.least_squares
+        model, x0 = self.model, np.asarray(x_start, dtype=float)
         kw = {"method": self.method, "xtol": self.tol, "ftol": self.tol, "gtol": self.tol}
         if self.jac == "2-point":
-            res = ls(lambda x: model.residuals(x, legs)[0], np.asarray(x_start, dtype=float), **kw)
+            res = self.least_squares(lambda x: model.residuals(x, legs)[0], x0, **kw)
             return res.x, res.nfev
-        if model.kind == "planar_3rpr":     # the variables are the pose
-            s0, pose, variables = np.asarray(x_start, dtype=float), (lambda s: s), (lambda s: s)
-        else:                               # position and rotation vector applied to the start
-            from glpma_ros.models.rotations import rotation_from_vector
-            R0, p0 = model.pose_state(x_start)
-            s0 = np.zeros(6)
+        planar, start = model.kind == "planar_3rpr", model.pose_state(x0)
 
-            def pose(s):
-                return rotation_from_vector(s[3:]) @ R0, p0 + s[:3]
+        def pose(s):                # 3-RPR: the variables are the pose; hexapod: a step from the start
+            return s if planar else model.pose_retract(start, s)
 
-            def variables(s):
-                return model.pose_variables(pose(s))
-        cache = {}
+        @functools.lru_cache(maxsize=1)     # least_squares asks for the residuals and the Jacobian at one point
+        def rj(key):
+            s = np.frombuffer(key)
+            r, J = model.pose_residuals_jacobian(pose(s), legs)
+            return r, J if planar else np.hstack((J[:, :3], J[:, 3:] @ _left_jacobian(s[3:])))
 
-        def rj(s):          # least_squares asks for the residuals and the Jacobian at the same point
-            key = s.tobytes()
-            if key not in cache:
-                cache.clear()
-                r, J = model.pose_residuals_jacobian(pose(s), legs)
-                if model.kind != "planar_3rpr":
-                    J = J.copy()
-                    J[:, 3:] = J[:, 3:] @ _left_jacobian(s[3:])
-                cache[key] = (r, J)
-            return cache[key]
-
-        res = ls(lambda s: rj(s)[0], s0, jac=lambda s: rj(s)[1], **kw)
-        return variables(res.x), res.nfev
+        res = self.least_squares(lambda s: rj(s.tobytes())[0], x0 if planar else np.zeros(6),
+                                 jac=lambda s: rj(s.tobytes())[1], **kw)
+        return model.pose_variables(pose(res.x)), res.nfev
 
 
 SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]
 
 
 class NumpyNewton:
-    """A plain NumPy Gauss-Newton iteration from the warm start: what a user writes in a few lines
-    with the model's pose parameterisation and analytic Jacobian (``pose_residuals_jacobian``,
-    ``pose_retract``), undamped, stopped by the same leg criterion as ours
-    (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after ``max_iter`` steps."""
+    """A plain NumPy Gauss-Newton iteration from the warm start: what a user writes in a few lines with the model's
+    pose parameterisation and analytic Jacobian (``pose_residuals_jacobian``, ``pose_retract``), undamped, stopped by
+    the same leg criterion as ours (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after
+    ``max_iter`` steps."""
 
     method, jac = "newton", "numpy"
 

@@ -12,36 +12,24 @@ COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypo
           "pymoo": "tab:brown"}
 #: the papers' other populations of the same solver (001 Tables 5 and 8)
 EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1000): "gold"}
-
-
-def color_for(solver, population):
-    return EXTRA_COLORS.get((solver, population), COLORS[solver])
-
-
 #: a run's history needs this many points (median over runs) for a convergence curve
 MIN_HISTORY_POINTS = 4
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def draw(res, out_dir: Path) -> dict:
     """Every figure of the measurements ``res`` into ``out_dir``: ``{name: path}``."""
     from glpma_ros import solvers
+    from glpma_tools.timing import DEADLINE_MARGIN_MS
 
     from .report import SOLVER_LABEL
     from .scenarios import LATENCY_TARGET_MS
-    from .timing import DEADLINE_MARGIN_MS
     figures = {}
     for k, sc in res["scenarios"].items():
-        series = [(f"{SOLVER_LABEL[r.config.solver]} {r.config.pop_label} {'default' if r.config.polish else 'pure'}",
-                   color_for(r.config.solver, r.config.population), "--" if r.config.polish else "-", r.runs)
-                  for r in res["tables"].get(k, [])]
-        series += [(f"{r.name} G3PCX", COLORS[r.name], ":", r.runs) for r in res["peers"].get(k, []) if r.status == "run"]
+        series = [(f"{SOLVER_LABEL[c.solver]} {c.pop_label} {'default' if c.polish else 'pure'}",
+                   EXTRA_COLORS.get((c.solver, c.population), COLORS[c.solver]), "--" if c.polish else "-", r.runs)
+                  for r in res["tables"].get(k, []) for c in [r.config]]
+        series += [(f"{r.name} G3PCX", COLORS[r.name], ":", r.runs) for r in res["peers"].get(k, [])
+                   if r.status == "run"]
         if series:
             figures[f"success_{k}"] = success_curves(out_dir / f"success_vs_evals_{k}.png",
                                                      f"{sc.label}: success and convergence",
@@ -55,11 +43,35 @@ def draw(res, out_dir: Path) -> dict:
     return figures
 
 
-def _save(fig, path: Path) -> Path:
+def _subplots(*args, figsize, **kwargs):
+    """A new figure and its axes: a bare ``Figure``, which saves through matplotlib's Agg canvas (no window,
+    no pyplot state to close)."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*args, **kwargs)
+
+
+def _save(fig, path: Path, title: str | None = None) -> Path:
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    _plt().close(fig)
     return path
+
+
+def _median_best(runs, grid) -> np.ndarray:
+    """The median over ``runs`` of the best fitness so far at each evaluation count of ``grid``: a run's
+    history is (evaluations, best) per chunk, a step function; a run stops at success and stays below
+    the threshold afterwards."""
+    curves = []
+    for r in (r for r in runs if r.history):
+        h = np.array(r.history, dtype=float)
+        idx = np.searchsorted(h[:, 0], grid, side="right") - 1
+        best = np.where(idx >= 0, np.minimum.accumulate(h[:, 1])[np.maximum(idx, 0)], np.nan)
+        curves.append(np.where(grid >= r.nfev, np.minimum(best, r.fun), best) if r.success else best)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmedian(np.array(curves), axis=0)
 
 
 def success_curves(path: Path, title, max_evals, series) -> Path:
@@ -67,8 +79,7 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
 
     ``series``: list of (label, color, linestyle, runs) where runs are ``common.Run``; dashed
     series (the refined runs, which converge in their first compiled chunk) appear on the left only."""
-    plt = _plt()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (ax1, ax2) = _subplots(1, 2, figsize=(12, 4.5))
     grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
     coarse = []
     for label, color, ls, runs in series:
@@ -81,27 +92,12 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
             continue
         if np.median([len(r.history) for r in runs]) < MIN_HISTORY_POINTS:
             coarse.append(label)
-            continue
-        curves = []     # best-so-far fitness: history is (evaluations, best) per chunk, a step function
-        for r in (r for r in runs if r.history):
-            h = np.array(r.history, dtype=float)
-            idx = np.searchsorted(h[:, 0], grid, side="right") - 1
-            best = np.where(idx >= 0, np.minimum.accumulate(h[:, 1])[np.maximum(idx, 0)], np.nan)
-            if r.success:  # a run stops at success: it stays below the threshold afterwards
-                best = np.where(grid >= r.nfev, np.minimum(best, r.fun), best)
-            curves.append(best)
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(np.array(curves), axis=0)
-        ax2.step(grid, np.maximum(med, 1e-32), where="post", color=color, ls=ls, label=label)
+        else:
+            ax2.step(grid, np.maximum(_median_best(runs, grid), 1e-32), where="post", color=color, ls=ls, label=label)
     for ax, ylabel, title_ in ((ax1, "runs with fitness < 1e-20 (%)", "success vs evaluations"),
                                (ax2, "median best fitness", "convergence (median over runs)")):
-        ax.set_xscale("log")
-        ax.set_xlabel("fitness evaluations")
-        ax.set_ylabel(ylabel)
-        ax.set_xlim(1, max_evals)
+        ax.set(xscale="log", xlabel="fitness evaluations", ylabel=ylabel, xlim=(1, max_evals), title=title_)
         ax.grid(alpha=0.3)
-        ax.set_title(title_)
     ax1.set_ylim(-2, 102)
     ax1.legend(fontsize=7, loc="upper left")
     ax2.set_yscale("log")
@@ -109,13 +105,11 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
     if coarse:
         ax2.text(0.02, 0.07, "not drawn (the whole run is one compiled chunk; no history):\n" + "\n".join(coarse),
                  transform=ax2.transAxes, fontsize=7, va="bottom")
-    fig.suptitle(title)
-    return _save(fig, path)
+    return _save(fig, path, title)
 
 
 def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) -> Path:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = _subplots(figsize=(7, 4))
     ms = np.asarray(latency_s) * 1e3
     hi = max(float(np.percentile(ms, 99.9)) * 1.3, target_ms * 1.2)
     bins = np.linspace(0.0, hi, 80)
@@ -125,14 +119,11 @@ def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) ->
             ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
                     label="scipy least_squares lm, analytic J")
     d = distribution(ms)
-    p50, p99 = d["p50"], d["p99"]
-    ax.axvline(p50, color="k", ls="--", lw=1, label=f"p50 {p50:.3f} ms")
-    ax.axvline(p99, color="k", ls="-", lw=1, label=f"p99 {p99:.3f} ms")
+    for q, ls in (("p50", "--"), ("p99", "-")):
+        ax.axvline(d[q], color="k", ls=ls, lw=1, label=f"{q} {d[q]:.3f} ms")
     ax.axvline(target_ms, color="tab:red", ls=":", lw=1.5, label=f"target p99 ≤ {target_ms:g} ms")
-    ax.set_yscale("log")
-    ax.set_xlabel("solve time per step (ms), values above the range clipped into the last bin")
-    ax.set_ylabel("steps")
-    ax.set_title(title)
+    ax.set(yscale="log", xlabel="solve time per step (ms), values above the range clipped into the last bin",
+           ylabel="steps", title=title)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return _save(fig, path)
@@ -142,24 +133,21 @@ def deadline_plot(path: Path, rows, margin_ms) -> Path:
     import matplotlib
 
     from glpma_ros.compat import version_tuple
-    plt = _plt()
     # horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
     horizontal = ({"orientation": "horizontal"} if version_tuple(matplotlib.__version__) >= (3, 10)
                   else {"vert": False})
     budgets = sorted({r.budget_ms for r in rows})
     labels = list(dict.fromkeys(r.label for r in rows))
-    fig, axes = plt.subplots(1, len(budgets), figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6),
-                             sharey=True, squeeze=False)
+    fig, axes = _subplots(1, len(budgets), figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6),
+                          sharey=True, squeeze=False)
     for ax, b in zip(axes[0], budgets):
         by_label = {r.label: r.overrun_ms for r in rows if r.budget_ms == b}
-        data = [by_label.get(label, np.array([np.nan])) for label in labels]
-        ax.boxplot(data, whis=(0, 100), showfliers=False, **horizontal)
+        ax.boxplot([by_label.get(label, np.array([np.nan])) for label in labels], whis=(0, 100), showfliers=False,
+                   **horizontal)
         ax.axvline(0.0, color="k", lw=0.8)
         ax.axvline(margin_ms, color="tab:red", ls=":", label=f"budget + {margin_ms:g} ms")
-        ax.set_xlabel("elapsed − budget (ms)")
-        ax.set_title(f"budget {b:g} ms")
+        ax.set(xlabel="elapsed − budget (ms)", title=f"budget {b:g} ms")
         ax.grid(alpha=0.3)
     axes[0][0].set_yticks(range(1, len(labels) + 1), labels, fontsize=7)
     axes[0][-1].legend(fontsize=7)
-    fig.suptitle("deadline honouring: whiskers span min to max")
-    return _save(fig, path)
+    return _save(fig, path, "deadline honouring: whiskers span min to max")

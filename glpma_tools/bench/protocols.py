@@ -1,16 +1,15 @@
-"""The experimental protocol of Chandra, Zhang & Rolland (2009), "Solving the forward kinematics of the
-3RPR planar parallel manipulator using a hybrid meta-heuristic paradigm", CIRA 2009 (paper 004, section
-IV.A and Table II), and its published figures.
+"""The experimental protocol of Chandra, Zhang & Rolland (2009), "Solving the forward kinematics of the 3RPR planar
+parallel manipulator using a hybrid meta-heuristic paradigm", CIRA 2009 (paper 004, section IV.A and Table II), and
+its published figures.
 
-Protocol (004 section IV.A): the 3-RPR of Table I with leg lengths [100, 120, 150]; initial population
-uniform in [-10, 10]^3 (theta in radians); population 40 for the population-based methods (SA works with
-a single solution, 004 section V); 50 runs per method; a run stops as soon as the fitness is below 1e-4.
-Table II reports, over the 50 runs, the mean and 95 % confidence interval of the iterations (SA:
-temperature steps, i.e. Markov chains; GA and GA-SA: generations), the final fitness, the CPU time, and
-the number of successful runs.  004 states no cap on the iterations; :data:`TABLE2_MAX_EVALS` is far
-above every published mean (the costliest, GA-SA, is about 18 generations x 36 annealed children x
-10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s reading), so it only stops
-runs that stall.  The refinement is off (the papers' algorithms alone).  Evaluations are
+Protocol (004 section IV.A): the 3-RPR of Table I with leg lengths [100, 120, 150]; initial population uniform in
+[-10, 10]^3 (theta in radians); population 40 for the population-based methods (SA works with a single solution, 004
+section V); 50 runs per method; a run stops as soon as the fitness is below 1e-4.  Table II reports, over the 50 runs,
+the mean and 95 % confidence interval of the iterations (SA: temperature steps, i.e. Markov chains; GA and GA-SA:
+generations), the final fitness, the CPU time, and the number of successful runs.  004 states no cap on the
+iterations; :data:`TABLE2_MAX_EVALS` is far above every published mean (the costliest, GA-SA, is about 18 generations
+x 36 annealed children x 10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s reading), so it
+only stops runs that stall.  The refinement is off (the papers' algorithms alone).  Evaluations are
 machine-independent; CPU times are not (004 ran C++ on a 1.74 GHz dual core)."""
 from __future__ import annotations
 
@@ -61,22 +60,16 @@ TABLE2 = (
     PublishedRow("Hybrid GA-SA", 20, 18, 3, 6.13e-5, 7.13e-6, 13.78, 3.01, 50),
 )
 
-#: which Table II row each solver here reproduces: the RCGA's non-uniform mutation
-#: is GA (N-U); GA (P)'s pivot mutation is not implemented (004 leaves its range open)
+#: which Table II row each solver here reproduces: the RCGA's non-uniform mutation is GA (N-U); GA (P)'s pivot
+#: mutation is not implemented (004 leaves its range open)
 SOLVER_ROWS = {"sa": "SA", "rcga": "GA (N-U)", "gasa": "Hybrid GA-SA"}
 
 
 def published_row(solver_name, chain_length=None):
     """The Table II row for ``solver_name`` (SA: by Markov chain length), or None."""
     method = SOLVER_ROWS.get(solver_name)
-    if method is None:
-        return None
-    if method == "SA":
-        chain_length = sa.CHAIN_LENGTH if chain_length is None else int(chain_length)
-    for row in TABLE2:
-        if row.method == method and (method != "SA" or row.markov_chain == chain_length):
-            return row
-    return None
+    chain = sa.CHAIN_LENGTH if chain_length is None else int(chain_length)
+    return next((row for row in TABLE2 if row.method == method and (method != "SA" or row.markov_chain == chain)), None)
 
 
 @dataclass
@@ -92,7 +85,6 @@ class Table2Result:
     mean_time_s: float            # over all runs (machine-dependent)
     published: PublishedRow | None
     iterations: list = field(default_factory=list)    # per run
-    evaluations: list = field(default_factory=list)   # per run
     fitness: list = field(default_factory=list)       # per run
 
     @property
@@ -101,25 +93,20 @@ class Table2Result:
 
 
 def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> Table2Result:
-    """Run ``solver_name`` ``runs`` times (seeds ``seed0, seed0 + 1, ...``) on
-    004's protocol with ``model``'s example leg lengths; ``params`` go to the
-    solver (e.g. ``chain_length=50`` for SA, ``max_evals``, ``population``)."""
+    """Run ``solver_name`` ``runs`` times (seeds ``seed0, seed0 + 1, ...``) on 004's protocol with ``model``'s example
+    leg lengths; ``params`` go to the solver (e.g. ``chain_length=50`` for SA, ``max_evals``, ``population``)."""
     from glpma_ros.solvers import solve
 
     legs = model.example_leg_lengths
     settings = {"population": sa.POPULATION if solver_name == "sa" else TABLE2_POPULATION,
                 "init_range": TABLE2_INIT_RANGE, "tolerance": TABLE2_TOLERANCE,
-                "max_evals": TABLE2_MAX_EVALS, "polish": False}
-    settings.update(params)
+                "max_evals": TABLE2_MAX_EVALS, "polish": False, **params}
     # load the compiled kernels before the clock matters (004 times the search alone)
     solve(solver_name, model, legs, rng=seed0, **{**settings, "max_evals": WARMUP_EVALS})
     done = [solve(solver_name, model, legs, rng=seed0 + k, **settings) for k in range(runs)]
     ok = [r for r in done if r.fun < settings["tolerance"]]
-    mean_it, ci_it = mean_ci([r.nit for r in ok], Z_95)
-    mean_ev, ci_ev = mean_ci([r.nfev for r in ok], Z_95)
-    fits = [r.fun for r in done]
-    return Table2Result(solver=solver_name, runs=len(done), successes=len(ok), mean_iterations=mean_it,
-                        iterations_ci=ci_it, mean_evaluations=mean_ev, evaluations_ci=ci_ev,
-                        mean_fitness=float(np.mean(fits)), mean_time_s=float(np.mean([r.elapsed_s for r in done])),
-                        published=published_row(solver_name, params.get("chain_length")),
-                        iterations=[r.nit for r in done], evaluations=[r.nfev for r in done], fitness=fits)
+    fitness = [r.fun for r in done]
+    return Table2Result(solver_name, len(done), len(ok), *mean_ci([r.nit for r in ok], Z_95),
+                        *mean_ci([r.nfev for r in ok], Z_95), float(np.mean(fitness)),
+                        float(np.mean([r.elapsed_s for r in done])),
+                        published_row(solver_name, params.get("chain_length")), [r.nit for r in done], fitness)

@@ -1,15 +1,13 @@
-"""The rclpy client of the outputs section's part 4 (:func:`glpma_tools.bench.outputs.rclpy_variants`),
-run as its own process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS ECHO``.
-
-Publishes ``leg_lengths`` (metres) along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes
-``pose_estimate``, pairs every pose with the input it answers (:func:`glpma_tools.bench.outputs.answers`)
-and prints one line: inputs sent, poses received, latency p50 and p99 (ms), poses unpaired or off
-the truth.  ``EXTRAS`` = ``extras``: ``/tf`` and ``pose_estimate_cov`` are subscribed too, as any TF
-listener or RViz does (the node then builds and publishes them); ``ECHO`` = ``echo``: the other side is
-the echo floor.  Importable only where rclpy is.
-"""
+"""The outputs section's part 4, the rclpy adapter (importable where rclpy is): :func:`variants` runs the
+node in this process under each set-up of :data:`VARIANTS` against the client, this module run as a process
+(``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``): it publishes
+``leg_lengths`` along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes ``pose_estimate`` (and, with
+``EXTRAS`` = ``extras``, ``/tf`` and ``pose_estimate_cov``, as any TF listener or RViz does), pairs each pose
+with its input (:func:`~glpma_tools.bench.outputs.answers`; ``VARIANT`` = ``echo``: the echo floor's poses
+carry their legs) and prints: inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
 from __future__ import annotations
 
+import subprocess
 import sys
 import threading
 import time
@@ -17,23 +15,127 @@ import time
 import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
-from glpma_tools.bench.outputs import answers
+from glpma_ros.node.dds import cdr
+from glpma_ros.node.ros_node import FkNode
+from glpma_tools.bench.dds import END_TO_END
+from glpma_tools.bench.outputs import answers, params_of
 from glpma_tools.sim.controller import Sent
+from glpma_tools.sim.echo_node import POSE_NUMBERS
+from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
 from glpma_tools.sim.trajectories import Plan
 
 #: seconds to let the discovery settle after the node matched, and to wait for the last poses
 SETTLE_S = 1.0
 #: seconds between two looks for the node's subscription
 POLL_S = 0.1
+#: seconds the client may take beyond its run (its start, discovery, the pairing)
+CLIENT_SLACK_S = 300.0
+#: a process that keeps one core busy (the "one core busy" rows)
+BUSY_LOOP = "while True:\n    pass\n"
+#: (label, variant, /tf + covariance subscribed, one core busy): the echo floor and the shipped node with the
+#: usual subscribers, idle and with one core busy, then the shipped node alone and two other executor set-ups
+VARIANTS = (
+    ("echo (the floor: no solve), /tf + cov subscribed", "echo", True, False),
+    ("shipped, /tf + cov subscribed", "shipped", True, False),
+    ("echo (the floor), /tf + cov subscribed, one core busy", "echo", True, True),
+    ("shipped, /tf + cov subscribed, one core busy", "shipped", True, True),
+    ("SingleThreadedExecutor, newest input solved in the callback (shipped), nothing else subscribed",
+     "shipped", False, False),
+    ("SingleThreadedExecutor, hand-off to a solver thread", "submit", False, False),
+    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi", False, False),
+)
+
+
+class Echo(Node):
+    """The transport floor on rclpy: ``leg_lengths`` taken raw, the newest read with ``struct``, a
+    ``pose_estimate`` carrying its legs published as bytes -- the rclpy node's path without the solve
+    (:mod:`glpma_tools.sim.echo_node` on Cyclone DDS).  Counts as the node's statistics do."""
+
+    def __init__(self, depth: int, frame_id: str):
+        super().__init__("glpma_fk")
+        self.handled = self.dropped = 0
+        encode, pub = cdr.Encoder(), self.create_publisher(PoseStamped, "pose_estimate", depth)
+
+        def on_legs(data):
+            sub = self.input_sub
+            while True:                     # the newest waiting wins, as in the node
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+                if taken is None:
+                    break
+                data, self.dropped = taken[0], self.dropped + 1
+            self.handled += 1
+            numbers = (cdr.float64_multi_array_data(data) + (0.0,) * POSE_NUMBERS)[:POSE_NUMBERS]
+            pub.publish(encode.pose_stamped(time.time_ns(), frame_id, numbers[:3], numbers[3:]))
+
+        self.input_sub = self.create_subscription(Float64MultiArray, "leg_lengths", on_legs, depth, raw=True)
+
+
+def _node(variant: str, values: dict):
+    """The node of ``variant``: the echo, or the node with ``values``, its input taken as shipped or, for
+    ``submit`` / ``multi``, by a callback that hands it to the solver thread / solves in a reentrant group."""
+    if variant == "echo":
+        return Echo(values["qos_depth"], values["frame_id"])
+    node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
+    if variant in ("submit", "multi"):
+        node.destroy_subscription(node.input_sub)
+        solve = node.loop.start().submit if variant == "submit" else node.loop.offer
+        node.create_subscription(Float64MultiArray, "leg_lengths",
+                                 lambda msg: solve(tuple(msg.data), node.get_clock().now().nanoseconds),
+                                 values["qos_depth"],
+                                 callback_group=ReentrantCallbackGroup() if variant == "multi" else None)
+    return node
+
+
+def variants(sc, seconds: float, domain) -> tuple[dict, list[dict]]:
+    """Part 4: legs published by the client process at the DDS section's rate -> pose received, per row of
+    :data:`VARIANTS` (``sc``'s shipped params); ``domain()`` claims a fresh ROS domain for each.  Returns
+    (the set-up, the rows)."""
+    rate_hz = END_TO_END[sc.model.kind][0]
+    values = {**params_of(sc.model.kind), "manipulator_config": sc.path}
+    rows = []
+    for label, variant, extras, busy in VARIANTS:
+        env = node_environment(domain())
+        rclpy.init()
+        node = _node(variant, values)
+        executor = MultiThreadedExecutor(2) if variant == "multi" else SingleThreadedExecutor()
+        executor.add_node(node)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        hog = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if busy else None
+        cpu0 = time.process_time()
+        try:
+            out = subprocess.run([sys.executable, "-m", __name__, sc.path, str(rate_hz), str(seconds),
+                                  "extras" if extras else "-", variant], env=env, capture_output=True, text=True,
+                                 timeout=seconds + CLIENT_SLACK_S, cwd=PACKAGE_PARENT)
+            cpu_s = time.process_time() - cpu0          # this process = the node under test
+            sent, poses, p50, p99, wrong = map(float, out.stdout.split())
+            st = node if variant == "echo" else node.service.stats
+            rows.append({"variant": label, "sent": int(sent), "received": st.handled + st.dropped, "poses": int(poses),
+                         "answered": poses / max(sent, 1), "dropped": st.dropped, "wrong": int(wrong), "p50": p50,
+                         "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6})
+        finally:
+            if hog is not None:
+                hog.kill()
+                hog.wait()
+            executor.shutdown()
+            spinner.join()
+            node.destroy_node()
+            rclpy.try_shutdown()
+    return {"manipulator": sc.label, "rate": rate_hz, "seconds": seconds}, rows
 
 
 def main(argv=None) -> int:
-    config, rate, seconds, extras, echo = (argv or sys.argv[1:])[:5]
-    rate, seconds, extras, echo = float(rate), float(seconds), extras == "extras", echo == "echo"
+    """The client process."""
+    config, rate, seconds, extras, variant = (argv or sys.argv[1:])[:5]
+    rate, seconds = float(rate), float(seconds)
     plan = Plan(config)
     samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
     rclpy.init()
@@ -46,7 +148,7 @@ def main(argv=None) -> int:
                          np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])))
 
     node.create_subscription(PoseStamped, "pose_estimate", take, 100)
-    if extras:
+    if extras == "extras":
         node.create_subscription(TFMessage, "/tf", lambda m: None, 100)
         node.create_subscription(PoseWithCovarianceStamped, "pose_estimate_cov", lambda m: None, 100)
     pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
@@ -63,7 +165,7 @@ def main(argv=None) -> int:
         sent.append(Sent(time.time_ns(), legs, position, quaternion))
         pub.publish(msg)
     time.sleep(SETTLE_S)
-    index, paired, wrong = answers(plan, sent, list(received), echo)
+    index, paired, wrong = answers(plan, sent, list(received), variant == "echo")
     latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)])
     print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
     executor.shutdown()

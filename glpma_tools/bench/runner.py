@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import shlex
 import sys
 import tempfile
 import time
@@ -10,8 +11,7 @@ from pathlib import Path
 
 from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
-
-from .common import REPO_ROOT, command_line, git_revision, load_average, machine
+from glpma_tools.timing import REPO_ROOT, git_revision, machine
 
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
             "offline")
@@ -60,29 +60,28 @@ def build_parser() -> OneLineParser:
     p.add_argument("--quick", action="store_true",
                    help="few runs per row (a few minutes); writes into a scratch directory unless --out or "
                         "--markdown is given")
-    p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", default=None,
-                   help="restrict to these manipulators")
-    p.add_argument("--sections", choices=SECTIONS, nargs="+", default=None,
+    p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", help="restrict to these manipulators")
+    p.add_argument("--sections", choices=SECTIONS, nargs="+",
                    help=f"run only these sections (default: all of {', '.join(SECTIONS)})")
     p.add_argument("--track-budget-ms", type=float, default=20.0,
                    help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
     p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
-    p.add_argument("--deadline-solvers", nargs="+", default=None, metavar="SOLVER",
+    p.add_argument("--deadline-solvers", nargs="+", metavar="SOLVER",
                    help="solvers of the deadline section (default: every registered solver)")
     p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     for name, (full, quick, kind, what) in DEFAULTS.items():
         default = "" if full is None else f" (default {full:,}; --quick {quick:,})"
         p.add_argument("--" + name.replace("_", "-"), type=kind, metavar="N", help=what + default)
-    p.add_argument("--out", type=Path, default=None,
+    p.add_argument("--out", type=Path,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
                         "scratch directory)")
-    p.add_argument("--markdown", type=Path, default=None,
+    p.add_argument("--markdown", type=Path,
                    help="report path (default BENCHMARKS.md; --quick: BENCHMARKS.md in the --out directory)")
     p.add_argument("--reliability", type=Path, default=DEFAULT_RELIABILITY, metavar="JSON",
                    help="figures of `glpma-fk stress` for the Reliability section (default doc/bench/reliability.json)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
-    p.add_argument("--save-data", type=Path, default=None, help="also pickle the measurements to this file")
-    p.add_argument("--render", type=Path, default=None, metavar="PICKLE",
+    p.add_argument("--save-data", type=Path, help="also pickle the measurements to this file")
+    p.add_argument("--render", type=Path, metavar="PICKLE",
                    help="run nothing: redraw the figures and rewrite the report from --save-data output")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
@@ -100,12 +99,10 @@ def output_paths(args) -> tuple[Path, Path]:
 
 
 def _count(args, name):
-    v = getattr(args, name)
-    if v is not None:
-        if v < 0:
-            raise GlpmaError(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
-        return v
-    return DEFAULTS[name][1 if args.quick else 0]
+    value = getattr(args, name)
+    if value is not None and value < 0:
+        raise GlpmaError(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
+    return DEFAULTS[name][1 if args.quick else 0] if value is None else value
 
 
 def _peer_runs(args, counts, key) -> dict:
@@ -118,6 +115,13 @@ def _peer_runs(args, counts, key) -> dict:
         return dict(PEER_HEXAPOD_RUNS)
     return {**dict.fromkeys(PEER_HEXAPOD_RUNS, 0), **{f"{n}_why": "skipped in --quick (500,000 evaluations of "
                                                       "Python overhead per run)" for n in PEER_HEXAPOD_RUNS}}
+
+
+def _load_average() -> str:
+    try:
+        return "/".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:
+        return "n/a"
 
 
 @command_main
@@ -141,37 +145,38 @@ def main(argv=None) -> int:
 
     def say(msg, section=None):
         if section:
-            res["load"].append((section, load_average()))
+            res["load"].append((section, _load_average()))
         print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     out_dir, args.markdown = output_paths(args)
     say(f"report: {args.markdown}; figures: {out_dir}")
-    if args.render:
-        return finish(load_saved(args.render), args, out_dir, say)
-    sections = set(args.sections or SECTIONS)
-    keys = args.only or ["3rpr", "hexapod"]
-    progress = not args.no_progress
-    scenarios = {k: load(k) for k in keys}
-    runs, hex_runs = counts["runs"], counts["hexapod_runs"]
-    res = {"date": report.timestamp(), "machine": machine(), "command": command_line(argv),
-           "revision": git_revision(), "quick": args.quick, "scenarios": scenarios, "tables": {}, "peers": {},
-           "gap": None, "all_solutions": {}, "tracking": {}, "scipy": {}, "deadline": [], "dds": None,
-           "baselines": None, "outputs": None, "offline": None, "figures": {}, "load": []}
+    if args.render:                 # the models hold compiled functions: the pickle names the scenarios
+        saved = pickle.loads(args.render.read_bytes())
+        saved.update(scenarios={k: load(k) for k in saved["scenarios"]}, figures={})
+        return finish(saved, args, out_dir, say)
+    sections, progress = set(args.sections or SECTIONS), not args.no_progress
+    scenarios = {k: load(k) for k in args.only or ["3rpr", "hexapod"]}
+    runs, hex_runs, listed = counts["runs"], counts["hexapod_runs"], list(scenarios.values())
+    res = {"date": report.timestamp(), "machine": machine(), "revision": git_revision(), "quick": args.quick,
+           # the canonical command, and the command line this process was started with
+           "command": (shlex.join(["glpma-fk", "bench", *argv]), shlex.join(getattr(sys, "orig_argv", sys.argv))),
+           "scenarios": scenarios, "tables": {}, "peers": {}, "gap": None, "all_solutions": {}, "tracking": {},
+           "scipy": {}, "deadline": [], "dds": None, "baselines": None, "outputs": None, "offline": None,
+           "figures": {}, "load": []}
     for k, sc in scenarios.items() if "tables" in sections else ():
         say(f"{sc.label}: the papers' table, pure and default", f"{sc.key} tables")
         res["tables"][k] = ex.paper_tables(sc, hex_runs if k == "hexapod" else runs, runs, progress)
-    if "peers" in sections:
-        for k, sc in scenarios.items():
-            say(f"{sc.label}: pure G3-PCX peers", f"{sc.key} peers")
-            res["peers"][k] = ex.peer_g3pcx(sc, _peer_runs(args, counts, k), progress)
-        if "3rpr" in scenarios and counts["gap_runs"] > 0:
-            say("3-RPR: G3-PCX with larger evaluation caps")
-            res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
+    for k, sc in scenarios.items() if "peers" in sections else ():
+        say(f"{sc.label}: pure G3-PCX peers", f"{sc.key} peers")
+        res["peers"][k] = ex.peer_g3pcx(sc, _peer_runs(args, counts, k), progress)
+    if "peers" in sections and "3rpr" in scenarios and counts["gap_runs"] > 0:
+        say("3-RPR: G3-PCX with larger evaluation caps")
+        res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
+    for k, sc in scenarios.items() if "solve-all" in sections else ():
+        say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
+        res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
+                                                   progress)
     if "solve-all" in sections:
-        for k, sc in scenarios.items():
-            say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
-            res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
-                                                       progress)
         say("all real assembly modes: multistart, msolve, G3-PCX", "solve-all modes")
         res["modes_comparison"] = modes.compare(scenarios, counts["modes_cases"], counts["modes_g3pcx_hexapods"],
                                                 progress)
@@ -181,17 +186,17 @@ def main(argv=None) -> int:
         res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
-        res["deadline"] = timing.deadlines(list(scenarios.values()), args.budgets_ms,
-                                              max(1, counts["deadline_solves"]), progress, args.deadline_solvers)
+        res["deadline"] = timing.deadlines(listed, args.budgets_ms, max(1, counts["deadline_solves"]), progress,
+                                           args.deadline_solvers)
     if "baselines" in sections:
         say("baselines: 004 Table II, DE on 001's protocols", "baselines")
         res["baselines"] = ex.baselines(scenarios, counts["table2_runs"], runs, hex_runs, progress)
     if "dds" in sections:
         say("DDS end to end", "dds")
-        res["dds"] = dds.dds_end_to_end(list(scenarios.values()), counts["dds_steps"], args.quick)
+        res["dds"] = dds.dds_end_to_end(listed, counts["dds_steps"], args.quick)
     if "outputs" in sections:
         say("extra outputs and the transport path", "outputs")
-        res["outputs"] = outputs.measure(list(scenarios.values()), counts["outputs_inputs"], counts["outputs_seconds"],
+        res["outputs"] = outputs.measure(listed, counts["outputs_inputs"], counts["outputs_seconds"],
                                          counts["outputs_profile"], counts["outputs_rclpy_seconds"], say)
     if "waits" in sections and counts["waits_rounds"] > 0:
         say("waits of an input for anything but its own solve", "waits")
@@ -200,7 +205,7 @@ def main(argv=None) -> int:
         say("offline: glpma-fk bag throughput and fleet, glpma-fk map on each engine and against G3-PCX, "
             "glpma-fk calibrate", "offline")
         res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick,
-                                         hexapod="hexapod" in keys)
+                                         hexapod="hexapod" in scenarios)
     res["wall_s"] = time.perf_counter() - t_start
     if args.save_data:
         save(res, args.save_data)
@@ -210,7 +215,7 @@ def main(argv=None) -> int:
 
 def save(res, path):
     """Pickle the measurements; a part that cannot be pickled is left out with a notice."""
-    data = {**res, "scenarios": list(res["scenarios"])}     # models hold compiled functions: reload by key
+    data = {**res, "scenarios": list(res["scenarios"])}     # the keys: a render loads them again
     for key in list(data):
         try:
             pickle.dumps(data[key])
@@ -218,12 +223,6 @@ def save(res, path):
             print(f"bench: --save-data leaves out {key!r} ({type(exc).__name__}: {exc})", file=sys.stderr)
             data[key] = {} if isinstance(data[key], dict) else []
     Path(path).write_bytes(pickle.dumps(data))
-
-
-def load_saved(path):
-    from .scenarios import load
-    res = pickle.loads(Path(path).read_bytes())
-    return {**res, "scenarios": {k: load(k) for k in res["scenarios"]}, "figures": {}}
 
 
 def finish(res, args, out_dir, say) -> int:

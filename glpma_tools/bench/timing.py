@@ -1,127 +1,18 @@
-"""Timed calls on a shared machine: the one deadline experiment of the benchmark and of the
-stress test (:func:`deadlines`: the bench's cells), and the one warm-up before any timing.
-
-Each call is timed with the wall clock and flagged when another process preempted it (the
-thread's involuntary context switches grew) or Python's garbage collector ran during it: on a
-shared machine these explain most overruns, so the reports also give the figures without them."""
+"""The bench's deadline experiment (:func:`deadlines`), on the timed calls every tool shares
+(:mod:`glpma_tools.timing`)."""
 from __future__ import annotations
 
-import gc
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import numpy as np
-
-from .common import progress_bar
-
-#: a call that returns within its budget plus this margin is on time
-DEADLINE_MARGIN_MS = 0.5
-#: a series stops after this many calls if every one overran by more than STOP_OVERRUN_FACTOR x budget
-STOP_AFTER = 10
-STOP_OVERRUN_FACTOR = 10.0
-#: warm-up: calls in a row on time before timing starts, and the most calls it may take
-WARM_UP_QUIET = 20
-WARM_UP_MAX_CALLS = 500
-
-
-def involuntary_switches() -> int:
-    """Involuntary context switches of this thread so far (Linux; 0 elsewhere)."""
-    try:
-        import resource
-        who = getattr(resource, "RUSAGE_THREAD", resource.RUSAGE_SELF)
-        return int(resource.getrusage(who).ru_nivcsw)
-    except (ImportError, OSError):
-        return 0
-
-
-def infeasible_legs(model) -> np.ndarray:
-    """Leg lengths of the shipped configs' geometries with no real assembly (the platform cannot
-    reach the base joints), so that a search runs until its deadline or its evaluation cap."""
-    if model.kind == "planar_3rpr":
-        return np.array([10.0, 10.0, 400.0])
-    return np.full(model.n_legs, 100.0)
-
-
-def warm_up(call, budget_ms: float, quiet: int = WARM_UP_QUIET, max_calls: int = WARM_UP_MAX_CALLS) -> int:
-    """``call(i)`` until ``quiet`` calls in a row return within ``budget_ms`` + the margin (Numba
-    compiles each path on first use, and caches and branch predictors settle), or ``max_calls``
-    calls; returns the calls made."""
-    in_row = 0
-    for i in range(max_calls):
-        t0 = time.perf_counter()
-        call(i)
-        in_row = in_row + 1 if (time.perf_counter() - t0) * 1e3 <= budget_ms + DEADLINE_MARGIN_MS else 0
-        if in_row >= quiet:
-            return i + 1
-    return max_calls
-
-
-@dataclass
-class TimedCalls:
-    """Per call: wall time (s), preempted, garbage collector ran, what the call returned."""
-
-    budget_ms: float
-    elapsed_s: np.ndarray
-    preempted: np.ndarray
-    collected: np.ndarray
-    results: list = field(default_factory=list)
-    stopped_early: bool = False
-
-    @property
-    def overrun_ms(self) -> np.ndarray:
-        return self.elapsed_s * 1e3 - self.budget_ms
-
-    def on_time_pct(self, undisturbed: bool = False) -> float | None:
-        """Share of the calls (or of those neither preempted nor collected) on time, in %."""
-        over = self.overrun_ms[~(self.preempted | self.collected)] if undisturbed else self.overrun_ms
-        return 100.0 * float(np.mean(over <= DEADLINE_MARGIN_MS)) if over.size else None
-
-    def worst_overrun_ms(self, undisturbed: bool = False) -> float | None:
-        over = self.overrun_ms[~(self.preempted | self.collected)] if undisturbed else self.overrun_ms
-        return float(over.max()) if over.size else None
-
-
-def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool = False,
-                stop_early: bool = True) -> TimedCalls:
-    """``n`` timed calls ``call(i)``; with ``stop_early`` the series stops after :data:`STOP_AFTER`
-    calls that all overran by more than :data:`STOP_OVERRUN_FACTOR` times the budget."""
-    collections = [0]
-
-    def on_gc(phase, info):
-        if phase == "start":
-            collections[0] += 1
-
-    el, pre, col, results = [], [], [], []
-    stopped = False
-    gc.collect()
-    gc.callbacks.append(on_gc)
-    try:
-        for i in progress_bar(range(n), desc, progress):
-            c0, g0 = involuntary_switches(), collections[0]
-            t0 = time.perf_counter()
-            results.append(call(i))
-            el.append(time.perf_counter() - t0)
-            pre.append(involuntary_switches() > c0)
-            col.append(collections[0] > g0)
-            if (stop_early and i + 1 == STOP_AFTER and n > STOP_AFTER
-                    and min(el) * 1e3 > (1.0 + STOP_OVERRUN_FACTOR) * budget_ms):
-                stopped = True
-                break
-    finally:
-        gc.callbacks.remove(on_gc)
-    return TimedCalls(budget_ms, np.array(el), np.array(pre, dtype=bool), np.array(col, dtype=bool), results,
-                      stopped)
-
+from glpma_tools import timing
 
 #: the bench's deadline cells are small: a short warm-up is enough
 DEADLINE_WARM_UP_QUIET = 3
 DEADLINE_WARM_UP_MAX_CALLS = 30
-#: evaluation cap that never ends a search before its deadline
-NO_CAP = 10**9
 
 
 @dataclass
-class DeadlineRow(TimedCalls):
+class DeadlineRow(timing.TimedCalls):
     """The timed calls of one case, solver and budget."""
 
     case: str = ""
@@ -134,8 +25,8 @@ class DeadlineRow(TimedCalls):
 
 
 def _row(case, solver, b, short, call, n, progress) -> DeadlineRow:
-    warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
-    calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
+    timing.warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
+    calls = timing.timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
     return DeadlineRow(**{**vars(calls), "results": []}, case=case, solver=solver, short=short)
 
 
@@ -148,7 +39,7 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRo
     names = list(names or solvers.SOLVERS)
     for sc in scenarios:
         model = sc.model
-        infeasible = infeasible_legs(model)
+        infeasible = timing.infeasible_legs(model)
         cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible, True)]
         if sc.key == "hexapod":
             cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
@@ -157,7 +48,8 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRo
             for solver in names:
                 for b in budgets_ms:
                     def call(seed, solver=solver, legs=legs, polish=polish, b=b, model=model):
-                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3, max_evals=NO_CAP)
+                        solvers.solve(solver, model, legs, rng=seed, polish=polish, budget_s=b / 1e3,
+                                      max_evals=timing.NO_CAP)
                     rows.append(_row(case, solver, b, short, call, n, progress))
         # the estimator, cold, on legs without a solution: every stage runs until the deadline
         case = f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)"

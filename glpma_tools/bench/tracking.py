@@ -10,9 +10,9 @@ import numpy as np
 
 from glpma_ros.estimator import Estimator
 from glpma_tools.stats import distribution
+from glpma_tools.timing import timed_calls, warm_up
 
 from .peers import SCIPY_VARIANTS, NumpyNewton, ScipyWarm, available
-from .timing import timed_calls, warm_up
 
 #: steps of the loop the warm-up solves (on an Estimator of its own)
 WARM_UP_STEPS = 19
@@ -30,7 +30,6 @@ class Tracking:
     evaluations: np.ndarray
     starts: np.ndarray            # the warm start of each step (previous estimate)
     legs: np.ndarray
-    truth: np.ndarray
     preempted: np.ndarray         # the step was preempted by another process (involuntary context switch)
 
     @property
@@ -56,15 +55,13 @@ def tracking(sc, steps, budget_ms, progress) -> Tracking:
         return est.estimate(legs_all[i + 1])
 
     calls = timed_calls(step, steps, budget_ms, f"{sc.label} tracking", progress, stop_early=False)
-    err, res = [], []
-    for k, e in enumerate(calls.results, start=1):
-        ok = e.x is not None and np.all(np.isfinite(e.x))
-        err.append(model.distance(e.x, traj[k]) if ok else math.inf)
-        res.append(max_leg_residual(model, e.x, legs_all[k]) if ok else math.inf)
-    return Tracking(steps, budget_ms, calls.elapsed_s, np.array(err), np.array(res),
+    found = [e.x if e.x is not None and np.all(np.isfinite(e.x)) else None for e in calls.results]
+    return Tracking(steps, budget_ms, calls.elapsed_s,
+                    np.array([math.inf if x is None else model.distance(x, t) for x, t in zip(found, traj[1:])]),
+                    np.array([math.inf if x is None else max_leg_residual(model, x, legs)
+                              for x, legs in zip(found, legs_all[1:])]),
                     dict(Counter(e.status for e in calls.results)), dict(Counter(e.start for e in calls.results)),
-                    np.array([e.evaluations for e in calls.results]), np.array(starts), legs_all[1:], traj[1:],
-                    calls.preempted)
+                    np.array([e.evaluations for e in calls.results]), np.array(starts), legs_all[1:], calls.preempted)
 
 
 @dataclass
@@ -81,23 +78,15 @@ class ScipyRow:
 
 def scipy_warm(sc, trk: Tracking, progress) -> list[ScipyRow]:
     """scipy's variants and a plain NumPy Newton iteration, each from the Estimator's warm starts."""
-    model = sc.model
-    solvers_ = [NumpyNewton(model)]
-    why = available("scipy")
-    if why is None:
-        solvers_ += [ScipyWarm(model, method, jac) for method, jac in SCIPY_VARIANTS]
-    else:
+    model, why = sc.model, available("scipy")
+    if why is not None:
         print(f"bench: scipy {why}; its rows are marked 'not installed'")
-    out = []
-    m = min(WARM_UP_STEPS, len(trk.legs))
-    for solver in solvers_:
-        method, jac = solver.method, solver.jac
+    out, m = [], min(WARM_UP_STEPS, len(trk.legs))
+    for solver in [NumpyNewton(model)] + [ScipyWarm(model, *variant) for variant in SCIPY_VARIANTS if why is None]:
         warm_up(lambda i, solver=solver: solver.solve(trk.starts[i % m], trk.legs[i % m]), trk.budget_ms)
         calls = timed_calls(lambda k, solver=solver: solver.solve(trk.starts[k], trk.legs[k]), len(trk.legs),
-                            trk.budget_ms, f"{sc.label} {method}/{jac}", progress, stop_early=False)
-        res = [max_leg_residual(model, x, trk.legs[k]) for k, (x, _) in enumerate(calls.results)]
-        out.append(ScipyRow(method, jac, calls.elapsed_s, np.array(res), np.array([n for _, n in calls.results]),
-                            calls.preempted))
-    if why is not None:
-        out += [ScipyRow(m_, j, status="not installed", note=why) for m_, j in SCIPY_VARIANTS]
-    return out
+                            trk.budget_ms, f"{sc.label} {solver.method}/{solver.jac}", progress, stop_early=False)
+        residual = [max_leg_residual(model, x, legs) for (x, _), legs in zip(calls.results, trk.legs)]
+        out.append(ScipyRow(solver.method, solver.jac, calls.elapsed_s, np.array(residual),
+                            np.array([n for _, n in calls.results]), calls.preempted))
+    return out + [ScipyRow(*variant, status="not installed", note=why) for variant in SCIPY_VARIANTS if why is not None]

@@ -1,16 +1,11 @@
 """How long an input waits for anything but its own solve, in-process.
 
-An input's wall time in the solving thread is its own work (the thread's CPU time) plus the time the
-thread did not run: *blocked* -- waiting for a lock or for the interpreter (the GIL) held by another
-thread (a report, the extras thread) -- or *runnable* but waiting for a CPU the machine gave another
-process (the kernel's run delay, ``/proc/self/task/<tid>/schedstat``).  Per input,
-``blocked = wall - thread CPU - run delay`` is the wait the node causes itself.  Setups
-(:data:`SETUPS`), with the same warm 3-RPR inputs: ``FkService.handle`` alone, back to back (the
-machine's noise); the same with a :class:`~glpma_ros.node.loops.ReportLoop` every
-:data:`REPORT_PERIOD_S`; the node's path at 1 kHz (``SolveLoop.offer``, the extras thread building
-TF, covariance and twist, the ``ReportLoop`` at the default period).  Rounds alternate between the
-setups; the quietest round of each (fewest inputs over :data:`SLOW_S`) is reported, as the machine's
-load varies between rounds."""
+An input's wall time in the solving thread is its own work (the thread's CPU time) plus the time the thread
+did not run: *blocked* (waiting for a lock or for the interpreter held by another thread of the node) or
+*runnable* but waiting for a CPU the machine gave another process (the kernel's run delay).  Per input,
+``blocked = wall - thread CPU - run delay`` is the wait the node causes itself, in each of :data:`SETUPS`
+(what they run and why: ``templates/waits.md``); rounds alternate between the setups and the quietest
+round of each (fewest inputs over :data:`SLOW_S`) is reported, as the machine's load varies."""
 from __future__ import annotations
 
 import os
@@ -23,6 +18,7 @@ from glpma_ros.config import config_dir
 from glpma_ros.node import params as P
 from glpma_ros.node.loops import ReportLoop, SolveLoop
 from glpma_ros.node.service import FkService
+from glpma_tools.tables import fmt, table
 
 from .scenarios import load
 
@@ -43,18 +39,20 @@ PARAMS = {"manipulator_config": str(config_dir() / "planar_3rpr_seed.yaml")}
 EXTRAS = {"publish_tf": True, "publish_covariance": True, "publish_twist": True}
 #: seconds to wait for the extras thread to finish a round's poses
 FLUSH_S = 10.0
+#: the columns of a row (us): the series and its percentile (100: the largest)
+COLUMNS = {"wall p50 us": ("wall", 50), "wall p99.9 us": ("wall", TAIL), "off-cpu p99.9 us": ("off-cpu", TAIL),
+           "blocked p50 us": ("blocked", 50), "blocked p99.9 us": ("blocked", TAIL),
+           "blocked max us": ("blocked", 100)}
 
 
 def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Wall time, thread CPU time and run delay (s) of ``call(legs, stamp_ns)`` per input, the
     inputs ``period_s`` apart (0: back to back)."""
     wall, cpu, delay = (np.empty(len(inputs)) for _ in range(3))
-    try:        # the run delay is the second field of the thread's schedstat; 0 where the kernel does not say
-        fd = os.open(f"/proc/self/task/{threading.get_native_id()}/schedstat", os.O_RDONLY)
-    except OSError:
-        fd = None
+    schedstat = f"/proc/self/task/{threading.get_native_id()}/schedstat"
+    fd = os.open(schedstat, os.O_RDONLY) if os.path.exists(schedstat) else None
 
-    def run_delay() -> int:
+    def run_delay() -> int:     # the second field of the thread's schedstat; 0 where the kernel does not say
         return 0 if fd is None else int(os.pread(fd, 128, 0).split()[1])
     start = time.perf_counter()
     try:
@@ -73,15 +71,10 @@ def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray,
 
 
 def _row(setup, wall, cpu, delay, reports) -> dict:
-    # the clocks differ by their resolutions: a negative difference is none
-    off_cpu = np.maximum(wall - cpu, 0.0)
-    blocked = np.maximum(off_cpu - delay, 0.0)
-    us = {name: np.percentile(v, [50, TAIL]) * 1e6 for name, v in (("wall", wall), ("blocked", blocked))}
+    off_cpu = np.maximum(wall - cpu, 0.0)       # the clocks differ by their resolutions: a negative difference is none
+    series = {"wall": wall, "off-cpu": off_cpu, "blocked": np.maximum(off_cpu - delay, 0.0)}
     return {"setup": setup, "inputs": int(wall.size), "reports": reports, "slow": int(np.sum(wall > SLOW_S)),
-            "wall p50 us": float(us["wall"][0]), "wall p99.9 us": float(us["wall"][1]),
-            "off-cpu p99.9 us": float(np.percentile(off_cpu, TAIL) * 1e6),
-            "blocked p50 us": float(us["blocked"][0]), "blocked p99.9 us": float(us["blocked"][1]),
-            "blocked max us": float(blocked.max() * 1e6)}
+            **{key: float(np.percentile(series[name], q) * 1e6) for key, (name, q) in COLUMNS.items()}}
 
 
 def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD_S) -> list[dict]:
@@ -109,8 +102,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                         reporter.stop()
                 loop.extras.flush(FLUSH_S)
                 row = _row(setup, wall, cpu, delay, len(made))
-                if setup not in best or row["slow"] < best[setup]["slow"]:
-                    best[setup] = row
+                best[setup] = min(best.get(setup, row), row, key=lambda r: r["slow"])     # the first of the quietest
     finally:
         loop.stop()
     return [best[s] for s in SETUPS]
@@ -118,18 +110,14 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
 
 def section(res, md_path=None) -> list[str]:
     """The BENCHMARKS.md section (``res["waits"]``: :func:`measure`'s rows), prose from templates/waits.md."""
-    from glpma_tools.tables import fmt, table
-
-    from .report import prose
-    rows = res.get("waits")
-    if not rows:
-        return []
+    from .report import md_blocks, prose
+    rows = res["waits"]
     blocked = {r["setup"]: r for r in rows}["node at 1 kHz"]["blocked p99.9 us"]
-    keys = ("wall p50 us", "wall p99.9 us", "off-cpu p99.9 us", "blocked p50 us", "blocked p99.9 us", "blocked max us")
-    return ["## Waits of an input for anything but its own solve", "",
-            prose("waits", period_ms=f"{REPORT_PERIOD_S * 1e3:g}", slow_ms=f"{SLOW_S * 1e3:g}"), "",
-            table(["setup", "inputs", "reports", f"over {SLOW_S * 1e3:g} ms",
-                   *(k.replace("off-cpu", "off-CPU") for k in keys)],
-                  [[r["setup"], r["inputs"], r["reports"], r["slow"], *(fmt(r[k]) for k in keys)] for r in rows]), "",
-            prose("waits", "reading", blocked=fmt(blocked), goal=f"{WAIT_GOAL_US:g}",
-                  met="met" if blocked <= WAIT_GOAL_US else "missed"), ""]
+    return md_blocks("## Waits of an input for anything but its own solve",
+                     prose("waits", period_ms=f"{REPORT_PERIOD_S * 1e3:g}", slow_ms=f"{SLOW_S * 1e3:g}"),
+                     table(["setup", "inputs", "reports", f"over {SLOW_S * 1e3:g} ms",
+                            *(k.replace("off-cpu", "off-CPU") for k in COLUMNS)],
+                           [[r["setup"], r["inputs"], r["reports"], r["slow"], *(fmt(r[k]) for k in COLUMNS)]
+                            for r in rows]),
+                     prose("waits", "reading", blocked=fmt(blocked), goal=f"{WAIT_GOAL_US:g}",
+                           met="met" if blocked <= WAIT_GOAL_US else "missed"))

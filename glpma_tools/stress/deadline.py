@@ -1,18 +1,16 @@
 """Deadlines in process: :class:`~glpma_ros.estimator.Estimator` solves on legs without a real
 assembly and without an evaluation cap, so that only the deadline stops each one -- cold (state
 reset before each solve) and warm (a warm state that the failures keep, so that the warm, widened
-and cold stages all run).  The timed calls are the benchmark's (:mod:`glpma_tools.bench.timing`)."""
+and cold stages all run).  The timed calls are the benchmark's (:mod:`glpma_tools.timing`)."""
 from __future__ import annotations
 
 from collections import Counter
 
-from glpma_tools.bench.timing import infeasible_legs, timed_calls, warm_up
 from glpma_tools.stats import distribution
+from glpma_tools.timing import NO_CAP, infeasible_legs, timed_calls, warm_up
 
 DEADLINE_BUDGETS_MS = (1.0, 2.0, 5.0)
 CASES = ("cold", "warm")
-#: evaluation cap that never ends a search before its deadline
-NO_CAP = 10**9
 
 
 def deadline_cell(model, case: str, budget_ms: float, n: int, seed_x=None) -> dict:

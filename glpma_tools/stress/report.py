@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_tools.bench.timing import DEADLINE_MARGIN_MS
 from glpma_tools.tables import MISSING, fmt, spread, table
+from glpma_tools.timing import DEADLINE_MARGIN_MS
 
 DEADLINE_HEAD = ["start", "budget ms", "solves", f"within budget + {DEADLINE_MARGIN_MS} ms", "p50 elapsed ms",
                  "p99 elapsed ms", "worst overrun ms", "preempted", "GC ran", "within, undisturbed",

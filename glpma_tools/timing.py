@@ -1,0 +1,163 @@
+"""Measuring on a shared machine, for every tool that times (``glpma-fk bench``, ``glpma-fk stress``,
+``tools/bench_gough.py``): timed calls and the warm-up before them, and the machine and revision a
+measurement names.
+
+Each call is timed with the wall clock and flagged when another process preempted it (the
+thread's involuntary context switches grew) or Python's garbage collector ran during it: on a
+shared machine these explain most overruns, so the reports also give the figures without them."""
+from __future__ import annotations
+
+import gc
+import os
+import platform
+import subprocess
+import time
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import numpy as np
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+#: the libraries whose versions a report names
+LIBRARIES = ("numpy", "numba", "scipy", "pypop7", "pymoo")
+#: a call that returns within its budget plus this margin is on time
+DEADLINE_MARGIN_MS = 0.5
+#: a series stops after this many calls if every one overran by more than STOP_OVERRUN_FACTOR x budget
+STOP_AFTER = 10
+STOP_OVERRUN_FACTOR = 10.0
+#: warm-up: calls in a row on time before timing starts, and the most calls it may take
+WARM_UP_QUIET = 20
+WARM_UP_MAX_CALLS = 500
+#: evaluation cap that never ends a search before its deadline
+NO_CAP = 10**9
+
+
+def progress_bar(iterable, desc, progress: bool, total=None):
+    """``iterable`` with a tqdm progress bar when ``progress``."""
+    if not progress:
+        return iterable
+    from tqdm import tqdm
+    return tqdm(iterable, desc=desc, total=total, leave=False, dynamic_ncols=True)
+
+
+def involuntary_switches() -> int:
+    """Involuntary context switches of this thread so far (Linux; 0 elsewhere)."""
+    try:
+        import resource
+        who = getattr(resource, "RUSAGE_THREAD", resource.RUSAGE_SELF)
+        return int(resource.getrusage(who).ru_nivcsw)
+    except (ImportError, OSError):
+        return 0
+
+
+def infeasible_legs(model) -> np.ndarray:
+    """Leg lengths of the shipped configs' geometries with no real assembly (the platform cannot
+    reach the base joints), so that a search runs until its deadline or its evaluation cap."""
+    if model.kind == "planar_3rpr":
+        return np.array([10.0, 10.0, 400.0])
+    return np.full(model.n_legs, 100.0)
+
+
+def warm_up(call, budget_ms: float, quiet: int = WARM_UP_QUIET, max_calls: int = WARM_UP_MAX_CALLS) -> int:
+    """``call(i)`` until ``quiet`` calls in a row return within ``budget_ms`` + the margin (Numba
+    compiles each path on first use, and caches and branch predictors settle), or ``max_calls``
+    calls; returns the calls made."""
+    in_row = 0
+    for i in range(max_calls):
+        t0 = time.perf_counter()
+        call(i)
+        in_row = in_row + 1 if (time.perf_counter() - t0) * 1e3 <= budget_ms + DEADLINE_MARGIN_MS else 0
+        if in_row >= quiet:
+            return i + 1
+    return max_calls
+
+
+@dataclass
+class TimedCalls:
+    """Per call: wall time (s), preempted, garbage collector ran, what the call returned."""
+
+    budget_ms: float
+    elapsed_s: np.ndarray
+    preempted: np.ndarray
+    collected: np.ndarray
+    results: list = field(default_factory=list)
+    stopped_early: bool = False
+
+    @property
+    def overrun_ms(self) -> np.ndarray:
+        return self.elapsed_s * 1e3 - self.budget_ms
+
+    def on_time_pct(self, undisturbed: bool = False) -> float | None:
+        """Share of the calls (or of those neither preempted nor collected) on time, in %."""
+        over = self.overrun_ms[~(self.preempted | self.collected)] if undisturbed else self.overrun_ms
+        return 100.0 * float(np.mean(over <= DEADLINE_MARGIN_MS)) if over.size else None
+
+    def worst_overrun_ms(self, undisturbed: bool = False) -> float | None:
+        over = self.overrun_ms[~(self.preempted | self.collected)] if undisturbed else self.overrun_ms
+        return float(over.max()) if over.size else None
+
+
+def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool = False,
+                stop_early: bool = True) -> TimedCalls:
+    """``n`` timed calls ``call(i)``; with ``stop_early`` the series stops after :data:`STOP_AFTER`
+    calls that all overran by more than :data:`STOP_OVERRUN_FACTOR` times the budget."""
+    collections = [0]
+
+    def on_gc(phase, info):
+        if phase == "start":
+            collections[0] += 1
+
+    el, pre, col, results = [], [], [], []
+    stopped = False
+    gc.collect()
+    gc.callbacks.append(on_gc)
+    try:
+        for i in progress_bar(range(n), desc, progress):
+            c0, g0 = involuntary_switches(), collections[0]
+            t0 = time.perf_counter()
+            results.append(call(i))
+            el.append(time.perf_counter() - t0)
+            pre.append(involuntary_switches() > c0)
+            col.append(collections[0] > g0)
+            if (stop_early and i + 1 == STOP_AFTER and n > STOP_AFTER
+                    and min(el) * 1e3 > (1.0 + STOP_OVERRUN_FACTOR) * budget_ms):
+                stopped = True
+                break
+    finally:
+        gc.callbacks.remove(on_gc)
+    return TimedCalls(budget_ms, np.array(el), np.array(pre, dtype=bool), np.array(col, dtype=bool), results,
+                      stopped)
+
+
+def _version(name):
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return "not installed"
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.lower().startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def machine() -> dict:
+    return {"cpu": cpu_model(), "cores": os.cpu_count(), "os": f"{platform.system()} {platform.release()}",
+            "python": platform.python_version(), **{name: _version(name) for name in LIBRARIES}}
+
+
+def git_revision() -> str:
+    def git(*args):
+        return subprocess.run(["git", "-C", str(REPO_ROOT), *args], capture_output=True, text=True,
+                              timeout=5).stdout.strip()
+    try:
+        rev, dirty = git("rev-parse", "--short", "HEAD"), git("status", "--porcelain", "--untracked-files=no")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return rev + (" (with uncommitted changes)" if dirty else "") if rev else "unknown"
