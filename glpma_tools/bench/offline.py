@@ -16,6 +16,8 @@ import numpy as np
 
 from glpma_ros.config import config_dir
 
+from .dds import params_file
+
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
 #: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default before the
@@ -34,7 +36,7 @@ CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
 #: fresh true poses at which the forward kinematics with the nominal and the calibrated config is compared with truth
 CALIBRATION_FK_POSES = 20
-PARAMS_3RPR = ["--ros-args", "--params-file", str(config_dir() / "params_3rpr.yaml")]
+PARAMS_3RPR = ["--ros-args", "--params-file", str(params_file("planar_3rpr"))]
 
 
 def _recorded_legs(n: int) -> np.ndarray:

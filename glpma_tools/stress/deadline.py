@@ -1,7 +1,7 @@
 """Deadlines in process: :class:`~glpma_ros.estimator.Estimator` solves on legs without a real
 assembly and without an evaluation cap, so that only the deadline stops each one -- cold (state
 reset before each solve) and warm (a warm state that the failures keep, so that the warm, widened
-and cold stages all run).  The timed calls are the benchmark's (:mod:`glpma_tools.timing`)."""
+and cold stages all run).  The timed calls are the ones every measuring tool shares (:mod:`glpma_tools.timing`)."""
 from __future__ import annotations
 
 from collections import Counter
