@@ -558,8 +558,7 @@ def test_leg_offsets_are_added_by_the_command_line_and_the_node(tmp_path, capsys
 def test_benchmark_section_measures_and_renders():
     """The benchmark's calibration rows (``glpma-fk bench --sections offline``), small: every row has
     its figures, the calibrated forward kinematics beats the nominal one, the table renders."""
-    from glpma_tools.bench.offline import calibration
-    from glpma_tools.bench.report import calibration_section
+    from glpma_tools.bench.offline import calibration, calibration_section
     rows = calibration(sizes=(120,), repeats=1, fk_poses=2)
     assert [r["manipulator"] for r in rows] == ["planar_3rpr_seed", "hexapod_66_rolland"]
     for r in rows:

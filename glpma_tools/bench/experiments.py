@@ -12,11 +12,14 @@ import numpy as np
 
 from glpma_ros import solvers
 from glpma_ros.solve_all import solve_all, wide_range
+from glpma_tools.tables import MISSING, fmt, fmt_ci, ratio, table
 from glpma_tools.timing import progress_bar as _bar
 
-from .common import Run
-from .papers import PUBLISHED
-from .peers import PEER_SOLVERS, available
+from .common import Run, summarize
+from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE_NAME, Published
+from .peers import PEER_LABEL, PEER_SOLVERS, PYMOO_BOUND_FACTOR, available
+from .protocols import PublishedRow
+from .report import SOLVER_LABEL, figure_link, md_blocks, pct, prose
 
 
 # -- the papers' tables ----------------------------------------------------------------
@@ -111,7 +114,6 @@ class AllSolutionsResult:
 def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
     """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to the published
     ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the model's distance)."""
-    from .report import FOUND_MM
     model = sc.model
     solve_all(model, sc.legs, runs=2, seed=999)       # warm-up
     reps, first = [], None
@@ -168,3 +170,172 @@ def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> Baselines:
                           hex_runs if key == "hexapod" and not polish else runs, progress) for polish in (False, True)]
           for key, sc in scenarios.items()}
     return Baselines(table2, de)
+
+
+# -- the report's sections ----------------------------------------------------------------------------
+GAP_THRESHOLDS = (1e-20, 1e-16, 1e-12, 1e-8)
+
+
+FOUND_MM = 5.0
+
+
+UNPUBLISHED = Published(*[math.nan] * 5)
+
+
+def paper_tables_section(res, md_path) -> list[str]:
+    out = md_blocks("## The papers' tables (001 Tables 5 and 8)")
+    for key, rows in res["tables"].items():
+        sc = res["scenarios"][key]
+        kind, st = sc.model.kind, solvers.PAPER_SETTINGS[sc.model.kind]
+        runs = {polish: "/".join(map(str, sorted({len(r.runs) for r in rows if r.config.polish == polish})))
+                for polish in (False, True)}
+        body = [[SOLVER_LABEL[row.config.solver], row.config.pop_label, row.config.mode, s.runs, pct(s.success_pct),
+                 fmt(p.success, unit=" %"), fmt_ci(s.evals_mean, s.evals_ci), fmt_ci(p.evals, p.evals_pm),
+                 ratio(s.evals_mean, p.evals), fmt(s.time_median_ms), fmt(s.time_mean_ms), fmt(p.time_s * 1e3),
+                 ratio(s.time_mean_ms, p.time_s * 1e3), fmt(s.fun_median, 2)]
+                for row in rows for s, p in [(summarize(row.runs), PUBLISHED[kind].get(row.config.key, UNPUBLISHED))]]
+        out += md_blocks(
+            f"### {sc.label}: {TABLE_NAME[kind]}",
+            f"Init U[{st['init_range'][0]:g}, {st['init_range'][1]:g}]^{sc.model.n_vars}, unbounded search, success = "
+            f"fitness < 1e-20 within {st['max_evals']:,} evaluations; {runs[False]} runs per pure row and {runs[True]} "
+            "per default row (the paper: 100)."
+            + (f" GLPMA: ls_interval 5, ls_intensity {st['ls_intensity']}." if "ls_intensity" in st else ""),
+            table(["method", "pop", "mode", "runs", "success", "paper", "evals (ours)", "evals (paper)",
+                   "evals ours/paper", "time median ms", "time mean ms", "paper ms", "time ours/paper",
+                   "median final f"], body))
+    return out
+
+
+def figures_section(res, md_path) -> list[str]:
+    links = [figure_link(res, name, md_path) for name in res["figures"] if name.startswith("success_")]
+    return md_blocks("## Success vs evaluations", prose("figures"), *links) if links else []
+
+
+def _ours_pure_g3pcx(res, key):
+    """Our pure G3-PCX runs at the paper's population, or None."""
+    pop = solvers.PAPER_SETTINGS[res["scenarios"][key].model.kind]["population"]
+    rows = [r.runs for r in res["tables"].get(key, []) if r.config.key == ("g3pcx", pop, None) and not r.config.polish]
+    return rows[0] if rows else None
+
+
+def _peer_row(label, s, ours) -> list:
+    """A row of the peers' table: the summary ``s`` of the runs of ``label``, its time and evaluations against
+    ``ours`` (None: not run)."""
+    return [label, s.runs, pct(s.success_pct), fmt_ci(s.evals_mean, s.evals_ci), fmt(s.evals_all_mean),
+            fmt(s.fun_median, 2), fmt(s.time_mean_ms), ratio(s.time_mean_ms, ours and ours.time_mean_ms),
+            ratio(s.evals_all_mean, ours and ours.evals_all_mean)]
+
+
+def peers_section(res, md_path) -> list[str]:
+    out = md_blocks("## Pure G3-PCX against peer implementations",
+                    prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
+    for key, data in res["peers"].items():
+        sc = res["scenarios"][key]
+        runs = _ours_pure_g3pcx(res, key)
+        ours = summarize(runs) if runs else None
+        p = PUBLISHED[sc.model.kind][("g3pcx", solvers.PAPER_SETTINGS[sc.model.kind]["population"], None)]
+        body = ([_peer_row("ours `g3pcx` (pure)", ours, ours)] if ours else []) + [
+            _peer_row(PEER_LABEL[r.name], summarize(r.runs), ours) if r.status == "run"
+            else [PEER_LABEL[r.name], MISSING, r.status] + [MISSING] * 6 for r in data]
+        body.append([f"paper ({TABLE_NAME[sc.model.kind]})", 100, fmt(p.success, unit=" %"),
+                     fmt_ci(p.evals, p.evals_pm), MISSING, MISSING, fmt(p.time_s * 1e3), MISSING, MISSING])
+        notes = [f"{PEER_LABEL[r.name]}: {r.note}" for r in data if r.status != "run" and r.note]
+        out += md_blocks(f"### {sc.label}",
+                         table(["implementation", "runs", "success", "evals to success", "mean evals (all runs)",
+                                "median final f", "time/run ms", "time vs ours", "evals vs ours"], body),
+                         notes and "Not run: " + "; ".join(notes) + ".")
+    return out
+
+
+def gap_section(res, md_path) -> list[str]:
+    if not (res["peers"] or res["gap"]) or ("3rpr" not in res["peers"] and "3rpr" not in res["tables"]):
+        return []
+    pop, cap = (solvers.PAPER_SETTINGS["planar_3rpr"][k] for k in ("population", "max_evals"))
+    ours = _ours_pure_g3pcx(res, "3rpr") if "3rpr" in res["scenarios"] else None
+    series = {"ours": ours} if ours else {}
+    series.update({PEER_LABEL[r.name]: r.runs for r in res["peers"].get("3rpr", []) if r.status == "run"})
+    measured = {label: 100.0 * sum(r.success for r in runs) / len(runs) for label, runs in series.items()}
+
+    def rate(label):
+        return pct(measured[label]) if label in measured else "not run"
+    out = md_blocks(
+        "## Why the papers' pure G3-PCX figures do not reproduce",
+        prose("gap", population=pop, cap=f"{cap:,}", ours=rate("ours"), pypop7=rate(PEER_LABEL["pypop7"]),
+              pymoo=rate(PEER_LABEL["pymoo"]), reference=", ".join(f"{k} {v} %" for k, v in FAITHFUL_3RPR.items())),
+        prose("gap", "thresholds"),
+        table(["implementation", "runs"] + [f"f < {t:.0e}" for t in GAP_THRESHOLDS],
+              [[label, len(runs)] + [pct(100.0 * sum(r.fun < t for r in runs) / len(runs)) for t in GAP_THRESHOLDS]
+               for label, runs in series.items()]))
+    # the conclusion, written from the measured figures
+    far = measured and max(measured.values()) < 50      # every implementation far below the paper's 90 %
+    text = [prose("gap", "reading", cap=f"{cap:,}", rates=", ".join(f"{k} {v:.0f} %" for k, v in measured.items())
+                  or "n/a", far=prose("gap", "far", spread=f"{max(measured.values()) - min(measured.values()):.0f}")
+                  if far else "")]
+    diag = res.get("gap")
+    if diag:
+        rows = []
+        for max_evals, runs in diag.caps.items():
+            s = summarize(runs)
+            q = np.percentile([r.nfev for r in runs if r.success], [50, 90]) if s.successes else (math.nan,) * 2
+            rows.append([f"{max_evals:,}", s.runs, pct(s.success_pct), fmt_ci(s.evals_mean, s.evals_ci),
+                         fmt(float(q[0])), fmt(float(q[1]))])
+        out += md_blocks(prose("gap", "caps", generation_cap=f"{2 * cap + pop:,}", large_cap=f"{10 * cap:,}"),
+                         table(["cap", "runs", "success", "evals to success", "median", "90th percentile"], rows))
+        s2, s10 = summarize(diag.caps[min(diag.caps)]), summarize(diag.caps[max(diag.caps)])
+        text.append(prose("gap", "reading_caps", cap2=f"{min(diag.caps):,}", success2=f"{s2.success_pct:.0f}",
+                          cap10=f"{max(diag.caps):,}", success10=f"{s10.success_pct:.0f}",
+                          evals=f"{s10.evals_mean:,.0f}",
+                          ratio=ratio(s10.evals_mean, PUBLISHED["planar_3rpr"][("g3pcx", pop, None)].evals)))
+    text.append(prose("gap", "unknowns"))
+    sums = [summarize(r.runs) for r in res["tables"].get("3rpr", []) if r.config.polish]
+    if sums:
+        lo, hi = min(x.success_pct for x in sums), max(x.success_pct for x in sums)
+        text.append(prose("gap", "reading_refined", rate=f"{lo:.0f} %" if lo == hi else f"{lo:.0f}–{hi:.0f} %",
+                          fewest=f"{min(x.evals_mean for x in sums):,.0f}",
+                          most=f"{max(x.evals_mean for x in sums):,.0f}"))
+    return out + md_blocks(" ".join(text))
+
+
+def all_solutions_section(res, md_path) -> list[str]:
+    body = []
+    for key, r in res["all_solutions"].items():
+        sc = res["scenarios"][key]
+        times = [t for _, _, t, _ in r.repeats]
+        devs = [d for _, _, d in r.deviations]
+        paper = (f"{ALL_SOLUTIONS['count']} from {ALL_SOLUTIONS['runs']} runs, U[-2000, 2000]^9, "
+                 f"< {ALL_SOLUTIONS['time_s']:g} s, 0.15 – 2.5 mm from exact" if key == "hexapod"
+                 else "2 (001 section 5.3; 004 Table IV)")
+        body.append([sc.label, r.runs, f"U[{r.init_range[0]:g}, {r.init_range[1]:g}]", len(r.repeats),
+                     "/".join(str(c) for _, c, _, _ in r.repeats),
+                     f"{np.median(times):.3f} ({min(times):.3f} – {max(times):.3f})",
+                     f"{sum(d < FOUND_MM for d in devs)}/{len(sc.published)}",
+                     f"{min(devs):.3g} – {max(devs):.3g}" if devs and all(map(math.isfinite, devs)) else MISSING,
+                     r.unmatched_found, paper])
+    return md_blocks("## All real assembly modes (002 section 5.5.2)", prose("all_solutions"),
+                     table(["manipulator", "runs", "init range", "repeats", "distinct found (per repeat)",
+                            "wall s median (min – max)", f"published matched (< {FOUND_MM:g} mm)",
+                            "deviation mm (min – max)", "found, not published", "paper"], body),
+                     "hexapod" in res["all_solutions"] and prose("all_solutions", "hexapod"))
+
+
+def baselines_section(res, md_path) -> list[str]:
+    b = res["baselines"]
+    rows = []
+    for r in b.table2 or []:
+        p = r.published or PublishedRow("", None, *[math.nan] * 6, 0, 0)      # no row in Table II: dashes
+        rows.append([r.solver, p.markov_chain or MISSING, r.runs, f"{100 * r.success_rate:.0f} %",
+                     f"{100 * p.successes / p.runs:.0f} %" if p.runs else MISSING,
+                     fmt_ci(r.mean_iterations, r.iterations_ci), fmt_ci(p.iterations, p.iterations_ci),
+                     fmt_ci(r.mean_evaluations, r.evaluations_ci), fmt(r.mean_fitness), fmt(p.fitness),
+                     fmt(r.mean_time_s * 1e3), fmt(p.cpu_s * 1e3)])
+    de = [[res["scenarios"][key].label, row.config.mode, row.config.population, s.runs, f"{s.success_pct:.0f} %",
+           fmt_ci(s.evals_mean, s.evals_ci), fmt(s.time_median_ms), fmt(s.fun_median)]
+          for key, trows in (b.de or {}).items() for row in trows for s in [summarize(row.runs)]]
+    return md_blocks(
+        "## Baselines: 004 Table II (SA, GA, GA-SA) and 003's DE",
+        rows and prose("baselines", "table2"),
+        rows and table(["solver", "chain", "runs", "success", "paper", "iterations (ours)", "iterations (paper)",
+                        "evaluations (ours)", "mean f", "paper f", "time ms", "paper ms"], rows),
+        de and prose("baselines", "de"),
+        de and table(["manipulator", "mode", "Np", "runs", "success", "evals to success", "time median ms",
+                      "median final f"], de))

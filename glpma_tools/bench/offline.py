@@ -15,8 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.config import config_dir
+from glpma_tools.tables import fmt, table
 
 from .dds import params_file
+from .report import md_blocks, prose
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
@@ -302,3 +304,53 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                             for k, v in errors.items()},
                          "weak directions": len(out["weak"])})
     return rows
+
+
+# -- the report's section ----------------------------------------------------------------------------
+def offline_section(res, md_path) -> list[str]:
+    """``glpma-fk bag``: throughput, where the time goes, a fleet on each engine; ``glpma-fk map``: the
+    default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
+    o = res["offline"]
+    bag, fleet, methods = o["bag"], o["fleet"], o["methods"]
+    out = md_blocks(
+        "## Offline: bag processing and workspace maps", prose("offline"),
+        table(["glpma-fk bag (3-RPR, MCAP)", "value"],
+              [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag["run"].items()]),
+        table(["where the CPU time of one input goes", "µs"],
+              [[k, fmt(v)] for k, v in bag["CPU µs per input"].items()]
+              + [["the whole run (the parts above plus the loop itself)", fmt(bag["whole run CPU µs per input"])]]),
+        table([f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} inputs)", "wall s",
+               "converged"], [[r["engine"], fmt(r["wall s"]), fmt(r["converged"])] for r in fleet["runs"]]),
+        f"Same statuses on every engine: {'yes' if fleet['same statuses on every engine'] else 'NO'}.")
+    for mp in filter(None, (o["map"], o.get("hexapod map"))):
+        first = mp["runs"][0]
+        sing = first.get("on_singularity") or {}
+        singular = (f"; on a singularity (a double mode): {sum(sing.values()):,} ("
+                    + ", ".join(f"{k} distinct: {v:,}" for k, v in sing.items()) + ")") if sing else ""
+        out += md_blocks(
+            table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})", "wall s",
+                   "points/s", "speed-up"],
+                  [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
+            "Mode counts (points per count, first engine): "
+            + ", ".join(f"{k}: {v:,}" for k, v in first["modes"].items())
+            + f"{singular}; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.")
+    out += md_blocks(table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
+                           [[k, fmt(v) if isinstance(v, (int, float)) else str(v)]
+                            for k, v in methods.items() if k != "grid"]))
+    return out + (calibration_section(o["calibration"]) if o.get("calibration") else [])
+
+
+def calibration_section(rows) -> list[str]:
+    """``glpma-fk calibrate``: time for 200 and 10,000 measurements, accuracy before and after."""
+    body = [[r["manipulator"], f"{r['measurements']:,} ({r['fitted']:,} fitted)", fmt(r["wall s median"]),
+             fmt(r["cpu s median"]), fmt(r["identify s median"] * 1e3), r["iterations"],
+             f"{fmt(r['held-out RMS before mm'])} -> {fmt(r['held-out RMS after mm'])}",
+             " / ".join(fmt(v) for v in r["FK error nominal mm (median / max)"]),
+             " / ".join(fmt(v) for v in r["FK error calibrated mm (median / max)"]), r["weak directions"]]
+            for r in rows]
+    return md_blocks("### Calibration", prose("offline", "calibration", repeats=CALIBRATION_REPEATS,
+                                              fk_poses=CALIBRATION_FK_POSES),
+                     table(["config", "measurements", "command wall s", "command CPU s", "identification ms",
+                            "Gauss-Newton iterations", "held-out leg RMS mm, before -> after",
+                            "FK error nominal mm (median / max)", "FK error calibrated mm (median / max)",
+                            "weak directions"], body))

@@ -7,7 +7,6 @@ success threshold and the best-so-far trace, so evaluations are counted the same
 """
 from __future__ import annotations
 
-import functools
 import importlib
 import math
 import time
@@ -118,84 +117,3 @@ PEER_LABEL = {"pypop7": "pypop7 G3PCX", "pymoo": "pymoo G3PCX"}
 
 
 # -- scipy.optimize.least_squares, warm start ------------------------------------------
-def _left_jacobian(w):
-    """Left Jacobian of SO(3): exp(w + dw) = exp(J_l(w) dw) exp(w) to first order."""
-    theta = math.sqrt(float(w @ w))
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if theta < 1e-6:
-        return np.eye(3) + 0.5 * K + K @ K / 6.0
-    return (np.eye(3) + ((1.0 - math.cos(theta)) / theta ** 2) * K
-            + ((theta - math.sin(theta)) / theta ** 3) * K @ K)
-
-
-class ScipyWarm:
-    """One warm-started ``least_squares`` solve per call.
-
-    ``jac="analytic"``: leg residuals in the model's pose parameterisation with the model's analytic Jacobian (3-RPR:
-    the variables; hexapod: position plus a rotation vector ``w`` applied as ``exp(w) R0`` (``pose_retract``),
-    Jacobian composed with the left Jacobian of SO(3), exact).  ``jac="2-point"``: the solver's own residual vector of
-    the solver variables (hexapod: the nine-variable model with its rigidity terms) and finite differences."""
-
-    def __init__(self, model, method, jac, tol=1e-15):
-        from scipy.optimize import least_squares
-        self.least_squares = least_squares
-        self.model, self.method, self.jac, self.tol = model, method, jac, tol
-
-    def solve(self, x_start, legs):
-        """Returns (variables, nfev)."""
-        model, x0 = self.model, np.asarray(x_start, dtype=float)
-        kw = {"method": self.method, "xtol": self.tol, "ftol": self.tol, "gtol": self.tol}
-        if self.jac == "2-point":
-            res = self.least_squares(lambda x: model.residuals(x, legs)[0], x0, **kw)
-            return res.x, res.nfev
-        planar, start = model.kind == "planar_3rpr", model.pose_state(x0)
-
-        def pose(s):                # 3-RPR: the variables are the pose; hexapod: a step from the start
-            return s if planar else model.pose_retract(start, s)
-
-        @functools.lru_cache(maxsize=1)     # least_squares asks for the residuals and the Jacobian at one point
-        def rj(key):
-            s = np.frombuffer(key)
-            r, J = model.pose_residuals_jacobian(pose(s), legs)
-            return r, J if planar else np.hstack((J[:, :3], J[:, 3:] @ _left_jacobian(s[3:])))
-
-        res = self.least_squares(lambda s: rj(s.tobytes())[0], x0 if planar else np.zeros(6),
-                                 jac=lambda s: rj(s.tobytes())[1], **kw)
-        return model.pose_variables(pose(res.x)), res.nfev
-
-
-SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]
-
-
-class NumpyNewton:
-    """A plain NumPy Gauss-Newton iteration from the warm start: what a user writes in a few lines with the model's
-    pose parameterisation and analytic Jacobian (``pose_residuals_jacobian``, ``pose_retract``), undamped, stopped by
-    the same leg criterion as ours (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after
-    ``max_iter`` steps."""
-
-    method, jac = "newton", "numpy"
-
-    def __init__(self, model, max_iter=20):
-        from glpma_ros.solvers.lm import LEG_RTOL
-        self.model, self.max_iter, self.rtol = model, max_iter, LEG_RTOL
-
-    def solve(self, x_start, legs):
-        """Returns (variables, evaluations)."""
-        model = self.model
-        tol = self.rtol * max(model.scale, float(np.max(legs)))
-        state = model.pose_state(x_start)
-        r, J = model.pose_residuals_jacobian(state, legs)
-        nfev, extra = 1, 1
-        for _ in range(self.max_iter):
-            if np.max(np.abs(r)) <= tol:
-                if extra == 0:
-                    break
-                extra -= 1
-            try:
-                step = np.linalg.solve(J, -r)
-            except np.linalg.LinAlgError:       # singular Jacobian: a plain Newton stops here
-                break
-            state = model.pose_retract(state, step)
-            r, J = model.pose_residuals_jacobian(state, legs)
-            nfev += 1
-        return model.pose_variables(state), nfev
