@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -12,23 +12,21 @@ from glpma_tools.stats import mean_ci
 SUCCESS_TOLERANCE = 1e-20
 
 
-@dataclass
-class Run:
+class Run(NamedTuple):
     """One independent search."""
 
     success: bool
     nfev: int            # evaluations to success, or all evaluations spent
     wall_s: float        # wall time around the call
     fun: float           # best fitness reached
-    history: list = field(default_factory=list)  # (evaluations, best fitness so far)
+    history: list        # (evaluations, best fitness so far)
 
 
-@dataclass
-class Summary:
+class Summary(NamedTuple):
     """A row of runs as the report's tables give it."""
 
     runs: int
-    successes: int
+    success_pct: float
     evals_mean: float      # over successful runs
     evals_ci: float
     evals_all_mean: float  # over all runs (failures count their whole budget)
@@ -36,16 +34,12 @@ class Summary:
     time_mean_ms: float
     fun_median: float
 
-    @property
-    def success_pct(self) -> float:
-        return 100.0 * self.successes / self.runs if self.runs else math.nan
-
 
 def summarize(runs: list[Run]) -> Summary:
+    """The figures of a row of runs (NaN where there are none)."""
     if not runs:
-        return Summary(0, 0, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
-    mean, ci = mean_ci([r.nfev for r in runs if r.success])
+        return Summary(0, *[math.nan] * 7)
     walls = np.array([r.wall_s for r in runs]) * 1e3
-    return Summary(len(runs), sum(r.success for r in runs), mean, ci, float(np.mean([r.nfev for r in runs])),
+    return Summary(len(runs), 100.0 * sum(r.success for r in runs) / len(runs),
+                   *mean_ci([r.nfev for r in runs if r.success]), float(np.mean([r.nfev for r in runs])),
                    float(np.median(walls)), float(np.mean(walls)), float(np.median([r.fun for r in runs])))
-

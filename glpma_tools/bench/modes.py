@@ -1,12 +1,10 @@
-"""Every real assembly mode, three ways (issue 13): the fast multistart (``solve_all``'s
-default), the certified count (msolve, ``method="exact"``) and the papers' method (200 polished
-G3-PCX runs), per case: the seed examples and the random cases of
-test/data/assembly_modes_cases.json (their certified modes are stored there)."""
+"""Every real assembly mode, three ways (issue 13): the fast multistart (``solve_all``'s default), the certified count
+(msolve, ``method="exact"``) and the papers' method (200 polished G3-PCX runs), per case: the seed examples and the
+random cases of test/data/assembly_modes_cases.json (their certified modes are stored there)."""
 from __future__ import annotations
 
 import gc
 import json
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,25 +17,10 @@ from glpma_tools.timing import REPO_ROOT
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"
 #: the manipulators' short names, in the report's order
 NAMES = {"planar_3rpr": "3-RPR", "hexapod_66": "6-6"}
-HEADING = "## All real assembly modes: fast multistart against msolve and G3-PCX"
-
-
-@dataclass
-class ModesRow:
-    label: str
-    kind: str
-    certified: int | None        # real modes certified by msolve (stored or computed)
-    complex_solutions: int | None
-    fast_found: int
-    fast_starts: int
-    fast_s: float
-    fast_miss: float
-    fast_bound: float
-    fast_evaluations: int
-    fast_matches: bool | None    # the same modes as the certificate (None: no certificate)
-    exact_s: float | None        # None: not run
-    g3pcx_found: int | None
-    g3pcx_s: float | None
+#: found and certified modes are the same when each is this share of the model's scale from its partner
+SAME_MODE_SHARE = 1e-6
+#: a row's figures that are None where not known (no certificate) or not run (msolve, G3-PCX)
+ROW_EXTRAS = ("certified", "complex", "same", "exact_s", "g3pcx_found", "g3pcx_s")
 
 
 def _cases(scenarios, per_kind) -> list[tuple]:
@@ -54,23 +37,24 @@ def _cases(scenarios, per_kind) -> list[tuple]:
 
 
 def _same(model, xs, ys) -> bool:
+    """Whether the poses ``xs`` and ``ys`` are the same modes, one to one."""
     if len(xs) != len(ys) or not xs:
         return len(xs) == len(ys)
     D = np.array([[model.distance(x, y) for y in ys] for x in xs])
-    return bool(np.all(D.min(axis=1) <= 1e-6 * model.scale)) and sorted(D.argmin(axis=1)) == list(range(len(ys)))
+    return bool(np.all(D.min(axis=1) <= SAME_MODE_SHARE * model.scale)) and sorted(D.argmin(axis=1)) == list(
+        range(len(ys)))
 
 
 def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
-    """Rows per case; ``per_kind``: random cases per manipulator (None = all); G3-PCX runs on every
-    3-RPR case and on the first ``g3pcx_hexapods`` hexapod cases."""
+    """A row (dict) per case; ``per_kind``: random cases per manipulator (None = all); G3-PCX runs on every 3-RPR
+    case and on the first ``g3pcx_hexapods`` hexapod cases.  Certified counts are msolve's, else the stored ones."""
     try:
         from glpma_ros.exact import msolve_executable
         msolve_executable()
         exact_status = "run"
     except GlpmaError as exc:
         exact_status = str(exc)
-    rows, hexapods_done = [], 0
-    cases = _cases(scenarios, per_kind)
+    rows, hexapods_done, cases = [], 0, _cases(scenarios, per_kind)
     for kind in {c[1].kind for c in cases}:             # load the compiled code before timing
         _, model, legs, _ = next(c for c in cases if c[1].kind == kind)
         solve_all(model, legs, max_starts=2)
@@ -78,23 +62,26 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
     for label, model, legs, stored in cases:
         gc.collect()
         fast = solve_all(model, legs)
-        modes = complex_n = exact_s = g = None
+        row = {"label": label, "kind": model.kind, "fast_found": len(fast.solutions), "starts": fast.starts,
+               "evaluations": fast.evaluations, "fast_s": fast.elapsed_s, "miss": fast.miss_probability,
+               "bound": fast.unseen_share_bound}       # and, where known or run: the columns of ROW_EXTRAS
         if exact_status == "run":
             ex = solve_all(model, legs, method="exact")
-            modes, complex_n, exact_s = [s.x for s in ex.solutions], ex.complex_solutions, ex.elapsed_s
-        elif stored is not None:
-            modes, complex_n = stored["modes"], stored["complex_solutions"]
+            modes = [s.x for s in ex.solutions]
+            row.update(complex=ex.complex_solutions, exact_s=ex.elapsed_s)
+        else:
+            modes = stored and stored["modes"]
+            row.update(complex=stored and stored["complex_solutions"])
+        if modes is not None:
+            row.update(certified=len(modes), same=_same(model, [s.x for s in fast.solutions], modes))
         if model.kind == "planar_3rpr" or hexapods_done < g3pcx_hexapods:
             hexapods_done += model.kind == "hexapod_66"
             g = solve_all(model, legs, method="g3pcx", runs=G3PCX_RUNS)
-        certified = None if modes is None else len(modes)
-        rows.append(ModesRow(label, model.kind, certified, complex_n, len(fast.solutions), fast.starts,
-                             fast.elapsed_s, fast.miss_probability, fast.unseen_share_bound, fast.evaluations,
-                             None if modes is None else _same(model, [s.x for s in fast.solutions], modes),
-                             exact_s, g and len(g.solutions), g and g.elapsed_s))
+            row.update(g3pcx_found=len(g.solutions), g3pcx_s=g.elapsed_s)
+        rows.append({**dict.fromkeys(ROW_EXTRAS), **row})
         if progress:
-            print(f"  {label}: multistart {len(fast.solutions)} in {fast.elapsed_s:.3f} s, exact "
-                  f"{certified} in {exact_s if exact_s is None else round(exact_s, 3)} s", flush=True)
+            print(f"  {label}: multistart {row['fast_found']} in {row['fast_s']:.3f} s, exact {rows[-1]['certified']} in "
+                  f"{_s(rows[-1]['exact_s'])} s", flush=True)
     return {"exact": exact_status, "rows": rows}
 
 
@@ -104,16 +91,16 @@ def _s(v):
 
 def _kind_summary(name, rows) -> str:
     """One line per manipulator: the multistart's times and agreement, msolve's and G3-PCX's where they ran."""
-    exact = [r for r in rows if r.exact_s is not None]
-    g3pcx = [r for r in rows if r.g3pcx_s is not None]
+    exact = [r for r in rows if r["exact_s"] is not None]
+    g3pcx = [r for r in rows if r["g3pcx_s"] is not None]
+    fast_s = [r["fast_s"] for r in rows]
     return "; ".join(
-        [f"- {name}, {len(rows)} cases: multistart median {np.median([r.fast_s for r in rows]):.3f} s "
-         f"(max {max(r.fast_s for r in rows):.3f} s), {sum(bool(r.fast_matches) for r in rows)}/"
-         f"{sum(r.fast_matches is not None for r in rows)} the same as certified"]
-        + ([f"msolve median {np.median([r.exact_s for r in exact]):.3f} s, multistart faster on "
-            f"{sum(r.fast_s < r.exact_s for r in exact)}/{len(exact)}"] if exact else [])
-        + ([f"G3-PCX {G3PCX_RUNS} runs median {np.median([r.g3pcx_s for r in g3pcx]):.3f} s, all modes on "
-            f"{sum(r.g3pcx_found == r.certified for r in g3pcx if r.certified is not None)}/{len(g3pcx)}"]
+        [f"- {name}, {len(rows)} cases: multistart median {np.median(fast_s):.3f} s (max {max(fast_s):.3f} s), "
+         f"{sum(bool(r['same']) for r in rows)}/{sum(r['same'] is not None for r in rows)} the same as certified"]
+        + ([f"msolve median {np.median([r['exact_s'] for r in exact]):.3f} s, multistart faster on "
+            f"{sum(r['fast_s'] < r['exact_s'] for r in exact)}/{len(exact)}"] if exact else [])
+        + ([f"G3-PCX {G3PCX_RUNS} runs median {np.median([r['g3pcx_s'] for r in g3pcx]):.3f} s, all modes on "
+            f"{sum(r['g3pcx_found'] == r['certified'] for r in g3pcx if r['certified'] is not None)}/{len(g3pcx)}"]
            if g3pcx else [])) + "."
 
 
@@ -122,13 +109,13 @@ def section(res, md_path=None) -> list[str]:
     templates/modes.md."""
     from .report import md_blocks, prose
     data = res["modes_comparison"]
-    body = [[r.label, fmt(r.certified), fmt(r.complex_solutions), r.fast_found,
-             MISSING if r.fast_matches is None else ("yes" if r.fast_matches else "**no**"), r.fast_starts,
-             f"{r.fast_evaluations:,}", _s(r.fast_s), f"{r.fast_miss:.3g} / {r.fast_bound:.3g}", _s(r.exact_s),
-             fmt(r.g3pcx_found), _s(r.g3pcx_s)] for r in data["rows"]]
-    by_kind = {name: [r for r in data["rows"] if r.kind == kind] for kind, name in NAMES.items()}
+    body = [[r["label"], fmt(r["certified"]), fmt(r["complex"]), r["fast_found"],
+             MISSING if r["same"] is None else ("yes" if r["same"] else "**no**"), r["starts"],
+             f"{r['evaluations']:,}", _s(r["fast_s"]), f"{r['miss']:.3g} / {r['bound']:.3g}", _s(r["exact_s"]),
+             fmt(r["g3pcx_found"]), _s(r["g3pcx_s"])] for r in data["rows"]]
+    by_kind = {name: [r for r in data["rows"] if r["kind"] == kind] for kind, name in NAMES.items()}
     return md_blocks(
-        HEADING, prose("modes", runs=G3PCX_RUNS),
+        "## All real assembly modes: fast multistart against msolve and G3-PCX", prose("modes", runs=G3PCX_RUNS),
         data["exact"] != "run" and f"msolve not run ({data['exact']}); certified counts are the stored ones.",
         table(["case", "real (certified)", "complex", "multistart found", "same as certified", "starts",
                "LM evaluations", "multistart s", "miss: Good-Turing / 95 % bound", "msolve s",

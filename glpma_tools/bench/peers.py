@@ -21,8 +21,6 @@ from .common import SUCCESS_TOLERANCE, Run
 #: pymoo needs bounds (its PM mutation scales with them): this many init half-widths around the init range's centre,
 #: so that every solution is well inside
 PYMOO_BOUND_FACTOR = 10.0
-
-
 #: the module each peer needs
 PEER_MODULES = {"pypop7": "pypop7.optimizers.ga.g3pcx", "pymoo": "pymoo.algorithms.soo.nonconvex.g3pcx",
                 "scipy": "scipy.optimize"}
@@ -114,6 +112,3 @@ def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
 
 PEER_SOLVERS = {"pypop7": pypop7_g3pcx, "pymoo": pymoo_g3pcx}
 PEER_LABEL = {"pypop7": "pypop7 G3PCX", "pymoo": "pymoo G3PCX"}
-
-
-# -- scipy.optimize.least_squares, warm start ------------------------------------------

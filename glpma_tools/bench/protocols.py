@@ -1,24 +1,22 @@
-"""The experimental protocol of Chandra, Zhang & Rolland (2009), "Solving the forward kinematics of the 3RPR planar
-parallel manipulator using a hybrid meta-heuristic paradigm", CIRA 2009 (paper 004, section IV.A and Table II), and
-its published figures.
+"""The experimental protocol of Chandra, Zhang & Rolland (2009), CIRA 2009 (paper 004, section IV.A and Table II;
+its published figures: :data:`.papers.TABLE2`).
 
-Protocol (004 section IV.A): the 3-RPR of Table I with leg lengths [100, 120, 150]; initial population uniform in
-[-10, 10]^3 (theta in radians); population 40 for the population-based methods (SA works with a single solution, 004
-section V); 50 runs per method; a run stops as soon as the fitness is below 1e-4.  Table II reports, over the 50 runs,
-the mean and 95 % confidence interval of the iterations (SA: temperature steps, i.e. Markov chains; GA and GA-SA:
-generations), the final fitness, the CPU time, and the number of successful runs.  004 states no cap on the
-iterations; :data:`TABLE2_MAX_EVALS` is far above every published mean (the costliest, GA-SA, is about 18 generations
-x 36 annealed children x 10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s reading), so it
-only stops runs that stall.  The refinement is off (the papers' algorithms alone).  Evaluations are
-machine-independent; CPU times are not (004 ran C++ on a 1.74 GHz dual core)."""
+004 section IV.A: the 3-RPR of Table I with leg lengths [100, 120, 150]; initial population uniform in [-10, 10]^3
+(theta in radians); population 40 for the population-based methods (SA works with a single solution, 004 section
+V); 50 runs per method; a run stops as soon as the fitness is below 1e-4.  Table II reports, over the 50 runs, the
+mean and 95 % confidence interval of the iterations (SA: temperature steps, i.e. Markov chains; GA and GA-SA:
+generations), the final fitness, the CPU time and the number of successful runs.  004 states no cap on the
+iterations; :data:`TABLE2_MAX_EVALS` is far above every published mean (the costliest, GA-SA, is about 18
+generations x 36 annealed children x 10,000 proposals = 6.5 M evaluations under :mod:`glpma_ros.solvers.gasa`'s
+reading), so it only stops runs that stall.  The refinement is off (the papers' algorithms alone).  Evaluations
+are machine-independent; CPU times are not (004 ran C++ on a 1.74 GHz dual core)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from glpma_ros.solvers import sa
-from glpma_tools.stats import Z_95, mean_ci
+
+from .papers import TABLE2
 
 #: 004 section IV.A: "initialize the population with real numbers in the range of [-10, 10]"
 TABLE2_INIT_RANGE = (-10.0, 10.0)
@@ -32,64 +30,35 @@ TABLE2_RUNS = 50
 TABLE2_MAX_EVALS = 20_000_000
 #: evaluation cap of the untimed call that loads the compiled kernels
 WARMUP_EVALS = 1_000
-
-
-@dataclass(frozen=True)
-class PublishedRow:
-    """One row of 004 Table II: mean +- 95 % confidence interval over 50 runs."""
-
-    method: str
-    markov_chain: int | None
-    iterations: float
-    iterations_ci: float
-    fitness: float
-    fitness_ci: float
-    cpu_s: float
-    cpu_s_ci: float
-    successes: int
-    runs: int = TABLE2_RUNS
-
-
-#: 004 Table II, "Hybrid meta-heuristic paradigms for the FKP of 3RPR manipulator"
-TABLE2 = (
-    PublishedRow("SA", 20, 1130, 31, 6.55e-5, 7.34e-6, 0.14, 0.09, 50),
-    PublishedRow("SA", 50, 1066, 25, 6.13e-5, 7.47e-6, 0.30, 0.12, 50),
-    PublishedRow("SA", 100, 1073, 28, 5.07e-5, 7.36e-6, 0.54, 0.13, 50),
-    PublishedRow("GA (P)", None, 302, 72, 0.0001, 0.00007, 16.86, 3.99, 50),
-    PublishedRow("GA (N-U)", None, 863, 70, 0.010, 0.011, 48.24, 4.27, 45),
-    PublishedRow("Hybrid GA-SA", 20, 18, 3, 6.13e-5, 7.13e-6, 13.78, 3.01, 50),
-)
-
 #: which Table II row each solver here reproduces: the RCGA's non-uniform mutation is GA (N-U); GA (P)'s pivot
 #: mutation is not implemented (004 leaves its range open)
 SOLVER_ROWS = {"sa": "SA", "rcga": "GA (N-U)", "gasa": "Hybrid GA-SA"}
 
 
-def published_row(solver_name, chain_length=None):
+def published_row(solver_name, chain_length=None) -> dict | None:
     """The Table II row for ``solver_name`` (SA: by Markov chain length), or None."""
     method = SOLVER_ROWS.get(solver_name)
     chain = sa.CHAIN_LENGTH if chain_length is None else int(chain_length)
-    return next((row for row in TABLE2 if row.method == method and (method != "SA" or row.markov_chain == chain)), None)
+    return next((row for row in TABLE2 if row["method"] == method and (method != "SA" or row["markov_chain"] == chain)),
+                None)
 
 
 @dataclass
 class Table2Result:
+    """One solver's runs on 004's protocol, per run (the report takes the means and intervals of the successful
+    ones, as Table II does)."""
+
     solver: str
-    runs: int
-    successes: int
-    mean_iterations: float        # over successful runs (Table II's "No. Itera")
-    iterations_ci: float          # 95 % confidence half-width of that mean
-    mean_evaluations: float       # over successful runs
-    evaluations_ci: float
-    mean_fitness: float           # over all runs (Table II's "Fitness")
-    mean_time_s: float            # over all runs (machine-dependent)
-    published: PublishedRow | None
-    iterations: list = field(default_factory=list)    # per run
-    fitness: list = field(default_factory=list)       # per run
+    published: dict | None            # its Table II row
+    iterations: list = field(default_factory=list)
+    evaluations: list = field(default_factory=list)
+    fitness: list = field(default_factory=list)
+    seconds: list = field(default_factory=list)
 
     @property
-    def success_rate(self) -> float:
-        return self.successes / self.runs
+    def successful(self) -> list[int]:
+        """The indices of the runs that reached :data:`TABLE2_TOLERANCE`."""
+        return [k for k, f in enumerate(self.fitness) if f < TABLE2_TOLERANCE]
 
 
 def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> Table2Result:
@@ -104,9 +73,5 @@ def table2_protocol(model, solver_name, runs=TABLE2_RUNS, seed0=0, **params) -> 
     # load the compiled kernels before the clock matters (004 times the search alone)
     solve(solver_name, model, legs, rng=seed0, **{**settings, "max_evals": WARMUP_EVALS})
     done = [solve(solver_name, model, legs, rng=seed0 + k, **settings) for k in range(runs)]
-    ok = [r for r in done if r.fun < settings["tolerance"]]
-    fitness = [r.fun for r in done]
-    return Table2Result(solver_name, len(done), len(ok), *mean_ci([r.nit for r in ok], Z_95),
-                        *mean_ci([r.nfev for r in ok], Z_95), float(np.mean(fitness)),
-                        float(np.mean([r.elapsed_s for r in done])),
-                        published_row(solver_name, params.get("chain_length")), [r.nit for r in done], fitness)
+    return Table2Result(solver_name, published_row(solver_name, params.get("chain_length")), [r.nit for r in done],
+                        [r.nfev for r in done], [r.fun for r in done], [r.elapsed_s for r in done])
