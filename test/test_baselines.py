@@ -15,7 +15,8 @@ from glpma_ros import cli, solvers
 from glpma_ros.solvers import de, gasa, sa
 from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem
-from glpma_tools.bench.protocols import TABLE2, published_row, table2_protocol
+from glpma_tools.bench.experiments import published_row, table2_protocol
+from glpma_tools.bench.papers import TABLE2
 
 BASELINES = ["sa", "gasa", "de"]
 #: budget of the deadline test (ms)

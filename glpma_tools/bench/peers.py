@@ -1,10 +1,6 @@
-"""Peer implementations on the identical fitness: pypop7 and pymoo G3-PCX, and ``scipy.optimize.least_squares`` for
-the warm (tracking) case.
-
-All peers are benchmark-only dependencies, imported lazily.  They call the same compiled fitness as our solvers
-(``models.kernels.population_fitness``), through a counter that records every evaluation, the first one below the
-success threshold and the best-so-far trace, so evaluations are counted the same way for everyone.
-"""
+"""Peer implementations of pure G3-PCX, pypop7's and pymoo's (benchmark-only dependencies, imported lazily), on the
+identical fitness: the compiled one of our solvers through :class:`CountingFitness`, so that evaluations are counted
+the same way for everyone.  :func:`available` also tells :mod:`.tracking` whether scipy, its warm peer, imports."""
 from __future__ import annotations
 
 import importlib
