@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections import namedtuple
 
 import numpy as np
 
@@ -11,28 +11,13 @@ from glpma_tools.stats import mean_ci
 #: the papers' success criterion: best fitness below this
 SUCCESS_TOLERANCE = 1e-20
 
-
-class Run(NamedTuple):
-    """One independent search."""
-
-    success: bool
-    nfev: int            # evaluations to success, or all evaluations spent
-    wall_s: float        # wall time around the call
-    fun: float           # best fitness reached
-    history: list        # (evaluations, best fitness so far)
-
-
-class Summary(NamedTuple):
-    """A row of runs as the report's tables give it."""
-
-    runs: int
-    success_pct: float
-    evals_mean: float      # over successful runs
-    evals_ci: float
-    evals_all_mean: float  # over all runs (failures count their whole budget)
-    time_median_ms: float
-    time_mean_ms: float
-    fun_median: float
+#: one independent search: success, evaluations (to success, or all spent), wall time around the call (s), the best
+#: fitness reached, its history [(evaluations, best fitness so far)]
+Run = namedtuple("Run", "success nfev wall_s fun history")
+#: a row of runs as the report's tables give it: evaluations over the successful runs (mean, 95 % half-width) and
+#: over all runs (failures count their whole budget), wall times (ms), the median final fitness
+Summary = namedtuple("Summary", "runs success_pct evals_mean evals_ci evals_all_mean time_median_ms time_mean_ms "
+                                "fun_median")
 
 
 def summarize(runs: list[Run]) -> Summary:

@@ -6,8 +6,8 @@ from __future__ import annotations
 import gc
 import math
 import time
-from dataclasses import dataclass, field
-from typing import NamedTuple
+from collections import namedtuple
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,15 +22,15 @@ from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE2, TABLE2_PROT
 from .peers import PEER_LABEL, PEER_SOLVERS, PYMOO_BOUND_FACTOR, available
 from .report import SOLVER_LABEL, figure_link, md_blocks, pct, prose
 
-#: the success thresholds of the peers' table: the papers' and looser ones (the gap section reads them)
+#: the success thresholds of the peers' table: the papers' and looser ones
 THRESHOLDS = (1e-20, 1e-16, 1e-12, 1e-8)
 #: a published solution counts as found when one found is this close (mm)
 FOUND_MM = 5.0
 #: the columns of a row of runs (:func:`summary_cells`)
 SUMMARY_HEAD = ["runs", "success", "evals to success", "mean evals (all runs)", "time median ms", "time mean ms",
                 "median final f"]
-#: the row of our own pure G3-PCX among the peers
-OURS = "ours `g3pcx` (pure)"
+#: the rows of the peers' table: our pure G3-PCX, then the peers'
+LABELS = {"ours": "ours `g3pcx` (pure)", **PEER_LABEL}
 
 
 # -- the papers' tables ----------------------------------------------------------------
@@ -52,10 +52,8 @@ class Config:
         return "default (polish)" if self.polish else "pure"
 
 
-@dataclass
-class TableRow:
-    config: Config
-    runs: list
+#: a row of the papers' tables (or of DE's): its :class:`Config` and its runs (:class:`.common.Run`)
+TableRow = namedtuple("TableRow", "config runs")
 
 
 def timed_solve(solver, model, legs, seed, **options) -> Run:
@@ -83,11 +81,8 @@ def paper_tables(sc, runs_pure, runs_polished, progress) -> list[TableRow]:
 
 
 # -- peers: pure G3-PCX, and ours with larger caps -----------------------------------------
-@dataclass
-class PeerRow:
-    name: str
-    runs: list = field(default_factory=list)
-    status: str = "run"        # or why it did not: "not installed (...)", "skipped ..."
+#: a peer's runs; status "run", or why it did not: "not installed (...)", "skipped ..."
+PeerRow = namedtuple("PeerRow", "name runs status")
 
 
 def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
@@ -95,16 +90,15 @@ def peer_g3pcx(sc, runs_by_peer: dict, progress) -> list[PeerRow]:
     kw = {k: solvers.PAPER_SETTINGS[sc.model.kind][k] for k in ("population", "init_range", "max_evals")}
     out = []
     for name, fn in PEER_SOLVERS.items():
-        n, why = runs_by_peer.get(name, 0), available(name)
-        if why is not None:
-            print(f"bench: {name} {why}; its rows are marked 'not installed'")
-            out.append(PeerRow(name, status=why))
-        elif n <= 0:
-            out.append(PeerRow(name, status=runs_by_peer.get(f"{name}_why", "skipped: 0 runs requested")))
-        else:
-            fn(sc.model, sc.legs, seed=999, **{**kw, "max_evals": 200})
-            out.append(PeerRow(name, [fn(sc.model, sc.legs, seed=seed, **kw)
-                                      for seed in _bar(range(n), f"{sc.label} peer {name}", progress)]))
+        n = runs_by_peer.get(name, 0)
+        why = available(name) or (None if n > 0 else runs_by_peer.get(f"{name}_why", "skipped: 0 runs requested"))
+        if why:
+            print(f"bench: {name} not run: {why}")
+            out.append(PeerRow(name, [], why))
+            continue
+        fn(sc.model, sc.legs, seed=999, **{**kw, "max_evals": 200})
+        out.append(PeerRow(name, [fn(sc.model, sc.legs, seed=seed, **kw)
+                                  for seed in _bar(range(n), f"{sc.label} peer {name}", progress)], "run"))
     return out
 
 
@@ -118,13 +112,9 @@ def gap_diagnostics(sc, runs, progress) -> dict:
 
 
 # -- all solutions -------------------------------------------------------------------------
-@dataclass
-class AllSolutionsResult:
-    runs: int
-    repeats: list             # (seed, count, elapsed_s, evaluations)
-    init_range: tuple
-    deviations: list          # per published solution: (index, nearest found, max coordinate deviation)
-    unmatched_found: int
+#: ``solve_all`` repeated: runs per call, per repeat (seed, count, elapsed_s, evaluations), the initial range, per
+#: published solution (index, nearest found, max coordinate deviation), the found ones matching no published one
+AllSolutionsResult = namedtuple("AllSolutionsResult", "runs repeats init_range deviations unmatched_found")
 
 
 def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
@@ -166,20 +156,9 @@ def published_row(solver_name, chain_length=None) -> dict | None:
                  and (solver_name != "sa" or row["markov_chain"] == chain)), None)
 
 
-class Table2Result(NamedTuple):
-    """One solver's runs on 004's protocol, per run (Table II's means are over the successful ones)."""
-
-    solver: str
-    published: dict | None            # its Table II row
-    iterations: list
-    evaluations: list
-    fitness: list
-    seconds: list
-
-    @property
-    def successful(self) -> list[int]:
-        """The indices of the runs that reached the protocol's tolerance."""
-        return [k for k, f in enumerate(self.fitness) if f < TABLE2_PROTOCOL["tolerance"]]
+#: one solver's runs on 004's protocol: its Table II row (or None), then per run the iterations, evaluations, final
+#: fitness and seconds
+Table2Result = namedtuple("Table2Result", "solver published iterations evaluations fitness seconds")
 
 
 def table2_protocol(model, solver_name, runs=TABLE2_PROTOCOL["runs"], seed0=0, **params) -> Table2Result:
@@ -232,10 +211,10 @@ def paper_tables_section(res, md_path) -> list[str]:
             body.append([SOLVER_LABEL[c.solver], c.pop_label, c.mode, *summary_cells(runs),
                          fmt(p["success"], unit=" %"), fmt_ci(p["evals"], p["evals_pm"]), ratio(s.evals_mean, p["evals"]),
                          fmt(p["time_s"] * 1e3), ratio(s.time_mean_ms, p["time_s"] * 1e3)])
+        glpma = " " + prose("tables", "glpma", intensity=st["ls_intensity"]) if "ls_intensity" in st else ""
         out += md_blocks(f"### {sc.label}: {TABLE_NAME[kind]}",
                          prose("tables", low=f"{st['init_range'][0]:g}", high=f"{st['init_range'][1]:g}",
-                               n=sc.model.n_vars, cap=f"{st['max_evals']:,}")
-                         + (" " + prose("tables", "glpma", intensity=st["ls_intensity"]) if "ls_intensity" in st else ""),
+                               n=sc.model.n_vars, cap=f"{st['max_evals']:,}") + glpma,
                          table(["method", "pop", "mode", *SUMMARY_HEAD, "paper success", "paper evals",
                                 "evals ours/paper", "paper ms", "time ours/paper"], body))
     return out
@@ -254,23 +233,34 @@ def g3pcx_runs(res, key) -> dict:
     return ({"ours": ours[0]} if ours else {}) | {r.name: r.runs for r in res["peers"].get(key, []) if r.status == "run"}
 
 
+def spread_cells(runs) -> list:
+    """The share of ``runs`` below each of :data:`THRESHOLDS` at their end; the median and 90th percentile of the
+    evaluations of the successful ones."""
+    evals = [r.nfev for r in runs if r.success]
+    q = np.percentile(evals, [50, 90]) if evals else [math.nan] * 2
+    return [pct(100.0 * sum(r.fun < t for r in runs) / len(runs)) for t in THRESHOLDS] + [fmt(float(v)) for v in q]
+
+
 def peers_section(res, md_path) -> list[str]:
+    """Per manipulator: our pure G3-PCX (3-RPR: also with larger caps), the peers' and the paper's figures."""
     out = md_blocks("## Pure G3-PCX against peer implementations",
                     prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
-    head = ["implementation", *SUMMARY_HEAD, "time vs ours", "evals vs ours", *(f"f < {t:.0e}" for t in THRESHOLDS)]
+    head = ["implementation", *SUMMARY_HEAD, "time vs ours", "evals vs ours", *(f"f < {t:.0e}" for t in THRESHOLDS),
+            "evals to success: median", "90th percentile"]
     for key, data in res["peers"].items():
         sc, series = res["scenarios"][key], g3pcx_runs(res, key)
-        ours = summarize(series["ours"]) if "ours" in series else summarize([])
+        caps = {f"ours, cap {c:,}": runs for c, runs in (res.get("gap") or {}).items()} if key == "3rpr" else {}
         p = PUBLISHED[sc.model.kind][("g3pcx", solvers.PAPER_SETTINGS[sc.model.kind]["population"], None)]
-        body = [[OURS if name == "ours" else PEER_LABEL[name], *summary_cells(runs, ours),
-                 *(pct(100.0 * sum(r.fun < t for r in runs) / len(runs)) for t in THRESHOLDS)]
-                for name, runs in series.items()]
+        body = [[LABELS.get(name, name), *summary_cells(runs, summarize(series.get("ours", []))), *spread_cells(runs)]
+                for name, runs in (series | caps).items()]
         body += [[PEER_LABEL[r.name], MISSING, r.status] + [MISSING] * (len(head) - 3)
                  for r in data if r.status != "run"]
         body.append([f"paper ({TABLE_NAME[sc.model.kind]})", 100, fmt(p["success"], unit=" %"),
                      fmt_ci(p["evals"], p["evals_pm"]), MISSING, MISSING, fmt(p["time_s"] * 1e3)]
                     + [MISSING] * (len(head) - 7))
-        out += md_blocks(f"### {sc.label}", table(head, body))
+        out += md_blocks(f"### {sc.label}", table(head, body),
+                         caps and prose("peers", "caps", generation_cap=f"{min(res['gap']):,}",
+                                        large_cap=f"{max(res['gap']):,}"))
     return out
 
 
@@ -280,22 +270,11 @@ def gap_section(res, md_path) -> list[str]:
     pop, cap = (solvers.PAPER_SETTINGS["planar_3rpr"][k] for k in ("population", "max_evals"))
     measured = {name: summarize(runs).success_pct for name, runs in g3pcx_runs(res, "3rpr").items()}
     rates = ", ".join(f"{name} {pct(rate)}" for name, rate in measured.items()) or "none run"
-    spread = max(measured.values(), default=0) - min(measured.values(), default=0)
     far = measured and max(measured.values()) < 50      # every implementation far below the paper's 90 %
-    out = md_blocks("## Why the papers' pure G3-PCX figures do not reproduce",
-                    prose("gap", population=pop, cap=f"{cap:,}", rates=rates,
-                          reference=", ".join(f"{k} {v} %" for k, v in FAITHFUL_3RPR.items())),
-                    prose("gap", "thresholds"))
-    text = [prose("gap", "reading", cap=f"{cap:,}", rates=rates,
-                  far=prose("gap", "far", spread=f"{spread:.0f}") if far else "")]
+    text = [prose("gap", "reading", cap=f"{cap:,}", rates=rates, far=far and prose(
+        "gap", "far", spread=f"{max(measured.values()) - min(measured.values()):.0f}") or "")]
     caps = res.get("gap")
     if caps:
-        rows = []
-        for max_evals, runs in caps.items():
-            q = np.percentile([r.nfev for r in runs if r.success], [50, 90]) if any(r.success for r in runs) else [math.nan] * 2
-            rows.append([f"{max_evals:,}", *summary_cells(runs), *(fmt(float(v)) for v in q)])
-        out += md_blocks(prose("gap", "caps", generation_cap=f"{2 * cap + pop:,}", large_cap=f"{10 * cap:,}"),
-                         table(["cap", *SUMMARY_HEAD, "evals to success: median", "90th percentile"], rows))
         s2, s10 = summarize(caps[min(caps)]), summarize(caps[max(caps)])
         text.append(prose("gap", "reading_caps", cap2=f"{min(caps):,}", success2=f"{s2.success_pct:.0f}",
                           cap10=f"{max(caps):,}", success10=f"{s10.success_pct:.0f}", evals=f"{s10.evals_mean:,.0f}",
@@ -307,7 +286,9 @@ def gap_section(res, md_path) -> list[str]:
         text.append(prose("gap", "reading_refined", rate=f"{lo:.0f} %" if lo == hi else f"{lo:.0f}–{hi:.0f} %",
                           fewest=f"{min(x.evals_mean for x in sums):,.0f}",
                           most=f"{max(x.evals_mean for x in sums):,.0f}"))
-    return out + md_blocks(" ".join(text))
+    return md_blocks("## Why the papers' pure G3-PCX figures do not reproduce",
+                     prose("gap", population=pop, cap=f"{cap:,}", rates=rates,
+                           reference=", ".join(f"{k} {v} %" for k, v in FAITHFUL_3RPR.items())), " ".join(text))
 
 
 def all_solutions_section(res, md_path) -> list[str]:
@@ -334,7 +315,8 @@ def all_solutions_section(res, md_path) -> list[str]:
 def baselines_section(res, md_path) -> list[str]:
     rows = []
     for r in res["baselines"]["table2"]:
-        p, ok = r.published or {}, r.successful
+        p = r.published or {}
+        ok = [k for k, f in enumerate(r.fitness) if f < TABLE2_PROTOCOL["tolerance"]]     # Table II's means: over these
         rows.append([r.solver, fmt(p.get("markov_chain")), len(r.fitness), pct(100.0 * len(ok) / len(r.fitness)),
                      pct(100.0 * p["successes"] / p["runs"]) if p else MISSING,
                      fmt_ci(*mean_ci([r.iterations[k] for k in ok], Z_95)),

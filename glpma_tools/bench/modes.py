@@ -13,13 +13,14 @@ from glpma_ros.models import MODELS
 from glpma_ros.solve_all import G3PCX_RUNS, solve_all
 from glpma_tools.tables import MISSING, fmt, table
 from glpma_tools.timing import REPO_ROOT
+from glpma_tools.timing import progress_bar as _bar
 
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"
 #: the manipulators' short names, in the report's order
 NAMES = {"planar_3rpr": "3-RPR", "hexapod_66": "6-6"}
 #: found and certified modes are the same when each is this share of the model's scale from its partner
 SAME_MODE_SHARE = 1e-6
-#: a row's figures that are None where not known (no certificate) or not run (msolve, G3-PCX)
+#: a row's figures that are None where unknown (no certificate) or not run (msolve, G3-PCX)
 ROW_EXTRAS = ("certified", "complex", "same", "exact_s", "g3pcx_found", "g3pcx_s")
 
 
@@ -59,29 +60,25 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
         _, model, legs, _ = next(c for c in cases if c[1].kind == kind)
         solve_all(model, legs, max_starts=2)
         solve_all(model, legs, method="g3pcx", runs=1)
-    for label, model, legs, stored in cases:
+    for label, model, legs, stored in _bar(cases, "assembly modes", progress):
         gc.collect()
         fast = solve_all(model, legs)
-        row = {"label": label, "kind": model.kind, "fast_found": len(fast.solutions), "starts": fast.starts,
-               "evaluations": fast.evaluations, "fast_s": fast.elapsed_s, "miss": fast.miss_probability,
-               "bound": fast.unseen_share_bound}       # and, where known or run: the columns of ROW_EXTRAS
+        row = dict.fromkeys(ROW_EXTRAS) | {
+            "label": label, "kind": model.kind, "fast_found": len(fast.solutions), "starts": fast.starts,
+            "evaluations": fast.evaluations, "fast_s": fast.elapsed_s, "miss": fast.miss_probability,
+            "bound": fast.unseen_share_bound, "complex": stored and stored["complex_solutions"]}
+        modes = stored and stored["modes"]
         if exact_status == "run":
             ex = solve_all(model, legs, method="exact")
             modes = [s.x for s in ex.solutions]
             row.update(complex=ex.complex_solutions, exact_s=ex.elapsed_s)
-        else:
-            modes = stored and stored["modes"]
-            row.update(complex=stored and stored["complex_solutions"])
         if modes is not None:
             row.update(certified=len(modes), same=_same(model, [s.x for s in fast.solutions], modes))
         if model.kind == "planar_3rpr" or hexapods_done < g3pcx_hexapods:
             hexapods_done += model.kind == "hexapod_66"
             g = solve_all(model, legs, method="g3pcx", runs=G3PCX_RUNS)
             row.update(g3pcx_found=len(g.solutions), g3pcx_s=g.elapsed_s)
-        rows.append({**dict.fromkeys(ROW_EXTRAS), **row})
-        if progress:
-            print(f"  {label}: multistart {row['fast_found']} in {row['fast_s']:.3f} s, exact {rows[-1]['certified']} in "
-                  f"{_s(rows[-1]['exact_s'])} s", flush=True)
+        rows.append(row)
     return {"exact": exact_status, "rows": rows}
 
 

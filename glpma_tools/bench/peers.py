@@ -86,9 +86,7 @@ def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
     from pymoo.config import Config
     from pymoo.core.problem import Problem
     from pymoo.optimize import minimize
-    from pymoo.termination.collection import TerminationCollection
-    from pymoo.termination.fmin import MinimumFunctionValueTermination
-    from pymoo.termination.max_eval import MaximumFunctionCallTermination
+    from pymoo.termination import collection, fmin, max_eval
     Config.warnings["not_compiled"] = False
     fit, n = CountingFitness(model, legs, max_evals), model.n_vars
     low, high = (float(v) for v in init_range)
@@ -100,8 +98,8 @@ def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
 
     problem = FK(n_var=n, n_obj=1, xl=np.full(n, centre - bound), xu=np.full(n, centre + bound))
     X0 = np.random.default_rng(seed).uniform(low, high, size=(population, n))
-    termination = TerminationCollection(MaximumFunctionCallTermination(int(max_evals)),
-                                        MinimumFunctionValueTermination(SUCCESS_TOLERANCE))
+    termination = collection.TerminationCollection(max_eval.MaximumFunctionCallTermination(int(max_evals)),
+                                                   fmin.MinimumFunctionValueTermination(SUCCESS_TOLERANCE))
     return fit.run(lambda: minimize(problem, G3PCX(pop_size=int(population), sampling=X0), termination,
                                     seed=int(seed), verbose=False))
 
