@@ -7,7 +7,6 @@ import gc
 import math
 import time
 from collections import namedtuple
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,15 +32,8 @@ SUMMARY_HEAD = ["runs", "success", "evals to success", "mean evals (all runs)", 
 LABELS = {"ours": "ours `g3pcx` (pure)", **PEER_LABEL}
 
 
-# -- the papers' tables ----------------------------------------------------------------
-@dataclass
-class Config:
-    """A row of the papers' tables: a solver, its population(s), pure or with the refinement."""
-
-    solver: str
-    population: int
-    local_population: int | None
-    polish: bool
+class Config(namedtuple("Config", "solver population local_population polish")):
+    """A row of the papers' tables: a solver, its population(s) (local: GLPMA's, else None), pure or refined."""
 
     @property
     def pop_label(self):
@@ -64,8 +56,7 @@ def timed_solve(solver, model, legs, seed, **options) -> Run:
 
 
 def table_row(sc, cfg: Config, n: int, progress) -> TableRow:
-    """``n`` searches (seeds 0..n-1) of one configuration, after one short solve in which Numba compiles (or loads
-    from its cache) everything the configuration calls."""
+    """``n`` searches (seeds 0..n-1) of one configuration, after a short untimed one that compiles what it calls."""
     options = {"population": cfg.population, "polish": cfg.polish,
                **({"local_population": cfg.local_population} if cfg.local_population else {})}
     solvers.solve(cfg.solver, sc.model, sc.legs, rng=12345, max_evals=50 * cfg.population, **options)
@@ -80,7 +71,6 @@ def paper_tables(sc, runs_pure, runs_polished, progress) -> list[TableRow]:
             for polish in (False, True) for solver, pop, local in PUBLISHED[sc.model.kind]]
 
 
-# -- peers: pure G3-PCX, and ours with larger caps -----------------------------------------
 #: a peer's runs; status "run", or why it did not: "not installed (...)", "skipped ..."
 PeerRow = namedtuple("PeerRow", "name runs status")
 
@@ -111,7 +101,6 @@ def gap_diagnostics(sc, runs, progress) -> dict:
             for max_evals in (2 * cap + pop, 10 * cap)}
 
 
-# -- all solutions -------------------------------------------------------------------------
 #: ``solve_all`` repeated: runs per call, per repeat (seed, count, elapsed_s, evaluations), the initial range, per
 #: published solution (index, nearest found, max coordinate deviation), the found ones matching no published one
 AllSolutionsResult = namedtuple("AllSolutionsResult", "runs repeats init_range deviations unmatched_found")
@@ -120,27 +109,24 @@ AllSolutionsResult = namedtuple("AllSolutionsResult", "runs repeats init_range d
 def all_solutions(sc, runs, repeats, progress) -> AllSolutionsResult:
     """``repeats`` times ``solve_all`` (seeds 0..), and how close the first repeat's solutions come to the published
     ones (hexapod: largest coordinate difference in the canonical form; 3-RPR: the model's distance)."""
-    model = sc.model
-    solve_all(model, sc.legs, runs=2, seed=999)       # warm-up
+    solve_all(sc.model, sc.legs, runs=2, seed=999)       # warm-up
     reps, first = [], None
     for seed in _bar(range(repeats), f"{sc.label} solve_all", progress):
         gc.collect()
-        res = solve_all(model, sc.legs, runs=runs, seed=seed)
+        res = solve_all(sc.model, sc.legs, runs=runs, seed=seed)
         reps.append((seed, len(res.solutions), res.elapsed_s, res.evaluations))
         first = [s.x for s in res.solutions] if first is None else first
     devs = []
     for i, pub in enumerate(sc.published):
-        d = [float(np.max(np.abs(model.canonical(x) - model.canonical(pub)))) if sc.key == "hexapod"
-             else model.distance(x, pub) for x in first]
+        d = [float(np.max(np.abs(sc.model.canonical(x) - sc.model.canonical(pub)))) if sc.key == "hexapod"
+             else sc.model.distance(x, pub) for x in first]
         devs.append((i, int(np.argmin(d)), min(d)) if d else (i, None, math.inf))
     matched = {j for _, j, d in devs if d < FOUND_MM}
-    return AllSolutionsResult(runs, reps, wide_range(model, sc.legs), devs, len(first) - len(matched))
+    return AllSolutionsResult(runs, reps, wide_range(sc.model, sc.legs), devs, len(first) - len(matched))
 
 
-# -- the baselines: 004 Table II (SA, GA, GA-SA) and 003's DE on 001's protocols ---------
-#: not in 004 (papers.yaml: no cap on the iterations): far above every published mean (the costliest, GA-SA, is about
-#: 18 generations x 36 annealed children x 10,000 proposals = 6.5 M evaluations under gasa's reading), so it only
-#: stops runs that stall
+#: 004 has no cap on the iterations: this one, far above every published mean (GA-SA, the costliest, about 18
+#: generations x 36 annealed children x 10,000 proposals = 6.5 M evaluations), only stops runs that stall
 TABLE2_MAX_EVALS = 20_000_000
 #: evaluation cap of the untimed call that loads the compiled kernels
 WARMUP_EVALS = 1_000
@@ -162,9 +148,8 @@ Table2Result = namedtuple("Table2Result", "solver published iterations evaluatio
 
 
 def table2_protocol(model, solver_name, runs=TABLE2_PROTOCOL["runs"], seed0=0, **params) -> Table2Result:
-    """Run ``solver_name`` ``runs`` times (seeds ``seed0, seed0 + 1, ...``) on 004's protocol (section IV.A, no
-    refinement: the papers' algorithms alone) with ``model``'s example leg lengths; ``params`` go to the solver (e.g.
-    ``chain_length=50`` for SA, ``max_evals``, ``population``)."""
+    """``runs`` runs (seeds ``seed0, seed0 + 1, ...``) of ``solver_name`` on 004's protocol, unrefined, with ``model``'s
+    example legs; ``params`` go to the solver (e.g. ``chain_length=50`` for SA, ``max_evals``, ``population``)."""
     legs, p = model.example_leg_lengths, TABLE2_PROTOCOL
     settings = {"population": solvers.sa.POPULATION if solver_name == "sa" else p["population"],
                 "init_range": tuple(p["init_range"]), "tolerance": p["tolerance"], "max_evals": TABLE2_MAX_EVALS,
@@ -189,10 +174,8 @@ def baselines(scenarios, table2_runs, runs, hex_runs, progress) -> dict:
     return {"table2": table2, "de": de}
 
 
-# -- the report's sections ----------------------------------------------------------------------------
 def summary_cells(runs, ours=None) -> list:
-    """The cells of :data:`SUMMARY_HEAD` for a row of runs; with ``ours`` (a summary), its time and evaluations
-    against ours too."""
+    """The cells of :data:`SUMMARY_HEAD` for ``runs``; with ``ours`` (a summary), time and evaluations against ours."""
     s = summarize(runs)
     cells = [s.runs, pct(s.success_pct), fmt_ci(s.evals_mean, s.evals_ci), fmt(s.evals_all_mean),
              fmt(s.time_median_ms), fmt(s.time_mean_ms), fmt(s.fun_median, 2)]
@@ -242,7 +225,6 @@ def spread_cells(runs) -> list:
 
 
 def peers_section(res, md_path) -> list[str]:
-    """Per manipulator: our pure G3-PCX (3-RPR: also with larger caps), the peers' and the paper's figures."""
     out = md_blocks("## Pure G3-PCX against peer implementations",
                     prose("peers", bound_factor=f"{PYMOO_BOUND_FACTOR:g}"))
     head = ["implementation", *SUMMARY_HEAD, "time vs ours", "evals vs ours", *(f"f < {t:.0e}" for t in THRESHOLDS),
@@ -270,9 +252,10 @@ def gap_section(res, md_path) -> list[str]:
     pop, cap = (solvers.PAPER_SETTINGS["planar_3rpr"][k] for k in ("population", "max_evals"))
     measured = {name: summarize(runs).success_pct for name, runs in g3pcx_runs(res, "3rpr").items()}
     rates = ", ".join(f"{name} {pct(rate)}" for name, rate in measured.items()) or "none run"
+    spread = max(measured.values(), default=0) - min(measured.values(), default=0)
     far = measured and max(measured.values()) < 50      # every implementation far below the paper's 90 %
-    text = [prose("gap", "reading", cap=f"{cap:,}", rates=rates, far=far and prose(
-        "gap", "far", spread=f"{max(measured.values()) - min(measured.values()):.0f}") or "")]
+    text = [prose("gap", "reading", cap=f"{cap:,}", rates=rates,
+                  far=prose("gap", "far", spread=f"{spread:.0f}") if far else "")]
     caps = res.get("gap")
     if caps:
         s2, s10 = summarize(caps[min(caps)]), summarize(caps[max(caps)])

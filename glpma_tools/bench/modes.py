@@ -12,8 +12,7 @@ from glpma_ros.errors import GlpmaError
 from glpma_ros.models import MODELS
 from glpma_ros.solve_all import G3PCX_RUNS, solve_all
 from glpma_tools.tables import MISSING, fmt, table
-from glpma_tools.timing import REPO_ROOT
-from glpma_tools.timing import progress_bar as _bar
+from glpma_tools.timing import REPO_ROOT, progress_bar
 
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"
 #: the manipulators' short names, in the report's order
@@ -42,8 +41,8 @@ def _same(model, xs, ys) -> bool:
     if len(xs) != len(ys) or not xs:
         return len(xs) == len(ys)
     D = np.array([[model.distance(x, y) for y in ys] for x in xs])
-    return bool(np.all(D.min(axis=1) <= SAME_MODE_SHARE * model.scale)) and sorted(D.argmin(axis=1)) == list(
-        range(len(ys)))
+    close = np.all(D.min(axis=1) <= SAME_MODE_SHARE * model.scale)
+    return bool(close) and sorted(D.argmin(axis=1)) == list(range(len(ys)))
 
 
 def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
@@ -60,7 +59,7 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
         _, model, legs, _ = next(c for c in cases if c[1].kind == kind)
         solve_all(model, legs, max_starts=2)
         solve_all(model, legs, method="g3pcx", runs=1)
-    for label, model, legs, stored in _bar(cases, "assembly modes", progress):
+    for label, model, legs, stored in progress_bar(cases, "assembly modes", progress):
         gc.collect()
         fast = solve_all(model, legs)
         row = dict.fromkeys(ROW_EXTRAS) | {
