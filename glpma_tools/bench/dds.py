@@ -1,6 +1,6 @@
-"""DDS end to end: a node process on a private domain driven by the mock controller at the
-rate a robot controller would use, with and without assembly-mode requests while streaming, and
-the report's section of it; :func:`node_process`, how the bench runs a node (or a stand-in)."""
+"""The ``dds`` section: a node process on a private domain driven by the mock controller at a robot
+controller's rate, with and without assembly-mode requests while streaming; and how the transport
+sections run a node (or a stand-in) with its shipped parameters (:func:`node_process`, :func:`match`)."""
 from __future__ import annotations
 
 import contextlib
@@ -23,11 +23,20 @@ QUICK_S = 2.0
 #: figures read from the node's last /diagnostics report: result key -> the report's name
 DIAGNOSTICS = {"dropped": "inputs dropped", "deadline_misses": "deadline misses",
                "node_solve_p99_ms": "solve time p99 (ms)"}
+#: seconds to wait for a process's endpoints to match ours, and to let the discovery settle then
+CONNECT_S = 60.0
+SETTLE_S = 0.5
 
 
 def params_file(kind: str) -> Path:
     """The shipped params file of manipulators ``kind``."""
     return config_dir() / END_TO_END[kind][1]
+
+
+def params_of(kind: str) -> dict:
+    """The parameters of the shipped params file of manipulators ``kind`` (the node reads them so)."""
+    from glpma_ros.node.ros_args import load_params_file
+    return load_params_file(str(params_file(kind)))
 
 
 def shipped_args(kind: str, config) -> list[str]:
@@ -48,16 +57,23 @@ def node_process(domain: int, ros_args=(), module: str = NODE_MODULE):
             proc.stop()
 
 
+def match(endpoints_, what: str) -> None:
+    """Wait until ``endpoints_`` matched ``what``'s, then let the discovery settle."""
+    from glpma_ros.node.dds import endpoints
+    if not endpoints.wait_for_match(endpoints_, CONNECT_S):
+        raise TimeoutError(f"{what} did not match within {CONNECT_S:g} s")
+    time.sleep(SETTLE_S)
+
+
 def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False, duration_s: float = 60.0) -> dict:
-    """Start a node process over DDS on a private domain, drive it for the config's manipulator
-    and return flat figures: input published -> pose received latency, inputs, poses, drops, the
-    node's solve time, its CPU share while streaming, and its RSS after warm-up and after the run."""
+    """Drive a node process for the config's manipulator; flat figures: input published -> pose
+    received latency, inputs, poses, drops, the node's solve time, its CPU share while streaming,
+    its RSS after warm-up and after the run, and a second run with assembly-mode requests."""
     model = load_manipulator(resolve_config(config))
     rate = END_TO_END[model.kind][0]
     duration = QUICK_S if quick else (steps / rate if steps else duration_s)
     with claim_domain() as claim, node_process(claim.domain_id, shipped_args(model.kind, config)) as node:
-        rss_before = node.rss_kb()
-        cpu_before, wall_before = node.cpu_s(), time.perf_counter()
+        rss_before, cpu_before, wall_before = node.rss_kb(), node.cpu_s(), time.perf_counter()
         summary = mock_controller.run(str(config), rate, duration, domain_id=claim.domain_id)
         cpu_share = (node.cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
         rss_after = node.rss_kb()
@@ -81,16 +97,14 @@ def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False,
 
 
 def dds_end_to_end(scenarios, steps, quick) -> dict:
-    """:func:`bench_end_to_end` for each scenario; a scenario that cannot run says why."""
+    """``res["dds"]``: per scenario label, :func:`bench_end_to_end`'s figures, or why it could not run."""
     results = {}
     for sc in scenarios:
         try:
-            t0 = time.perf_counter()
-            stats = bench_end_to_end(sc.path, steps=steps, quick=quick)
-            results[sc.label] = {"status": "run", "stats": stats, "wall_s": time.perf_counter() - t0}
-        except Exception as exc:  # noqa: BLE001 - reported in the table, never fatal
-            results[sc.label] = {"status": "not run", "reason": f"{type(exc).__name__}: {exc}"}
-    return {"status": "run", "function": "glpma_tools.bench.dds.bench_end_to_end", "results": results}
+            results[sc.label] = bench_end_to_end(sc.path, steps=steps, quick=quick)
+        except Exception as exc:  # noqa: BLE001 - reported in the section, never fatal
+            results[sc.label] = f"{type(exc).__name__}: {exc}"
+    return results
 
 
 def _cells(stats: dict, prefix: str = ""):
@@ -103,15 +117,10 @@ def _cells(stats: dict, prefix: str = ""):
 
 
 def section(res, md_path=None) -> list[str]:
-    """The section of BENCHMARKS.md from ``res["dds"]`` (nothing when it was not asked for)."""
-    d = res.get("dds")
-    if d is None:
+    """The section of BENCHMARKS.md from ``res["dds"]`` (nothing when it did not run)."""
+    from .report import md_blocks, prose
+    if not res.get("dds"):
         return []
-    out = ["## DDS end to end (node + mock controller)", ""]
-    if d.get("status") != "run":
-        return out + [f"Skipped: {d.get('reason', 'not requested')}.", ""]
-    out += [f"From `{d['function']}`.", ""]
-    for label, r in d["results"].items():
-        out += ([f"### {label}", "", table(["quantity", "value"], list(_cells(r["stats"]))), ""]
-                if r["status"] == "run" else [f"- {label}: not run ({r['reason']})"])
-    return out + [""]
+    return md_blocks("## DDS end to end (node + mock controller)", prose("dds"), *(
+        f"### {label}\n\n" + table(["quantity", "value"], list(_cells(r))) if isinstance(r, dict)
+        else f"- {label}: not run ({r})" for label, r in res["dds"].items()))

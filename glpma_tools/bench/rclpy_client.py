@@ -1,10 +1,9 @@
-"""The outputs section's part 4, the rclpy adapter (importable where rclpy is): :func:`variants` runs the
-node in this process under each set-up of :data:`VARIANTS` against the client, this module run as a process
-(``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``): it publishes
-``leg_lengths`` along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes ``pose_estimate`` (and, with
-``EXTRAS`` = ``extras``, ``/tf`` and ``pose_estimate_cov``, as any TF listener or RViz does), pairs each pose
-with its input (:func:`~glpma_tools.bench.outputs.answers`; ``VARIANT`` = ``echo``: the echo floor's poses
-carry their legs) and prints: inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
+"""Part 4 of the ``outputs`` section, the rclpy adapter (imported only where rclpy is): :func:`variants` runs
+the node in this process under each set-up of :data:`VARIANTS` against a client, this module run as a process:
+``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT`` publishes ``leg_lengths``
+along the simulated loop, takes ``pose_estimate`` (with ``EXTRAS`` = ``extras`` also ``/tf`` and
+``pose_estimate_cov``, as any TF listener or RViz does), pairs each pose with its input and prints: inputs
+sent, poses received, latency p50 and p99 (ms), poses wrong."""
 from __future__ import annotations
 
 import subprocess
@@ -24,8 +23,8 @@ from tf2_msgs.msg import TFMessage
 
 from glpma_ros.node.dds import cdr
 from glpma_ros.node.ros_node import FkNode
-from glpma_tools.bench.dds import END_TO_END
-from glpma_tools.bench.outputs import answers, params_of
+from glpma_tools.bench.dds import END_TO_END, params_of
+from glpma_tools.bench.outputs import answers
 from glpma_tools.sim.controller import Sent
 from glpma_tools.sim.echo_node import POSE_NUMBERS
 from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment

@@ -1,11 +1,6 @@
-"""How long an input waits for anything but its own solve, in-process.
-
-An input's wall time in the solving thread is its own work (the thread's CPU time) plus the time the thread
-did not run: *blocked* (waiting for a lock or for the interpreter held by another thread of the node) or
-*runnable* but waiting for a CPU the machine gave another process (the kernel's run delay).  Per input,
-``blocked = wall - thread CPU - run delay`` is the wait the node causes itself, in each of :data:`SETUPS`
-(what they run and why: ``templates/waits.md``); rounds alternate between the setups and the quietest
-round of each (fewest inputs over :data:`SLOW_S`) is reported, as the machine's load varies."""
+"""The ``waits`` section: how long an input waits in-process for anything but its own solve (*blocked* =
+wall - thread CPU - the kernel's run delay), in each of :data:`SETUPS` (what they run and why:
+``templates/waits.md``), the quietest of alternating rounds reported; and :func:`timed`, which times calls."""
 from __future__ import annotations
 
 import os
@@ -45,8 +40,8 @@ COLUMNS = {"wall p50 us": ("wall", 50), "wall p99.9 us": ("wall", TAIL), "off-cp
            "blocked max us": ("blocked", 100)}
 
 
-def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Wall time, thread CPU time and run delay (s) of ``call(legs, stamp_ns)`` per input, the
+def timed(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Wall time, thread CPU time and run delay (s) of ``call(input, k)`` per input (``k`` from 1), the
     inputs ``period_s`` apart (0: back to back)."""
     wall, cpu, delay = (np.empty(len(inputs)) for _ in range(3))
     schedstat = f"/proc/self/task/{threading.get_native_id()}/schedstat"
@@ -54,14 +49,15 @@ def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray,
 
     def run_delay() -> int:     # the second field of the thread's schedstat; 0 where the kernel does not say
         return 0 if fd is None else int(os.pread(fd, 128, 0).split()[1])
+
     start = time.perf_counter()
     try:
-        for k, legs in enumerate(inputs):
+        for k, item in enumerate(inputs):
             if period_s:
                 time.sleep(max(0.0, start + k * period_s - time.perf_counter()))
             d0 = run_delay()
             t0, c0 = time.perf_counter_ns(), time.thread_time_ns()
-            call(legs, k + 1)
+            call(item, k + 1)
             c1, t1 = time.thread_time_ns(), time.perf_counter_ns()
             wall[k], cpu[k], delay[k] = (t1 - t0) * 1e-9, (c1 - c0) * 1e-9, (run_delay() - d0) * 1e-9
     finally:
@@ -96,7 +92,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                 made: list = []
                 reporter = ReportLoop(svc, made.append, report_period).start() if report_period else None
                 try:
-                    wall, cpu, delay = _round(call, legs, input_period)
+                    wall, cpu, delay = timed(call, legs, input_period)
                 finally:
                     if reporter:
                         reporter.stop()
