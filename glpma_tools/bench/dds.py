@@ -8,7 +8,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from glpma_ros.config import config_dir, load_manipulator, resolve_config
+from glpma_ros.config import config_dir
 from glpma_tools import mock_controller
 from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.node_process import NODE_MODULE, NodeProcess, node_environment
@@ -20,9 +20,6 @@ MODES_PERIOD_S = 0.5
 END_TO_END = {"planar_3rpr": (1000.0, "params_3rpr.yaml"), "hexapod_66": (1000.0, "params_hexapod.yaml")}
 #: seconds of driving with --quick
 QUICK_S = 2.0
-#: figures read from the node's last /diagnostics report: result key -> the report's name
-DIAGNOSTICS = {"dropped": "inputs dropped", "deadline_misses": "deadline misses",
-               "node_solve_p99_ms": "solve time p99 (ms)"}
 #: seconds to wait for a process's endpoints to match ours, and to let the discovery settle then
 CONNECT_S = 60.0
 SETTLE_S = 0.5
@@ -65,30 +62,19 @@ def match(endpoints_, what: str) -> None:
     time.sleep(SETTLE_S)
 
 
-def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False, duration_s: float = 60.0) -> dict:
-    """Drive a node process for the config's manipulator; flat figures: input published -> pose
-    received latency, inputs, poses, drops, the node's solve time, its CPU share while streaming,
-    its RSS after warm-up and after the run, and a second run with assembly-mode requests."""
-    model = load_manipulator(resolve_config(config))
-    rate = END_TO_END[model.kind][0]
-    duration = QUICK_S if quick else (steps / rate if steps else duration_s)
-    with claim_domain() as claim, node_process(claim.domain_id, shipped_args(model.kind, config)) as node:
-        rss_before, cpu_before, wall_before = node.rss_kb(), node.cpu_s(), time.perf_counter()
-        summary = mock_controller.run(str(config), rate, duration, domain_id=claim.domain_id)
-        cpu_share = (node.cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
-        rss_after = node.rss_kb()
-        with_modes = mock_controller.run(str(config), rate, duration, domain_id=claim.domain_id,
+def bench_end_to_end(sc, seconds: float, domain: int) -> dict:
+    """The outputs section's legs written -> pose read run of the node (:func:`.outputs.path_latency`:
+    latency, poses, drops, the node's solve time and CPU share, RSS, position error), then a run of
+    the mock controller with assembly-mode requests against a node process started afresh."""
+    from .outputs import NODE, path_latency
+    row = path_latency(sc, NODE, seconds, domain)
+    with node_process(domain, shipped_args(sc.model.kind, sc.path)):
+        with_modes = mock_controller.run(str(sc.path), row["rate_hz"], seconds, domain_id=domain,
                                          modes_period_s=MODES_PERIOD_S)
-    lat, diag = summary["latency_ms"], (summary.get("node_diagnostics") or {}).get("values", {})
-    m = with_modes["assembly_modes"]
-    return {"rate_hz": rate, "duration_s": duration, "inputs": summary["inputs_sent"],
-            "poses": summary["poses_matched"], "pose_ratio": summary["pose_ratio"],
-            "poses_wrong": summary["poses_wrong"], "p50_ms": lat["p50"], "p99_ms": lat["p99"], "max_ms": lat["max"],
-            **{key: float(diag[name]) if name in diag else None for key, name in DIAGNOSTICS.items()},
-            "node_cpu_percent_of_one_core": 100.0 * cpu_share,
-            "position_error_max_m": summary["tracking_error"]["position_m"]["max"],
-            "rss_after_warm_up_mb": rss_before / 1024, "rss_after_run_mb": rss_after / 1024,
-            "rss_growth_mb": (rss_after - rss_before) / 1024,
+    m, (rss0, rss1) = with_modes["assembly_modes"], row.pop("rss_mb")
+    return {**{k: v for k, v in row.items() if k not in ("manipulator", "key", "target")},
+            "pose_ratio": row["paired"] / max(row["sent"], 1), "rss_after_warm_up_mb": rss0,
+            "rss_after_run_mb": rss1, "rss_growth_mb": rss1 - rss0,
             "assembly_modes": {"requests answered": m["answers"],
                                "modes per answer": ", ".join(map(str, m["modes_per_answer"])),
                                "answer time p50 (s)": m["answer_s"]["p50"],
@@ -97,11 +83,14 @@ def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False,
 
 
 def dds_end_to_end(scenarios, steps, quick) -> dict:
-    """``res["dds"]``: per scenario label, :func:`bench_end_to_end`'s figures, or why it could not run."""
+    """``res["dds"]``: per scenario label, :func:`bench_end_to_end`'s figures (``steps`` inputs, or
+    :data:`QUICK_S` with ``quick``) on a domain of its own, or why it could not run."""
     results = {}
     for sc in scenarios:
+        seconds = QUICK_S if quick else steps / END_TO_END[sc.model.kind][0]
         try:
-            results[sc.label] = bench_end_to_end(sc.path, steps=steps, quick=quick)
+            with claim_domain() as claim:
+                results[sc.label] = bench_end_to_end(sc, seconds, claim.domain_id)
         except Exception as exc:  # noqa: BLE001 - reported in the section, never fatal
             results[sc.label] = f"{type(exc).__name__}: {exc}"
     return results

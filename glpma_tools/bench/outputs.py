@@ -34,7 +34,7 @@ CASES = (
     ("all (shipped + markers 10 Hz)", {"publish_tf": True, "publish_covariance": True, "publish_twist": True,
                                        "publish_markers": True}))
 OFF = {"publish_tf": False, "publish_covariance": False, "publish_twist": False, "publish_markers": False}
-#: seconds between two timed calls: part 1's inputs (the subscriber keeps up, the inputs stay warm), part 3's
+#: seconds between two timed calls of parts 1 and 3 (the subscriber keeps up, the inputs stay warm)
 PACE_S = 1e-3
 #: the stamp of part 1's first input (ns)
 FIRST_STAMP_NS = 1_795_000_000 * 10**9
@@ -50,12 +50,11 @@ TAIL_S = 1.0
 
 
 def _cpu_wall(call, items) -> dict:
-    """CPU and wall time (µs) of ``call(item)`` per item of ``items``, :data:`PACE_S` apart."""
-    wall, cpu, _ = timed(lambda item, _: call(item), items, PACE_S)
+    """CPU and wall time (µs) of ``call(*item)`` per item of ``items``, :data:`PACE_S` apart."""
+    wall, cpu, _ = timed(call, items, PACE_S)
     return {"cpu_us": distribution(cpu, 1e6), "wall_us": distribution(wall, 1e6)}
 
 
-# -- part 1: the extra outputs, per input ---------------------------------------------------------------
 def main() -> None:
     """The subscriber process of part 1: takes every output of the node, raw, until SIGINT."""
     from cyclonedds.util import duration
@@ -76,10 +75,9 @@ def main() -> None:
 
 
 def output_costs(scenarios, n_inputs: int, domain: int) -> list[dict]:
-    """Part 1: per manipulator and output configuration, measured from outside the node: the solving
-    thread's CPU and wall time around each ``offer`` (solve, the pose's encoding and write, the hand-off
-    to the extras thread; µs), the extras thread's CPU per pose from its own clock (the thread starts with
-    the first pose), and the node's own wall figures (solve, hand-off, extras)."""
+    """Part 1: per manipulator and output configuration, from outside the node: the solving thread's CPU
+    and wall time around each ``offer`` (µs), the extras thread's CPU per pose from its own clock (the
+    thread starts with the first pose), and the node's own wall figures (solve, hand-off, extras)."""
     from glpma_ros.node.dds import endpoints
     from glpma_ros.node.dds.node import DdsNode
     from glpma_ros.node.params import resolve
@@ -103,37 +101,39 @@ def output_costs(scenarios, n_inputs: int, domain: int) -> list[dict]:
                 service.warm_up(solvers=(values["solver"],))
                 node = DdsNode(service, participant, modes_solve=lambda *a: [])
                 match([node.pose_writer], "the subscriber")           # then the other topics' discovery
-                offer = _cpu_wall(lambda item: node.loop.offer(*item), inputs)    # noqa: B023 - called here
+                offer = _cpu_wall(node.loop.offer, inputs)
                 node.loop.extras.flush()
                 clocks = [time.pthread_getcpuclockid(t.ident) for t in threading.enumerate() if t.name == EXTRAS_THREAD]
+                extras_cpu_s = sum(map(time.clock_gettime, clocks)) if clocks else None     # before the thread ends
                 node.loop.stop()
                 st = service.stats
-                rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, "published": st.published,
-                             **offer, "extras_dropped": st.extras_dropped, "extras_thread_cpu_us":
-                             sum(map(time.clock_gettime, clocks)) / max(st.published, 1) * 1e6 if clocks else None,
+                rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, **offer,
+                             "extras_dropped": st.extras_dropped, "extras_thread_cpu_us":
+                             None if extras_cpu_s is None else extras_cpu_s / max(st.published, 1) * 1e6,
                              **{key: distribution(window.values(), 1e6) for key, window in (("solve_us", st.solve_s),
                                 ("handoff_us", st.extras_handoff_s), ("extras_us", st.extras_s))}})
     return rows
 
 
-# -- part 2: legs written -> pose read ------------------------------------------------------------------
-def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int]:
-    """(the index of the input each paired pose answers, those poses, the poses that answer no input or
-    lie off its true pose); an echo's poses carry the legs they answer (part 2 and the rclpy client)."""
+def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int, float | None]:
+    """(the index of the input each paired pose answers, those poses, the poses that answer no input or lie
+    off its true pose, the largest position error (m; None for an echo, whose poses carry the legs they
+    answer)), for part 2, the dds section and the rclpy client."""
     from glpma_tools.sim.echo_node import legs_of
     from glpma_tools.sim.matching import compare, pair
     if echo:
         pairs, unpaired = pair(plan.model, sent, poses,
                                legs_of=lambda pose: np.array(legs_of(pose, plan.model.n_legs)) / plan.mpu)
-        return [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired)
+        return [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired), None
     c = compare(plan.model, sent, poses)
-    return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth))
+    error = float(c.position_error_m.max()) if c.position_error_m.size else None
+    return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth)), error
 
 
 def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
-    """Part 2: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for ``seconds`` at
-    the DDS section's rate; latency split at the pose's stamp (ms), the process's CPU share while driven,
-    poses that answer no input or a wrong one."""
+    """Part 2 and the dds section: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
+    ``seconds`` at :data:`~.dds.END_TO_END`'s rate; latency split at the pose's stamp (ms), the process's
+    CPU share while driven and RSS before and after, poses that answer no input or a wrong one."""
     from glpma_tools.sim.controller import Controller
     from glpma_tools.sim.matching import split_at_stamp
     from glpma_tools.sim.trajectories import Plan
@@ -144,23 +144,24 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
     with node_process(domain, [*shipped_args(plan.model.kind, sc.path), *extra], module) as proc:
         with contextlib.closing(Controller(plan.model, domain, listen_depth=1000)) as ctl:
             match([ctl.writer, ctl.listener.reader], target)
-            cpu0, wall0 = proc.cpu_s(), time.perf_counter()
+            rss0, cpu0, wall0 = proc.rss_kb(), proc.cpu_s(), time.perf_counter()
             sent, _ = ctl.send(plan, 0.0, max(1, round(rate * seconds)), rate, 1.0 / rate)
             cpu_share = (proc.cpu_s() - cpu0) / (time.perf_counter() - wall0)
             deadline = time.monotonic() + TAIL_S
             while time.monotonic() < deadline and len(ctl.listener.poses) < len(sent):
                 time.sleep(0.01)
-            poses = list(ctl.listener.poses)
+            poses, rss1 = list(ctl.listener.poses), proc.rss_kb()
         proc.stop()
-    index, paired, wrong = answers(plan, sent, poses, echo=target == ECHO)
+        summary = proc.stopped_line()
+    index, paired, wrong, error = answers(plan, sent, poses, echo=target == ECHO)
     to_node, in_node = split_at_stamp(sent, index, paired)
     return {"manipulator": sc.label, "key": sc.key, "target": target, "rate_hz": rate, "seconds": seconds,
             "sent": len(sent), "paired": len(paired), "wrong": wrong, "total_ms": distribution(to_node + in_node),
             "to_node_ms": distribution(to_node), "in_node_ms": distribution(in_node),
-            "cpu_percent": 100.0 * cpu_share, "summary": proc.stopped_line()}
+            "cpu_percent": 100.0 * cpu_share, "summary": summary, "position_error_max_m": error,
+            "rss_mb": (rss0 / 1024, rss1 / 1024)}
 
 
-# -- part 3: the micro-profile -------------------------------------------------------------------------
 def micro_profile(sc, n: int, domain: int) -> dict:
     """Part 3: ``n`` paced writes of one of ``sc``'s inputs without a reader and with the echo's reader in
     another process, and ``n`` thread wake-up round trips (wall µs): this thread puts into a
@@ -173,15 +174,15 @@ def micro_profile(sc, n: int, domain: int) -> dict:
     plan = Plan(sc.path)
     node_environment(domain)                    # this process's participant discovers as the echo's does
     with contextlib.closing(Controller(plan.model, domain)) as ctl:
-        data, _ = ctl.encoded(plan.sample(0.0)[0])
-        out = {"write_alone": _cpu_wall(lambda _: ctl.raw_writer.write(data), range(n))}
+        writes = [ctl.encoded(plan.sample(0.0)[0])[:1]] * n
+        out = {"write_alone": _cpu_wall(ctl.raw_writer.write, writes)}
         with node_process(domain, module=TARGETS[ECHO][0]):
             match([ctl.writer], "the echo")
-            out["write_remote"] = _cpu_wall(lambda _: ctl.raw_writer.write(data), range(n))
+            out["write_remote"] = _cpu_wall(ctl.raw_writer.write, writes)
     ping, pong = queue.SimpleQueue(), queue.SimpleQueue()
     other = threading.Thread(target=lambda: [pong.put(ping.get()) for _ in range(n)], daemon=True)
     other.start()
-    out["wake_us"] = _cpu_wall(lambda _: (ping.put(True), pong.get()), range(n))["wall_us"]
+    out["wake_us"] = _cpu_wall(lambda: (ping.put(True), pong.get()), [()] * n)["wall_us"]
     other.join()
     return {**out, "samples": n}
 
@@ -229,24 +230,22 @@ def _verdict(measured: float, target: float, unit="ms", digits=3, ratio="{}, {:.
 
 
 def _costs(rows) -> list:
-    """Part 1's table and, per manipulator, its shipped outputs against the target."""
+    """Part 1's table, each row's hand-off judged against the target."""
     from .report import prose
     none = {r["manipulator"]: r["cpu_us"]["p50"] for r in rows if r["outputs"] == CASES[0][0]}
-    above = [f"{r['cpu_us']['p50'] - none[r['manipulator']]:+.1f}" for r in rows]
-    body = [[r["manipulator"], r["outputs"], _q(r["cpu_us"], 1), plus, _q(r["wall_us"], 1),
-             _q(r["solve_us"], 1, ("p50",)), _q(r["handoff_us"], 1), _q(r["extras_thread_cpu_us"], 1),
-             _q(r["extras_us"], 1), r["extras_dropped"]] for r, plus in zip(rows, above)]
-    verdicts = ["- " + prose("outputs", "costs_target", manipulator=r["manipulator"], extra=plus,
-                             target=f"{EXTRAS_TARGET_US:g}", handoff=_q(r["handoff_us"], 1, ("p50",)),
-                             verdict=_verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
-                             thread=_q(r["extras_thread_cpu_us"], 1))
-                for r, plus in zip(rows, above) if r["outputs"] == SHIPPED and r["handoff_us"].get("p50") is not None]
+    body = [[r["manipulator"], r["outputs"], _q(r["cpu_us"], 1), f"{r['cpu_us']['p50'] - none[r['manipulator']]:+.1f}",
+             _q(r["wall_us"], 1), _q(r["solve_us"], 1, ("p50",)), _q(r["handoff_us"], 1),
+             MISSING if r["handoff_us"]["p50"] is None else
+             _verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
+             _q(r["extras_thread_cpu_us"], 1), _q(r["extras_us"], 1), r["extras_dropped"]] for r in rows]
     return [prose("outputs", "costs", inputs=rows[0]["inputs"], pace=f"{1e3 * PACE_S:g}"),
             table(["manipulator", "outputs on", "solving thread per input, CPU p50 / p99 (µs)",
                    "CPU p50 above none (µs)", "solving thread per input, wall p50 / p99 (µs)",
                    "of which solve, wall p50 (µs)", "of which hand-off, wall p50 / p99 (µs)",
-                   "extras thread, CPU per pose (µs)", "extras thread, wall per pose p50 / p99 (µs)",
-                   "extras dropped"], body), "\n".join(verdicts), prose("outputs", "costs_reading")]
+                   "hand-off against the target", "extras thread, CPU per pose (µs)",
+                   "extras thread, wall per pose p50 / p99 (µs)", "extras dropped"], body),
+            prose("outputs", "costs_target", shipped=SHIPPED, target=f"{EXTRAS_TARGET_US:g}"),
+            prose("outputs", "costs_reading")]
 
 
 def _paths(rows) -> list:

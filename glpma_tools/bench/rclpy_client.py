@@ -164,7 +164,7 @@ def main(argv=None) -> int:
         sent.append(Sent(time.time_ns(), legs, position, quaternion))
         pub.publish(msg)
     time.sleep(SETTLE_S)
-    index, paired, wrong = answers(plan, sent, list(received), variant == "echo")
+    index, paired, wrong, _ = answers(plan, sent, list(received), variant == "echo")
     latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)])
     print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
     executor.shutdown()

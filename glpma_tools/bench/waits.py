@@ -41,8 +41,8 @@ COLUMNS = {"wall p50 us": ("wall", 50), "wall p99.9 us": ("wall", TAIL), "off-cp
 
 
 def timed(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Wall time, thread CPU time and run delay (s) of ``call(input, k)`` per input (``k`` from 1), the
-    inputs ``period_s`` apart (0: back to back)."""
+    """Wall time, thread CPU time and run delay (s) of ``call(*item)`` per item of ``inputs``, the calls
+    ``period_s`` apart (0: back to back)."""
     wall, cpu, delay = (np.empty(len(inputs)) for _ in range(3))
     schedstat = f"/proc/self/task/{threading.get_native_id()}/schedstat"
     fd = os.open(schedstat, os.O_RDONLY) if os.path.exists(schedstat) else None
@@ -57,7 +57,7 @@ def timed(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, 
                 time.sleep(max(0.0, start + k * period_s - time.perf_counter()))
             d0 = run_delay()
             t0, c0 = time.perf_counter_ns(), time.thread_time_ns()
-            call(item, k + 1)
+            call(*item)
             c1, t1 = time.thread_time_ns(), time.perf_counter_ns()
             wall[k], cpu[k], delay[k] = (t1 - t0) * 1e-9, (c1 - c0) * 1e-9, (run_delay() - d0) * 1e-9
     finally:
@@ -77,7 +77,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
     """The quietest of ``rounds`` rounds of ``inputs`` inputs per setup (:data:`SETUPS`)."""
     service = FkService(PARAMS)
     service.warm_up()
-    legs = [tuple(legs) for legs in load("3rpr").along(inputs)[1] * service.metres_per_unit]
+    legs = [(tuple(legs), k + 1) for k, legs in enumerate(load("3rpr").along(inputs)[1] * service.metres_per_unit)]
     node = FkService({**PARAMS, **EXTRAS})
     node.warm_up()
     loop = SolveLoop(node, lambda pose: None, publish_extras=lambda extras: None)
