@@ -97,9 +97,11 @@ def test_the_section_states_targets_figures_and_misses(shipped_above_us, handoff
     text = "\n".join(outputs.section(res))
     assert text.startswith(outputs.HEADING) and "$" not in text and "hexapod" not in text
     p50, p99 = END_TO_END_TARGET_MS["3rpr"]
-    assert f"p50 0.300 ms (target ≤ {p50:g}: missed by 0.050 ms, 1.2×)" in text
-    assert f"p99 0.900 ms (target ≤ {p99:g}: missed by 0.400 ms, 1.8×)" in text
-    assert "the floor (echo) 0.100 / 0.900 ms" in text and "+0.200 ms at p50" in text
+    node = "| 3-RPR | node | 1000 Hz, 1 s | 1,000 / 990 | 0 | 0.300 / 0.900 / 2.00 | " + " / ".join(
+        f"{100 * v / t:.0f} % (missed by {v - t:.3f} ms, {v / t:.1f}×)" for v, t in ((0.3, p50), (0.9, p99)))
+    assert node + " | +0.200 / +0.000 |" in text                    # the node's figures, above the floor's
+    floor = f"| 3-RPR | {outputs.ECHO} | 1000 Hz, 1 s | 1,000 / 990 | 0 | 0.100 / 0.900 / 2.00 | "
+    assert floor + f"{100 * 0.1 / p50:.0f} % (met) / {100 * 0.9 / p99:.0f} % (" in text
     # part 1: the hand-off (the node's own wall time) against the target, the CPU above none beside it
     shipped = (f"| 3-RPR | {outputs.SHIPPED} | {30 + shipped_above_us:.1f} / 40.0 | {shipped_above_us:+.1f} | "
                f"15.0 / 40.0 | 15.0 | {handoff_us:.1f} / 40.0 | {verdict} | 70.0 | 15.0 / 40.0 | 0 |")
