@@ -18,6 +18,11 @@ from glpma_tools.tables import fmt, table
 MODES_PERIOD_S = 0.5
 #: input rate and the node's parameters per manipulator (both at 1 kHz, a ros2_control update rate)
 END_TO_END = {"planar_3rpr": (1000.0, "params_3rpr.yaml"), "hexapod_66": (1000.0, "params_hexapod.yaml")}
+#: the extra outputs the shipped params files switch on
+SHIPPED_ON = dict.fromkeys(("publish_tf", "publish_covariance", "publish_twist"), True)
+#: figures read from the node's /diagnostics report after the run: result key -> the report's name
+DIAGNOSTICS = {"dropped": "inputs dropped", "deadline_misses": "deadline misses",
+               "node_solve_p99_ms": "solve time p99 (ms)"}
 #: seconds of driving with --quick
 QUICK_S = 2.0
 #: seconds to wait for a process's endpoints to match ours, and to let the discovery settle then
@@ -63,23 +68,26 @@ def match(endpoints_, what: str) -> None:
 
 
 def bench_end_to_end(sc, seconds: float, domain: int) -> dict:
-    """The outputs section's legs written -> pose read run of the node (:func:`.outputs.path_latency`:
-    latency, poses, drops, the node's solve time and CPU share, RSS, position error), then a run of
-    the mock controller with assembly-mode requests against a node process started afresh."""
+    """The node's run of the outputs section's part 2 (:func:`.outputs.path_latency`: latency, poses, CPU
+    share, RSS, position error, the node's drops and solve time from its /diagnostics report after the run),
+    then the mock controller's run with assembly-mode requests against the same process."""
     from .outputs import NODE, path_latency
-    row = path_latency(sc, NODE, seconds, domain)
-    with node_process(domain, shipped_args(sc.model.kind, sc.path)):
-        with_modes = mock_controller.run(str(sc.path), row["rate_hz"], seconds, domain_id=domain,
-                                         modes_period_s=MODES_PERIOD_S)
-    m, (rss0, rss1) = with_modes["assembly_modes"], row.pop("rss_mb")
-    return {**{k: v for k, v in row.items() if k not in ("manipulator", "key", "target")},
-            "pose_ratio": row["paired"] / max(row["sent"], 1), "rss_after_warm_up_mb": rss0,
-            "rss_after_run_mb": rss1, "rss_growth_mb": rss1 - rss0,
+
+    def with_modes(domain_id: int) -> dict:
+        return mock_controller.run(str(sc.path), END_TO_END[sc.model.kind][0], seconds, domain_id=domain_id,
+                                   modes_period_s=MODES_PERIOD_S)
+    row = path_latency(sc, NODE, seconds, domain, then=with_modes)
+    diag, (rss0, rss1), m = row["diagnostics"] or {}, row["rss_mb"], row["then"]["assembly_modes"]
+    return {**{k: row[k] for k in ("rate_hz", "seconds", "sent", "paired", "wrong", "total_ms", "to_node_ms",
+                                   "in_node_ms", "cpu_percent", "position_error_max_m")},
+            "pose_ratio": row["paired"] / max(row["sent"], 1),
+            **{key: float(diag[name]) if name in diag else None for key, name in DIAGNOSTICS.items()},
+            "rss_after_warm_up_mb": rss0, "rss_after_run_mb": rss1, "rss_growth_mb": rss1 - rss0,
             "assembly_modes": {"requests answered": m["answers"],
                                "modes per answer": ", ".join(map(str, m["modes_per_answer"])),
                                "answer time p50 (s)": m["answer_s"]["p50"],
                                "pose latency p99 while answering (ms)": m["pose_latency_during_requests_ms"]["p99"],
-                               "pose latency p99 whole run (ms)": with_modes["latency_ms"]["p99"]}}
+                               "pose latency p99 whole run (ms)": row["then"]["latency_ms"]["p99"]}}
 
 
 def dds_end_to_end(scenarios, steps, quick) -> dict:

@@ -14,7 +14,7 @@ from glpma_tools.sim.domains import claim_domain
 from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, table
 
-from .dds import END_TO_END, match, node_process, params_of, shipped_args
+from .dds import END_TO_END, SHIPPED_ON, match, node_process, params_of, shipped_args
 from .waits import timed
 
 HEADING = "## Extra outputs and the transport path"
@@ -23,17 +23,12 @@ SHIPPED = "shipped (/tf, covariance, twist)"
 #: per-input cost of the shipped extra outputs at p50 (µs) that issue 12 asks for
 EXTRAS_TARGET_US = 20.0
 #: the output configurations of part 1: name -> parameters; the first, none, is the reference
-CASES = (
-    ("none", {}),
-    ("/tf", {"publish_tf": True}),
-    ("pose_estimate_cov", {"publish_covariance": True}),
-    ("twist_estimate (poses)", {"publish_twist": True}),
-    ("twist_estimate (velocities)", {"publish_twist": True, "input_type": "joint_state"}),
-    ("~/markers (every pose)", {"publish_markers": True, "markers_period_s": 0.0}),
-    (SHIPPED, {"publish_tf": True, "publish_covariance": True, "publish_twist": True}),
-    ("all (shipped + markers 10 Hz)", {"publish_tf": True, "publish_covariance": True, "publish_twist": True,
-                                       "publish_markers": True}))
-OFF = {"publish_tf": False, "publish_covariance": False, "publish_twist": False, "publish_markers": False}
+CASES = (("none", {}), ("/tf", {"publish_tf": True}), ("pose_estimate_cov", {"publish_covariance": True}),
+         ("twist_estimate (poses)", {"publish_twist": True}),
+         ("twist_estimate (velocities)", {"publish_twist": True, "input_type": "joint_state"}),
+         ("~/markers (every pose)", {"publish_markers": True, "markers_period_s": 0.0}), (SHIPPED, SHIPPED_ON),
+         ("all (shipped + markers 10 Hz)", {**SHIPPED_ON, "publish_markers": True}))
+OFF = dict.fromkeys((*SHIPPED_ON, "publish_markers"), False)
 #: seconds between two timed calls of parts 1 and 3 (the subscriber keeps up, the inputs stay warm)
 PACE_S = 1e-3
 #: the stamp of part 1's first input (ns)
@@ -45,8 +40,9 @@ NODE, NODE_OFF, ECHO = "node", "node, extra outputs off", "echo (transport floor
 TARGETS = {NODE: ("glpma_ros.node.dds.node", ()),
            NODE_OFF: ("glpma_ros.node.dds.node", tuple(a for k in OFF for a in ("-p", f"{k}:=false"))),
            ECHO: ("glpma_tools.sim.echo_node", ())}
-#: seconds to wait for the last poses after the last input
+#: seconds to wait for the last poses after the last input, and for the node's report after them
 TAIL_S = 1.0
+DIAGNOSTICS_WAIT_S = 5.0
 
 
 def _cpu_wall(call, items) -> dict:
@@ -130,10 +126,12 @@ def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int, float | Non
     return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth)), error
 
 
-def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
+def path_latency(sc, target: str, seconds: float, domain: int, then=None) -> dict:
     """Part 2 and the dds section: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
     ``seconds`` at :data:`~.dds.END_TO_END`'s rate; latency split at the pose's stamp (ms), the process's
-    CPU share while driven and RSS before and after, poses that answer no input or a wrong one."""
+    CPU share while driven and RSS before and after, poses that answer no input or a wrong one.  With ``then``:
+    the node's /diagnostics report after the run (``diagnostics``), then ``then(domain)`` against the same
+    process (``then``; the process's stopped line covers both runs)."""
     from glpma_tools.sim.controller import Controller
     from glpma_tools.sim.matching import split_at_stamp
     from glpma_tools.sim.trajectories import Plan
@@ -151,6 +149,8 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
             while time.monotonic() < deadline and len(ctl.listener.poses) < len(sent):
                 time.sleep(0.01)
             poses, rss1 = list(ctl.listener.poses), proc.rss_kb()
+            diagnostics = then and ctl.diagnostics_after(sent[-1].send_ns, DIAGNOSTICS_WAIT_S)
+        after = then and then(domain)
         proc.stop()
         summary = proc.stopped_line()
     index, paired, wrong, error = answers(plan, sent, poses, echo=target == ECHO)
@@ -159,7 +159,7 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
             "sent": len(sent), "paired": len(paired), "wrong": wrong, "total_ms": distribution(to_node + in_node),
             "to_node_ms": distribution(to_node), "in_node_ms": distribution(in_node),
             "cpu_percent": 100.0 * cpu_share, "summary": summary, "position_error_max_m": error,
-            "rss_mb": (rss0 / 1024, rss1 / 1024)}
+            "rss_mb": (rss0 / 1024, rss1 / 1024), "diagnostics": diagnostics, "then": after}
 
 
 def micro_profile(sc, n: int, domain: int) -> dict:
@@ -287,8 +287,7 @@ def section(res, md_path=None) -> list[str]:
                 ["Python thread wake-up round trip (`queue.SimpleQueue`)", MISSING, _q(p["wake_us"], 1)]]
         out += [prose("outputs", "profile", samples=p["samples"]),
                 table(["step", "CPU µs (p50 / p99)", "wall µs (p50 / p99)"], body),
-                prose("outputs", "profile_reading", write_remote=_q(p["write_remote"]["cpu_us"], 1, ("p50",)),
-                      write_alone=_q(p["write_alone"]["cpu_us"], 1, ("p50",)), wake=_q(p["wake_us"], 1, ("p50",)))]
+                prose("outputs", "profile_reading")]
     if isinstance(o["rclpy"], str):
         out.append(prose("outputs", "rclpy_not_run", reason=o["rclpy"]))
     elif o["rclpy"]:

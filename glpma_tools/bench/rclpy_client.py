@@ -1,9 +1,8 @@
 """Part 4 of the ``outputs`` section, the rclpy adapter (imported only where rclpy is): :func:`variants` runs
-the node in this process under each set-up of :data:`VARIANTS` against a client, this module run as a process:
-``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT`` publishes ``leg_lengths``
-along the simulated loop, takes ``pose_estimate`` (with ``EXTRAS`` = ``extras`` also ``/tf`` and
-``pose_estimate_cov``, as any TF listener or RViz does), pairs each pose with its input and prints: inputs
-sent, poses received, latency p50 and p99 (ms), poses wrong."""
+the node in this process under each set-up of :data:`VARIANTS` against :func:`main`, the client, in a process
+of its own: it publishes ``leg_lengths`` along the simulated loop, takes ``pose_estimate`` (and ``/tf`` and
+``pose_estimate_cov`` as any TF listener or RViz does, where asked), pairs each pose with its input and prints
+inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
 from __future__ import annotations
 
 import subprocess
@@ -132,11 +131,12 @@ def variants(sc, seconds: float, domain) -> tuple[dict, list[dict]]:
 
 
 def main(argv=None) -> int:
-    """The client process."""
+    """The client process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``
+    (``EXTRAS`` = ``extras``: also subscribe to ``/tf`` and ``pose_estimate_cov``; ``VARIANT`` = ``echo``:
+    the poses carry the legs they answer)."""
     config, rate, seconds, extras, variant = (argv or sys.argv[1:])[:5]
-    rate, seconds = float(rate), float(seconds)
-    plan = Plan(config)
-    samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
+    rate, plan = float(rate), Plan(config)
+    samples = [plan.sample(i / rate) for i in range(int(rate * float(seconds)))]
     rclpy.init()
     node = rclpy.create_node("glpma_fk_bench_client")
     received = []
@@ -165,8 +165,8 @@ def main(argv=None) -> int:
         pub.publish(msg)
     time.sleep(SETTLE_S)
     index, paired, wrong, _ = answers(plan, sent, list(received), variant == "echo")
-    latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)])
-    print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
+    latency = [(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)]
+    print(len(sent), len(received), *np.percentile(latency, [50, 99]), wrong, flush=True)
     executor.shutdown()
     rclpy.try_shutdown()
     return 0

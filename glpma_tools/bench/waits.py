@@ -15,6 +15,7 @@ from glpma_ros.node.loops import ReportLoop, SolveLoop
 from glpma_ros.node.service import FkService
 from glpma_tools.tables import fmt, table
 
+from .dds import SHIPPED_ON
 from .scenarios import load
 
 #: period of the reporting thread of ``handle + reports`` (s): 200x the node's default diagnostics rate,
@@ -31,7 +32,6 @@ WAIT_GOAL_US = 20.0
 SETUPS = ("handle", "handle + reports", "node at 1 kHz")
 #: parameters of the measured node: the shipped 3-RPR, with the extra outputs of the last setup
 PARAMS = {"manipulator_config": str(config_dir() / "planar_3rpr_seed.yaml")}
-EXTRAS = {"publish_tf": True, "publish_covariance": True, "publish_twist": True}
 #: seconds to wait for the extras thread to finish a round's poses
 FLUSH_S = 10.0
 #: the columns of a row (us): the series and its percentile (100: the largest)
@@ -78,7 +78,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
     service = FkService(PARAMS)
     service.warm_up()
     legs = [(tuple(legs), k + 1) for k, legs in enumerate(load("3rpr").along(inputs)[1] * service.metres_per_unit)]
-    node = FkService({**PARAMS, **EXTRAS})
+    node = FkService({**PARAMS, **SHIPPED_ON})
     node.warm_up()
     loop = SolveLoop(node, lambda pose: None, publish_extras=lambda extras: None)
     # setup -> (the service reported on, report period (None: no reports), the call, the input period)
