@@ -1,6 +1,6 @@
-"""The ``dds`` section: a node process on a private domain driven by the mock controller at a robot
-controller's rate, with and without assembly-mode requests while streaming; and how the transport
-sections run a node (or a stand-in) with its shipped parameters (:func:`node_process`, :func:`match`)."""
+"""The ``dds`` section: a node process with its shipped parameters on a private domain, driven at a robot
+controller's rate as the outputs section's part 2 drives it, then with assembly-mode requests while streaming;
+and how the transport sections run a node or a stand-in (:func:`node_process`, :func:`match`, the params)."""
 from __future__ import annotations
 
 import contextlib

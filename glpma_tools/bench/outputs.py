@@ -223,10 +223,9 @@ def _q(d, digits=3, keys=("p50", "p99")) -> str:
     return " / ".join(MISSING if v is None else f"{v:.{digits}f}" for v in values)
 
 
-def _verdict(measured: float, target: float, unit="ms", digits=3, ratio="{}, {:.1f}×") -> str:
+def _verdict(measured: float, target: float, unit="ms", digits=3) -> str:
     """``met`` or by how much ``measured`` misses ``target``."""
-    return "met" if measured <= target else ratio.format(f"missed by {measured - target:.{digits}f} {unit}",
-                                                         measured / target)
+    return "met" if measured <= target else f"missed by {measured - target:.{digits}f} {unit}, {measured / target:.1f}×"
 
 
 def _costs(rows) -> list:
@@ -236,7 +235,7 @@ def _costs(rows) -> list:
     body = [[r["manipulator"], r["outputs"], _q(r["cpu_us"], 1), f"{r['cpu_us']['p50'] - none[r['manipulator']]:+.1f}",
              _q(r["wall_us"], 1), _q(r["solve_us"], 1, ("p50",)), _q(r["handoff_us"], 1),
              MISSING if r["handoff_us"]["p50"] is None else
-             _verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
+             _verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1),
              _q(r["extras_thread_cpu_us"], 1), _q(r["extras_us"], 1), r["extras_dropped"]] for r in rows]
     return [prose("outputs", "costs", inputs=rows[0]["inputs"], pace=f"{1e3 * PACE_S:g}"),
             table(["manipulator", "outputs on", "solving thread per input, CPU p50 / p99 (µs)",

@@ -1,5 +1,5 @@
 """The ``waits`` section: how long an input waits in-process for anything but its own solve (*blocked* =
-wall - thread CPU - the kernel's run delay), in each of :data:`SETUPS` (what they run and why:
+wall - thread CPU - the kernel's run delay), in each of three setups (what they run and why:
 ``templates/waits.md``), the quietest of alternating rounds reported; and :func:`timed`, which times calls."""
 from __future__ import annotations
 
@@ -29,7 +29,6 @@ SLOW_S = 0.3e-3
 TAIL = 99.9
 #: the goal for the tail of the wait (us)
 WAIT_GOAL_US = 20.0
-SETUPS = ("handle", "handle + reports", "node at 1 kHz")
 #: parameters of the measured node: the shipped 3-RPR, with the extra outputs of the last setup
 PARAMS = {"manipulator_config": str(config_dir() / "planar_3rpr_seed.yaml")}
 #: seconds to wait for the extras thread to finish a round's poses
@@ -74,7 +73,7 @@ def _row(setup, wall, cpu, delay, reports) -> dict:
 
 
 def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD_S) -> list[dict]:
-    """The quietest of ``rounds`` rounds of ``inputs`` inputs per setup (:data:`SETUPS`)."""
+    """The quietest of ``rounds`` rounds of ``inputs`` inputs per setup, a row each."""
     service = FkService(PARAMS)
     service.warm_up()
     legs = [(tuple(legs), k + 1) for k, legs in enumerate(load("3rpr").along(inputs)[1] * service.metres_per_unit)]
@@ -101,7 +100,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                 best[setup] = min(best.get(setup, row), row, key=lambda r: r["slow"])     # the first of the quietest
     finally:
         loop.stop()
-    return [best[s] for s in SETUPS]
+    return list(best.values())
 
 
 def section(res, md_path=None) -> list[str]:
