@@ -70,54 +70,54 @@ def _fake(key, label, shipped_above_us, handoff_us=1.5):
     d = {"p50": 0.3, "p99": 0.9, "max": 2.0, "mean": 0.35}
     us = {"p50": 15.0, "p99": 40.0, "max": 90.0, "mean": 18.0}
     above = {name: {"none": 0.0, outputs.SHIPPED: shipped_above_us}.get(name, 5.0) for name, _ in outputs.CASES}
-    costs = [{"manipulator": label, "outputs": name, "inputs": 50, "published": 50, "solve_us": us,
-              "offer_cpu_us": {**us, "p50": 30.0 + above[name]}, "offer_us": us, "above_none_us": above[name],
+    costs = [{"manipulator": label, "outputs": name, "inputs": 50, "solve_us": us,
+              "cpu_us": {**us, "p50": 30.0 + above[name]}, "wall_us": us,
               "extras_thread_cpu_us": None if name == "none" else 70.0, "extras_us": us,
-              "handoff_us": {} if name == "none" else {**us, "p50": handoff_us},
+              "handoff_us": dict.fromkeys(us) if name == "none" else {**us, "p50": handoff_us},
               "extras_dropped": 0} for name, _ in outputs.CASES]
     paths = [{"manipulator": label, "key": key, "target": target, "rate_hz": 1000.0, "seconds": 1.0, "sent": 1000,
-              "poses": 990, "paired": 990, "wrong": 0, "late_sends": 0,
+              "paired": 990, "wrong": 0,
               "total_ms": {**d, "p50": 0.1} if target == outputs.ECHO else d, "to_node_ms": d, "in_node_ms": d,
               "cpu_percent": 20.0, "summary": "received 1000"} for target in outputs.TARGETS]
     return costs, paths
 
 
 @pytest.mark.parametrize("shipped_above_us, handoff_us, verdict", [
-    (12.0, 1.5, "met"), (-8.0, 26.0, "missed by 6.0 µs (1.3×)")])
+    (12.0, 1.5, "met"), (-8.0, 26.0, "missed by 6.0 µs, 1.3×")])
 def test_the_section_states_targets_figures_and_misses(shipped_above_us, handoff_us, verdict):
     """Part 1's verdict judges the hand-off the node times itself, not the noisy CPU difference."""
     import pickle
     costs, paths = _fake("3rpr", "3-RPR", shipped_above_us, handoff_us)
-    profile = {"samples": 10, "wake_us": {"p50": 40.0, "p99": 90.0}, "wake_with": "queue.SimpleQueue",
+    profile = {"samples": 10, "wake_us": {"p50": 40.0, "p99": 90.0},
                "write_alone": {"cpu_us": {"p50": 13.0, "p99": 30.0}, "wall_us": {"p50": 14.0, "p99": 31.0}},
                "write_remote": {"cpu_us": {"p50": 31.0, "p99": 60.0}, "wall_us": {"p50": 35.0, "p99": 70.0}}}
-    res = {"outputs": {"keys": ["3rpr"], "pace_s": 1e-3, "costs": costs, "paths": paths, "profile": profile,
-                       "rclpy": None, "rclpy_reason": "rclpy does not import"}}
+    res = {"outputs": {"keys": ["3rpr"], "costs": costs, "paths": paths, "profile": profile,
+                       "rclpy": "rclpy does not import"}}
     res = pickle.loads(pickle.dumps(res))                        # what --save-data / --render go through
     text = "\n".join(outputs.section(res))
     assert text.startswith(outputs.HEADING) and "$" not in text and "hexapod" not in text
     p50, p99 = END_TO_END_TARGET_MS["3rpr"]
-    assert f"p50 0.300 ms (target ≤ {p50:g}: missed by 0.050 ms, 1.2×)" in text
-    assert f"p99 0.900 ms (target ≤ {p99:g}: missed by 0.400 ms, 1.8×)" in text
-    assert "the floor (echo) 0.100 / 0.900 ms" in text and "+0.200 ms at p50" in text
+    node = "| 3-RPR | node | 1000 Hz, 1 s | 1,000 / 990 | 0 | 0.300 / 0.900 / 2.00 | " + " / ".join(
+        f"{100 * v / t:.0f} % (missed by {v - t:.3f} ms, {v / t:.1f}×)" for v, t in ((0.3, p50), (0.9, p99)))
+    assert node + " | +0.200 / +0.000 |" in text                    # the node's figures, above the floor's
+    floor = f"| 3-RPR | {outputs.ECHO} | 1000 Hz, 1 s | 1,000 / 990 | 0 | 0.100 / 0.900 / 2.00 | "
+    assert floor + f"{100 * 0.1 / p50:.0f} % (met) / {100 * 0.9 / p99:.0f} % (" in text
     # part 1: the hand-off (the node's own wall time) against the target, the CPU above none beside it
-    flat = " ".join(text.split())
-    assert f"with them minus with none is {shipped_above_us:+.1f} µs" in flat
-    assert f"the hand-off, {handoff_us:.1f} µs wall at p50 as the node measures it, against the target of " \
-           f"{outputs.EXTRAS_TARGET_US:g} µs: {verdict}" in flat
-    shipped = f"| 3-RPR | {outputs.SHIPPED} | {30 + shipped_above_us:.1f} / 40.0 | {shipped_above_us:+.1f} | 15.0 / 40.0 |"
+    shipped = (f"| 3-RPR | {outputs.SHIPPED} | {30 + shipped_above_us:.1f} / 40.0 | {shipped_above_us:+.1f} | "
+               f"15.0 / 40.0 | 15.0 | {handoff_us:.1f} / 40.0 | {verdict} | 70.0 | 15.0 / 40.0 | 0 |")
     assert shipped in text
-    assert "| 3-RPR | none | 30.0 / 40.0 | +0.0 |" in text and "spends 70.0 µs CPU per pose" in flat
+    assert f"at most {outputs.EXTRAS_TARGET_US:g} µs" in " ".join(text.split())
+    assert "| 3-RPR | none | 30.0 / 40.0 | +0.0 | 15.0 / 40.0 | 15.0 | — / — | — | — |" in text
     # part 3: the writes and the wake-up round trip the node's design cites
     assert "| one Cyclone DDS write, a reader in another process | 31.0 / 60.0 | 35.0 / 70.0 |" in text
     assert "| Python thread wake-up round trip (`queue.SimpleQueue`) | — | 40.0 / 90.0 |" in text
-    assert "(31.0 µs CPU with a reader" in text and "13.0 µs without one" in text
+    assert "| one Cyclone DDS write, no reader | 13.0 / 30.0 | 14.0 / 31.0 |" in text
     assert "rclpy does not import" in text
     assert outputs.section({"outputs": None}) == []
     # part 4, where rclpy ran
-    res["outputs"]["rclpy_setup"] = {"manipulator": "3-RPR", "rate": 1000.0, "seconds": 2.0}
-    res["outputs"]["rclpy"] = [{"variant": "shipped", "sent": 2000, "received": 1990, "poses": 1980, "answered": 0.99,
-                                "dropped": 10, "wrong": 0, "p50": 0.4, "p99": 1.2, "cpu_us_per_input": 512.4}]
+    res["outputs"]["rclpy"] = ({"manipulator": "3-RPR", "rate": 1000.0, "seconds": 2.0},
+                               [{"variant": "shipped", "sent": 2000, "received": 1990, "poses": 1980, "answered": 0.99,
+                                 "dropped": 10, "wrong": 0, "p50": 0.4, "p99": 1.2, "cpu_us_per_input": 512.4}])
     text = "\n".join(outputs.section(res))
     assert "| shipped | 2000 / 1990 / 1980 | 99.0 % | 10 | 0 | 0.400 / 1.200 | 512 |" in text
     assert "at 1000 Hz for 2 s per variant" in text and "rclpy does not import" not in text

@@ -1,6 +1,6 @@
-"""DDS end to end: a node process on a private domain driven by the mock controller at the
-rate a robot controller would use, with and without assembly-mode requests while streaming, and
-the report's section of it; :func:`node_process`, how the bench runs a node (or a stand-in)."""
+"""The ``dds`` section: a node process with its shipped parameters on a private domain, driven at a robot
+controller's rate as the outputs section's part 2 drives it, then with assembly-mode requests while streaming;
+and how the transport sections run a node or a stand-in (:func:`node_process`, :func:`match`, the params)."""
 from __future__ import annotations
 
 import contextlib
@@ -8,7 +8,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from glpma_ros.config import config_dir, load_manipulator, resolve_config
+from glpma_ros.config import config_dir
 from glpma_tools import mock_controller
 from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.node_process import NODE_MODULE, NodeProcess, node_environment
@@ -18,16 +18,27 @@ from glpma_tools.tables import fmt, table
 MODES_PERIOD_S = 0.5
 #: input rate and the node's parameters per manipulator (both at 1 kHz, a ros2_control update rate)
 END_TO_END = {"planar_3rpr": (1000.0, "params_3rpr.yaml"), "hexapod_66": (1000.0, "params_hexapod.yaml")}
-#: seconds of driving with --quick
-QUICK_S = 2.0
-#: figures read from the node's last /diagnostics report: result key -> the report's name
+#: the extra outputs the shipped params files switch on
+SHIPPED_ON = dict.fromkeys(("publish_tf", "publish_covariance", "publish_twist"), True)
+#: figures read from the node's /diagnostics report after the run: result key -> the report's name
 DIAGNOSTICS = {"dropped": "inputs dropped", "deadline_misses": "deadline misses",
                "node_solve_p99_ms": "solve time p99 (ms)"}
+#: seconds of driving with --quick
+QUICK_S = 2.0
+#: seconds to wait for a process's endpoints to match ours, and to let the discovery settle then
+CONNECT_S = 60.0
+SETTLE_S = 0.5
 
 
 def params_file(kind: str) -> Path:
     """The shipped params file of manipulators ``kind``."""
     return config_dir() / END_TO_END[kind][1]
+
+
+def params_of(kind: str) -> dict:
+    """The parameters of the shipped params file of manipulators ``kind`` (the node reads them so)."""
+    from glpma_ros.node.ros_args import load_params_file
+    return load_params_file(str(params_file(kind)))
 
 
 def shipped_args(kind: str, config) -> list[str]:
@@ -48,49 +59,49 @@ def node_process(domain: int, ros_args=(), module: str = NODE_MODULE):
             proc.stop()
 
 
-def bench_end_to_end(config: str, steps: int | None = None, quick: bool = False, duration_s: float = 60.0) -> dict:
-    """Start a node process over DDS on a private domain, drive it for the config's manipulator
-    and return flat figures: input published -> pose received latency, inputs, poses, drops, the
-    node's solve time, its CPU share while streaming, and its RSS after warm-up and after the run."""
-    model = load_manipulator(resolve_config(config))
-    rate = END_TO_END[model.kind][0]
-    duration = QUICK_S if quick else (steps / rate if steps else duration_s)
-    with claim_domain() as claim, node_process(claim.domain_id, shipped_args(model.kind, config)) as node:
-        rss_before = node.rss_kb()
-        cpu_before, wall_before = node.cpu_s(), time.perf_counter()
-        summary = mock_controller.run(str(config), rate, duration, domain_id=claim.domain_id)
-        cpu_share = (node.cpu_s() - cpu_before) / (time.perf_counter() - wall_before)
-        rss_after = node.rss_kb()
-        with_modes = mock_controller.run(str(config), rate, duration, domain_id=claim.domain_id,
-                                         modes_period_s=MODES_PERIOD_S)
-    lat, diag = summary["latency_ms"], (summary.get("node_diagnostics") or {}).get("values", {})
-    m = with_modes["assembly_modes"]
-    return {"rate_hz": rate, "duration_s": duration, "inputs": summary["inputs_sent"],
-            "poses": summary["poses_matched"], "pose_ratio": summary["pose_ratio"],
-            "poses_wrong": summary["poses_wrong"], "p50_ms": lat["p50"], "p99_ms": lat["p99"], "max_ms": lat["max"],
+def match(endpoints_, what: str) -> None:
+    """Wait until ``endpoints_`` matched ``what``'s, then let the discovery settle."""
+    from glpma_ros.node.dds import endpoints
+    if not endpoints.wait_for_match(endpoints_, CONNECT_S):
+        raise TimeoutError(f"{what} did not match within {CONNECT_S:g} s")
+    time.sleep(SETTLE_S)
+
+
+def bench_end_to_end(sc, seconds: float, domain: int) -> dict:
+    """The node's run of the outputs section's part 2 (:func:`.outputs.path_latency`: latency, poses, CPU
+    share, RSS, position error, the node's drops and solve time from its /diagnostics report after the run),
+    then the mock controller's run with assembly-mode requests against the same process."""
+    from .outputs import NODE, path_latency
+
+    def with_modes(domain_id: int) -> dict:
+        return mock_controller.run(str(sc.path), END_TO_END[sc.model.kind][0], seconds, domain_id=domain_id,
+                                   modes_period_s=MODES_PERIOD_S)
+    row = path_latency(sc, NODE, seconds, domain, then=with_modes)
+    diag, (rss0, rss1), m = row["diagnostics"] or {}, row["rss_mb"], row["then"]["assembly_modes"]
+    return {**{k: row[k] for k in ("rate_hz", "seconds", "sent", "paired", "wrong", "total_ms", "to_node_ms",
+                                   "in_node_ms", "cpu_percent", "position_error_max_m")},
+            "pose_ratio": row["paired"] / max(row["sent"], 1),
             **{key: float(diag[name]) if name in diag else None for key, name in DIAGNOSTICS.items()},
-            "node_cpu_percent_of_one_core": 100.0 * cpu_share,
-            "position_error_max_m": summary["tracking_error"]["position_m"]["max"],
-            "rss_after_warm_up_mb": rss_before / 1024, "rss_after_run_mb": rss_after / 1024,
-            "rss_growth_mb": (rss_after - rss_before) / 1024,
+            "rss_after_warm_up_mb": rss0, "rss_after_run_mb": rss1, "rss_growth_mb": rss1 - rss0,
             "assembly_modes": {"requests answered": m["answers"],
                                "modes per answer": ", ".join(map(str, m["modes_per_answer"])),
                                "answer time p50 (s)": m["answer_s"]["p50"],
                                "pose latency p99 while answering (ms)": m["pose_latency_during_requests_ms"]["p99"],
-                               "pose latency p99 whole run (ms)": with_modes["latency_ms"]["p99"]}}
+                               "pose latency p99 whole run (ms)": row["then"]["latency_ms"]["p99"]}}
 
 
 def dds_end_to_end(scenarios, steps, quick) -> dict:
-    """:func:`bench_end_to_end` for each scenario; a scenario that cannot run says why."""
+    """``res["dds"]``: per scenario label, :func:`bench_end_to_end`'s figures (``steps`` inputs, or
+    :data:`QUICK_S` with ``quick``) on a domain of its own, or why it could not run."""
     results = {}
     for sc in scenarios:
+        seconds = QUICK_S if quick else steps / END_TO_END[sc.model.kind][0]
         try:
-            t0 = time.perf_counter()
-            stats = bench_end_to_end(sc.path, steps=steps, quick=quick)
-            results[sc.label] = {"status": "run", "stats": stats, "wall_s": time.perf_counter() - t0}
-        except Exception as exc:  # noqa: BLE001 - reported in the table, never fatal
-            results[sc.label] = {"status": "not run", "reason": f"{type(exc).__name__}: {exc}"}
-    return {"status": "run", "function": "glpma_tools.bench.dds.bench_end_to_end", "results": results}
+            with claim_domain() as claim:
+                results[sc.label] = bench_end_to_end(sc, seconds, claim.domain_id)
+        except Exception as exc:  # noqa: BLE001 - reported in the section, never fatal
+            results[sc.label] = f"{type(exc).__name__}: {exc}"
+    return results
 
 
 def _cells(stats: dict, prefix: str = ""):
@@ -103,15 +114,10 @@ def _cells(stats: dict, prefix: str = ""):
 
 
 def section(res, md_path=None) -> list[str]:
-    """The section of BENCHMARKS.md from ``res["dds"]`` (nothing when it was not asked for)."""
-    d = res.get("dds")
-    if d is None:
+    """The section of BENCHMARKS.md from ``res["dds"]`` (nothing when it did not run)."""
+    from .report import md_blocks, prose
+    if not res.get("dds"):
         return []
-    out = ["## DDS end to end (node + mock controller)", ""]
-    if d.get("status") != "run":
-        return out + [f"Skipped: {d.get('reason', 'not requested')}.", ""]
-    out += [f"From `{d['function']}`.", ""]
-    for label, r in d["results"].items():
-        out += ([f"### {label}", "", table(["quantity", "value"], list(_cells(r["stats"]))), ""]
-                if r["status"] == "run" else [f"- {label}: not run ({r['reason']})"])
-    return out + [""]
+    return md_blocks("## DDS end to end (node + mock controller)", prose("dds"), *(
+        f"### {label}\n\n" + table(["quantity", "value"], list(_cells(r))) if isinstance(r, dict)
+        else f"- {label}: not run ({r})" for label, r in res["dds"].items()))

@@ -1,8 +1,6 @@
-"""The ``outputs`` section of ``glpma-fk bench``: what the node's extra outputs cost per input
-(part 1, :func:`output_costs`), where the time between legs written and pose read goes over DDS
-(part 2, :func:`path_latency`), the figures the product's design cites (part 3, :func:`micro_profile`)
-and the rclpy adapter's executors (part 4, :mod:`.rclpy_client`).  :func:`measure` runs them,
-:func:`section` renders them (prose in ``templates/outputs.md``)."""
+"""The ``outputs`` section of ``glpma-fk bench`` (prose: ``templates/outputs.md``): what the node's extra
+outputs cost per input (part 1), legs written -> pose read over DDS against the transport floor (part 2), the
+write and wake-up figures the node's design cites (part 3) and the rclpy adapter's executors (part 4)."""
 from __future__ import annotations
 
 import contextlib
@@ -16,7 +14,8 @@ from glpma_tools.sim.domains import claim_domain
 from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, table
 
-from .dds import END_TO_END, node_process, params_file, shipped_args
+from .dds import END_TO_END, SHIPPED_ON, match, node_process, params_of, shipped_args
+from .waits import timed
 
 HEADING = "## Extra outputs and the transport path"
 #: the outputs the shipped params files switch on: the row judged against :data:`EXTRAS_TARGET_US`
@@ -24,18 +23,13 @@ SHIPPED = "shipped (/tf, covariance, twist)"
 #: per-input cost of the shipped extra outputs at p50 (µs) that issue 12 asks for
 EXTRAS_TARGET_US = 20.0
 #: the output configurations of part 1: name -> parameters; the first, none, is the reference
-CASES = (
-    ("none", {}),
-    ("/tf", {"publish_tf": True}),
-    ("pose_estimate_cov", {"publish_covariance": True}),
-    ("twist_estimate (poses)", {"publish_twist": True}),
-    ("twist_estimate (velocities)", {"publish_twist": True, "input_type": "joint_state"}),
-    ("~/markers (every pose)", {"publish_markers": True, "markers_period_s": 0.0}),
-    (SHIPPED, {"publish_tf": True, "publish_covariance": True, "publish_twist": True}),
-    ("all (shipped + markers 10 Hz)", {"publish_tf": True, "publish_covariance": True, "publish_twist": True,
-                                       "publish_markers": True}))
-OFF = {"publish_tf": False, "publish_covariance": False, "publish_twist": False, "publish_markers": False}
-#: seconds between two timed calls: part 1's inputs (the subscriber keeps up, the inputs stay warm), part 3's
+CASES = (("none", {}), ("/tf", {"publish_tf": True}), ("pose_estimate_cov", {"publish_covariance": True}),
+         ("twist_estimate (poses)", {"publish_twist": True}),
+         ("twist_estimate (velocities)", {"publish_twist": True, "input_type": "joint_state"}),
+         ("~/markers (every pose)", {"publish_markers": True, "markers_period_s": 0.0}), (SHIPPED, SHIPPED_ON),
+         ("all (shipped + markers 10 Hz)", {**SHIPPED_ON, "publish_markers": True}))
+OFF = dict.fromkeys((*SHIPPED_ON, "publish_markers"), False)
+#: seconds between two timed calls of parts 1 and 3 (the subscriber keeps up, the inputs stay warm)
 PACE_S = 1e-3
 #: the stamp of part 1's first input (ns)
 FIRST_STAMP_NS = 1_795_000_000 * 10**9
@@ -46,40 +40,17 @@ NODE, NODE_OFF, ECHO = "node", "node, extra outputs off", "echo (transport floor
 TARGETS = {NODE: ("glpma_ros.node.dds.node", ()),
            NODE_OFF: ("glpma_ros.node.dds.node", tuple(a for k in OFF for a in ("-p", f"{k}:=false"))),
            ECHO: ("glpma_tools.sim.echo_node", ())}
-#: seconds to wait for the controller's endpoints to match the process's, and to let it settle
-CONNECT_S = 60.0
-SETTLE_S = 0.5
-#: seconds to wait for the last poses after the last input
+#: seconds to wait for the last poses after the last input, and for the node's report after them
 TAIL_S = 1.0
+DIAGNOSTICS_WAIT_S = 5.0
 
 
-def _paced(call, n: int) -> dict:
-    """CPU and wall time (µs) of ``n`` calls ``call()``, :data:`PACE_S` apart."""
-    cpu, wall = [], []
-    for _ in range(n):
-        c, t = time.thread_time_ns(), time.perf_counter_ns()
-        call()
-        wall.append((time.perf_counter_ns() - t) * 1e-3)
-        cpu.append((time.thread_time_ns() - c) * 1e-3)
-        time.sleep(PACE_S)
-    return {"cpu_us": distribution(cpu), "wall_us": distribution(wall)}
+def _cpu_wall(call, items) -> dict:
+    """CPU and wall time (µs) of ``call(*item)`` per item of ``items``, :data:`PACE_S` apart."""
+    wall, cpu, _ = timed(call, items, PACE_S)
+    return {"cpu_us": distribution(cpu, 1e6), "wall_us": distribution(wall, 1e6)}
 
 
-def _match(endpoints_, what: str) -> None:
-    """Wait until ``endpoints_`` matched ``what``'s, then let the discovery settle."""
-    from glpma_ros.node.dds import endpoints
-    if not endpoints.wait_for_match(endpoints_, CONNECT_S):
-        raise TimeoutError(f"{what} did not match within {CONNECT_S:g} s")
-    time.sleep(SETTLE_S)
-
-
-def params_of(kind: str) -> dict:
-    """The parameters of the shipped params file of manipulators ``kind`` (the node reads them so)."""
-    from glpma_ros.node.ros_args import load_params_file
-    return load_params_file(str(params_file(kind)))
-
-
-# -- part 1: the extra outputs, per input ---------------------------------------------------------------
 def main() -> None:
     """The subscriber process of part 1: takes every output of the node, raw, until SIGINT."""
     from cyclonedds.util import duration
@@ -99,16 +70,9 @@ def main() -> None:
                 cdr.take_raw(r, 1000)
 
 
-def _thread_cpu_s(name: str) -> float | None:
-    """CPU seconds the live thread ``name`` has used, from its own CPU clock (None: no such thread)."""
-    clocks = [time.pthread_getcpuclockid(t.ident) for t in threading.enumerate() if t.name == name]
-    return sum(map(time.clock_gettime, clocks)) if clocks else None
-
-
 def output_costs(scenarios, n_inputs: int, domain: int) -> list[dict]:
-    """Part 1: per manipulator and output configuration, measured from outside the node: the
-    solving thread's CPU and wall time around each ``offer`` (solve, the pose's encoding and write,
-    the hand-off to the extras thread; µs), the extras thread's CPU per pose from its own clock (the
+    """Part 1: per manipulator and output configuration, from outside the node: the solving thread's CPU
+    and wall time around each ``offer`` (µs), the extras thread's CPU per pose from its own clock (the
     thread starts with the first pose), and the node's own wall figures (solve, hand-off, extras)."""
     from glpma_ros.node.dds import endpoints
     from glpma_ros.node.dds.node import DdsNode
@@ -123,52 +87,51 @@ def output_costs(scenarios, n_inputs: int, domain: int) -> list[dict]:
             plan = Plan(sc.path)
             legs = np.array([plan.sample(i * PACE_S)[0] * plan.mpu for i in range(n_inputs + 1)])
             rates = np.gradient(legs, PACE_S, axis=0)
-            stamps = [FIRST_STAMP_NS + int(i * PACE_S * 1e9) for i in range(n_inputs)]
-            for name, case in CASES:                    # the first, none, is the others' reference
+            for name, case in CASES:
                 values, _ = resolve({**params_of(plan.model.kind), "manipulator_config": sc.path, **OFF, **case})
                 names = tuple(values["joint_names"] or default_joint_names(plan.model.n_legs))
-                inputs = [JointStateInput(names, tuple(q), tuple(v)) if values["input_type"] == "joint_state"
-                          else tuple(q) for q, v in zip(legs[:n_inputs], rates)]
+                inputs = [(JointStateInput(names, tuple(q), tuple(v)) if values["input_type"] == "joint_state"
+                           else tuple(q), FIRST_STAMP_NS + int(i * PACE_S * 1e9))
+                          for i, (q, v) in enumerate(zip(legs[:n_inputs], rates))]
                 service = FkService(values)
                 service.warm_up(solvers=(values["solver"],))
                 node = DdsNode(service, participant, modes_solve=lambda *a: [])
-                _match([node.pose_writer], "the subscriber")           # then the other topics' discovery
-                feed = zip(inputs, stamps)
-                offer = _paced(lambda: node.loop.offer(*next(feed)), n_inputs)    # noqa: B023 - called here
+                match([node.pose_writer], "the subscriber")           # then the other topics' discovery
+                offer = _cpu_wall(node.loop.offer, inputs)
                 node.loop.extras.flush()
-                if name == CASES[0][0]:
-                    none_cpu_us = offer["cpu_us"]["p50"]
-                extras_cpu_s = _thread_cpu_s(EXTRAS_THREAD)
+                clocks = [time.pthread_getcpuclockid(t.ident) for t in threading.enumerate() if t.name == EXTRAS_THREAD]
+                extras_cpu_s = sum(map(time.clock_gettime, clocks)) if clocks else None     # before the thread ends
                 node.loop.stop()
                 st = service.stats
-                rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, "published": st.published,
-                             "offer_cpu_us": offer["cpu_us"], "offer_us": offer["wall_us"],
-                             "above_none_us": offer["cpu_us"]["p50"] - none_cpu_us,
-                             "extras_thread_cpu_us": None if extras_cpu_s is None else
-                             extras_cpu_s / max(st.published, 1) * 1e6, "extras_dropped": st.extras_dropped,
+                rows.append({"manipulator": sc.label, "outputs": name, "inputs": n_inputs, **offer,
+                             "extras_dropped": st.extras_dropped, "extras_thread_cpu_us":
+                             None if extras_cpu_s is None else extras_cpu_s / max(st.published, 1) * 1e6,
                              **{key: distribution(window.values(), 1e6) for key, window in (("solve_us", st.solve_s),
                                 ("handoff_us", st.extras_handoff_s), ("extras_us", st.extras_s))}})
     return rows
 
 
-# -- part 2: legs written -> pose read ------------------------------------------------------------------
-def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int]:
-    """(the index of the input each paired pose answers, those poses, the poses that answer no input or
-    lie off its true pose); an echo's poses carry the legs they answer (part 2 and the rclpy client)."""
+def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int, float | None]:
+    """(the index of the input each paired pose answers, those poses, the poses that answer no input or lie
+    off its true pose, the largest position error (m; None for an echo, whose poses carry the legs they
+    answer)), for part 2, the dds section and the rclpy client."""
     from glpma_tools.sim.echo_node import legs_of
     from glpma_tools.sim.matching import compare, pair
     if echo:
         pairs, unpaired = pair(plan.model, sent, poses,
                                legs_of=lambda pose: np.array(legs_of(pose, plan.model.n_legs)) / plan.mpu)
-        return [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired)
+        return [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired), None
     c = compare(plan.model, sent, poses)
-    return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth))
+    error = float(c.position_error_m.max()) if c.position_error_m.size else None
+    return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth)), error
 
 
-def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
-    """Part 2: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
-    ``seconds`` at the DDS section's rate; latency split at the pose's stamp (ms), the
-    process's CPU share while driven, poses that answer no input or a wrong one."""
+def path_latency(sc, target: str, seconds: float, domain: int, then=None) -> dict:
+    """Part 2 and the dds section: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
+    ``seconds`` at :data:`~.dds.END_TO_END`'s rate; latency split at the pose's stamp (ms), the process's
+    CPU share while driven and RSS before and after, poses that answer no input or a wrong one.  With ``then``:
+    the node's /diagnostics report after the run (``diagnostics``), then ``then(domain)`` against the same
+    process (``then``; the process's stopped line covers both runs)."""
     from glpma_tools.sim.controller import Controller
     from glpma_tools.sim.matching import split_at_stamp
     from glpma_tools.sim.trajectories import Plan
@@ -178,43 +141,32 @@ def path_latency(sc, target: str, seconds: float, domain: int) -> dict:
     module, extra = TARGETS[target]
     with node_process(domain, [*shipped_args(plan.model.kind, sc.path), *extra], module) as proc:
         with contextlib.closing(Controller(plan.model, domain, listen_depth=1000)) as ctl:
-            _match([ctl.writer, ctl.listener.reader], target)
-            cpu0, wall0 = proc.cpu_s(), time.perf_counter()
-            sent, late = ctl.send(plan, 0.0, max(1, round(rate * seconds)), rate, 1.0 / rate)
+            match([ctl.writer, ctl.listener.reader], target)
+            rss0, cpu0, wall0 = proc.rss_kb(), proc.cpu_s(), time.perf_counter()
+            sent, _ = ctl.send(plan, 0.0, max(1, round(rate * seconds)), rate, 1.0 / rate)
             cpu_share = (proc.cpu_s() - cpu0) / (time.perf_counter() - wall0)
             deadline = time.monotonic() + TAIL_S
             while time.monotonic() < deadline and len(ctl.listener.poses) < len(sent):
                 time.sleep(0.01)
-            poses = list(ctl.listener.poses)
+            poses, rss1 = list(ctl.listener.poses), proc.rss_kb()
+            diagnostics = then and ctl.diagnostics_after(sent[-1].send_ns, DIAGNOSTICS_WAIT_S)
+        after = then and then(domain)
         proc.stop()
         summary = proc.stopped_line()
-    index, paired, wrong = answers(plan, sent, poses, echo=target == ECHO)
+    index, paired, wrong, error = answers(plan, sent, poses, echo=target == ECHO)
     to_node, in_node = split_at_stamp(sent, index, paired)
-    return {"manipulator": sc.label, "key": sc.key, "target": target, "rate_hz": rate,
-            "seconds": seconds, "sent": len(sent), "poses": len(poses), "paired": len(paired), "wrong": wrong,
-            "late_sends": late, "total_ms": distribution(to_node + in_node), "to_node_ms": distribution(to_node),
-            "in_node_ms": distribution(in_node), "cpu_percent": 100.0 * cpu_share, "summary": summary}
-
-
-# -- part 3: the micro-profile -------------------------------------------------------------------------
-def wake_round_trip(n: int) -> dict:
-    """A Python thread wake-up round trip (wall µs): this thread puts into a ``queue.SimpleQueue`` (what
-    the node's extras thread is woken with) another thread waits on, which puts into one this thread waits on."""
-    ping, pong = queue.SimpleQueue(), queue.SimpleQueue()
-
-    def answer():
-        for _ in range(n):
-            pong.put(ping.get())
-    other = threading.Thread(target=answer, daemon=True)
-    other.start()
-    out = _paced(lambda: (ping.put(True), pong.get()), n)["wall_us"]
-    other.join()
-    return out
+    return {"manipulator": sc.label, "key": sc.key, "target": target, "rate_hz": rate, "seconds": seconds,
+            "sent": len(sent), "paired": len(paired), "wrong": wrong, "total_ms": distribution(to_node + in_node),
+            "to_node_ms": distribution(to_node), "in_node_ms": distribution(in_node),
+            "cpu_percent": 100.0 * cpu_share, "summary": summary, "position_error_max_m": error,
+            "rss_mb": (rss0 / 1024, rss1 / 1024), "diagnostics": diagnostics, "then": after}
 
 
 def micro_profile(sc, n: int, domain: int) -> dict:
-    """Part 3: ``n`` paced writes of one of ``sc``'s inputs without a reader and with the echo's
-    reader in another process, and ``n`` thread wake-up round trips."""
+    """Part 3: ``n`` paced writes of one of ``sc``'s inputs without a reader and with the echo's reader in
+    another process, and ``n`` thread wake-up round trips (wall µs): this thread puts into a
+    ``queue.SimpleQueue`` (what the node's extras thread is woken with) another thread waits on, which puts
+    into one this thread waits on."""
     from glpma_tools.sim.controller import Controller
     from glpma_tools.sim.node_process import node_environment
     from glpma_tools.sim.trajectories import Plan
@@ -222,21 +174,24 @@ def micro_profile(sc, n: int, domain: int) -> dict:
     plan = Plan(sc.path)
     node_environment(domain)                    # this process's participant discovers as the echo's does
     with contextlib.closing(Controller(plan.model, domain)) as ctl:
-        data, _ = ctl.encoded(plan.sample(0.0)[0])
-        out = {"write_alone": _paced(lambda: ctl.raw_writer.write(data), n)}
+        writes = [ctl.encoded(plan.sample(0.0)[0])[:1]] * n
+        out = {"write_alone": _cpu_wall(ctl.raw_writer.write, writes)}
         with node_process(domain, module=TARGETS[ECHO][0]):
-            _match([ctl.writer], "the echo")
-            out["write_remote"] = _paced(lambda: ctl.raw_writer.write(data), n)
-    return {**out, "wake_us": wake_round_trip(n), "wake_with": "queue.SimpleQueue", "samples": n}
+            match([ctl.writer], "the echo")
+            out["write_remote"] = _cpu_wall(ctl.raw_writer.write, writes)
+    ping, pong = queue.SimpleQueue(), queue.SimpleQueue()
+    other = threading.Thread(target=lambda: [pong.put(ping.get()) for _ in range(n)], daemon=True)
+    other.start()
+    out["wake_us"] = _cpu_wall(lambda: (ping.put(True), pong.get()), [()] * n)["wall_us"]
+    other.join()
+    return {**out, "samples": n}
 
 
-# -- the bench's entry and the report ------------------------------------------------------------------
 def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_seconds: float, say=print) -> dict:
     """Every part for the bench: ``res["outputs"]``.  ``inputs``: per row of part 1, ``seconds``: per
     run of part 2, ``profile_samples``: writes and round trips of part 3, ``rclpy_seconds``: per variant
     of part 4 (needs rclpy); 0 skips a part.  Each part runs on a ROS domain of its own."""
-    res = {"keys": [sc.key for sc in scenarios], "pace_s": PACE_S, "costs": [], "paths": [], "profile": None,
-           "rclpy": None, "rclpy_reason": None}
+    res = {"keys": [sc.key for sc in scenarios], "costs": [], "paths": [], "profile": None, "rclpy": None}
     with contextlib.ExitStack() as claims:
         def domain() -> int:
             return claims.enter_context(claim_domain()).domain_id
@@ -254,85 +209,67 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
             try:
                 from . import rclpy_client
             except ImportError as exc:
-                res["rclpy_reason"] = f"{exc.name or 'rclpy'} does not import in the Python that ran the bench"
+                res["rclpy"] = f"{exc.name or 'rclpy'} does not import in the Python that ran the bench"
             else:
                 say(f"{scenarios[0].label}: the rclpy adapter's executors")
-                res["rclpy_setup"], res["rclpy"] = rclpy_client.variants(scenarios[0], rclpy_seconds, domain)
+                res["rclpy"] = rclpy_client.variants(scenarios[0], rclpy_seconds, domain)
     return res
 
 
-def _f(v, digits=3) -> str:
-    return MISSING if v is None else f"{v:.{digits}f}"
-
-
+# -- the report ------------------------------------------------------------------------------------------
 def _q(d, digits=3, keys=("p50", "p99")) -> str:
-    """``keys`` of the distribution ``d`` (default ``p50 / p99``)."""
-    return " / ".join(_f((d or {}).get(k), digits) for k in keys)
+    """``keys`` of the distribution ``d`` (default ``p50 / p99``), or of the number ``d``."""
+    values = [d] if not isinstance(d, dict) else [d.get(k) for k in keys]
+    return " / ".join(MISSING if v is None else f"{v:.{digits}f}" for v in values)
 
 
-def _verdict(measured: float, target: float, unit="ms", digits=3, ratio="{}, {:.1f}×") -> str:
+def _verdict(measured: float, target: float, unit="ms", digits=3) -> str:
     """``met`` or by how much ``measured`` misses ``target``."""
-    return "met" if measured <= target else ratio.format(f"missed by {measured - target:.{digits}f} {unit}",
-                                                         measured / target)
+    return "met" if measured <= target else f"missed by {measured - target:.{digits}f} {unit}, {measured / target:.1f}×"
 
 
-def _costs(rows, pace_s: float) -> list[str]:
-    """Part 1's table and verdict (rows of older data, measured otherwise, are left out)."""
+def _costs(rows) -> list:
+    """Part 1's table, each row's hand-off judged against the target."""
     from .report import prose
-    rows = [r for r in rows if "offer_cpu_us" in r]
-    if not rows:
-        return []
-    body = [[r["manipulator"], r["outputs"], _q(r["offer_cpu_us"], 1), f"{r['above_none_us']:+.1f}",
-             _q(r["offer_us"], 1), _q(r["solve_us"], 1, ("p50",)), _q(r["handoff_us"], 1),
-             _f(r["extras_thread_cpu_us"], 1), _q(r["extras_us"], 1), r["extras_dropped"]] for r in rows]
-    out = [prose("outputs", "costs", inputs=rows[0]["inputs"], pace=f"{1e3 * pace_s:g}"), "",
-           table(["manipulator", "outputs on", "solving thread per input, CPU p50 / p99 (µs)",
-                  "CPU p50 above none (µs)", "solving thread per input, wall p50 / p99 (µs)",
-                  "of which solve, wall p50 (µs)", "of which hand-off, wall p50 / p99 (µs)",
-                  "extras thread, CPU per pose (µs)", "extras thread, wall per pose p50 / p99 (µs)",
-                  "extras dropped"], body), ""]
-    out += ["- " + prose("outputs", "costs_target", manipulator=r["manipulator"], extra=f"{r['above_none_us']:+.1f}",
-                         target=f"{EXTRAS_TARGET_US:g}", handoff=_q(r["handoff_us"], 1, ("p50",)),
-                         verdict=_verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1, "{} ({:.1f}×)"),
-                         thread=_f(r["extras_thread_cpu_us"], 1))
-            for r in rows if r["outputs"] == SHIPPED and r["handoff_us"].get("p50") is not None]
-    return out + ["", prose("outputs", "costs_reading"), ""]
+    none = {r["manipulator"]: r["cpu_us"]["p50"] for r in rows if r["outputs"] == CASES[0][0]}
+    body = [[r["manipulator"], r["outputs"], _q(r["cpu_us"], 1), f"{r['cpu_us']['p50'] - none[r['manipulator']]:+.1f}",
+             _q(r["wall_us"], 1), _q(r["solve_us"], 1, ("p50",)), _q(r["handoff_us"], 1),
+             MISSING if r["handoff_us"]["p50"] is None else
+             _verdict(r["handoff_us"]["p50"], EXTRAS_TARGET_US, "µs", 1),
+             _q(r["extras_thread_cpu_us"], 1), _q(r["extras_us"], 1), r["extras_dropped"]] for r in rows]
+    return [prose("outputs", "costs", inputs=rows[0]["inputs"], pace=f"{1e3 * PACE_S:g}"),
+            table(["manipulator", "outputs on", "solving thread per input, CPU p50 / p99 (µs)",
+                   "CPU p50 above none (µs)", "solving thread per input, wall p50 / p99 (µs)",
+                   "of which solve, wall p50 (µs)", "of which hand-off, wall p50 / p99 (µs)",
+                   "hand-off against the target", "extras thread, CPU per pose (µs)",
+                   "extras thread, wall per pose p50 / p99 (µs)", "extras dropped"], body),
+            prose("outputs", "costs_target", shipped=SHIPPED, target=f"{EXTRAS_TARGET_US:g}"),
+            prose("outputs", "costs_reading")]
 
 
-def _paths(rows) -> list[str]:
-    """Part 2's table and, per manipulator, the targets against the node and the floor."""
+def _paths(rows) -> list:
+    """Part 2's table, each row against the targets and the floor (the echo's row)."""
     from .report import prose
     from .scenarios import END_TO_END_TARGET_MS
-    if not rows:
-        return []
+    floor = {r["manipulator"]: r["total_ms"] for r in rows if r["target"] == ECHO}
+
+    def against(d, targets) -> str:
+        return " / ".join("no target" if t is None else f"{100 * d[q] / t:.0f} % ({_verdict(d[q], t)})"
+                          for q, t in zip(("p50", "p99"), targets))
     body = [[r["manipulator"], r["target"], f"{r['rate_hz']:g} Hz, {r['seconds']:g} s",
              f"{r['sent']:,} / {r['paired']:,}", r["wrong"], f"{_q(r['total_ms'])} / {_q(r['total_ms'], 2, ('max',))}",
+             against(r["total_ms"], END_TO_END_TARGET_MS[r["key"]]),
+             " / ".join(f"{r['total_ms'][q] - floor[r['manipulator']][q]:+.3f}" for q in ("p50", "p99")),
              _q(r["to_node_ms"]), _q(r["in_node_ms"]), f"{r['cpu_percent']:.0f} %", r["summary"]] for r in rows]
-    out = [prose("outputs", "paths"), "",
-           table(["manipulator", "process", "rate", "sent / poses", "wrong", "written -> read p50 / p99 / max (ms)",
-                  "written -> taken p50 / p99 (ms)", "taken -> read p50 / p99 (ms)", "process CPU",
-                  "process summary"], body), ""]
-    for label in dict.fromkeys(r["manipulator"] for r in rows):
-        by_target = {r["target"]: r for r in rows if r["manipulator"] == label}
-        node, floor, off = by_target.get(NODE), by_target.get(ECHO), by_target.get(NODE_OFF)
-        if node is None or floor is None:
-            continue
-        (t50, t99), n, f = END_TO_END_TARGET_MS[node["key"]], node["total_ms"], floor["total_ms"]
-        out.append("- " + prose(
-            "outputs", "targets", manipulator=label,
-            **{q: f"{n[q]:.3f} ms" + (f" (target ≤ {t:g}: {_verdict(n[q], t)})" if t is not None else "")
-               for q, t in (("p50", t50), ("p99", t99))},
-            off=_q(off["total_ms"]) if off else MISSING, floor=_q(f),
-            floor_to_node=_q(floor["to_node_ms"]), floor_in_node=_q(floor["in_node_ms"]),
-            above_p50=f"{n['p50'] - f['p50']:+.3f}", above_p99=f"{n['p99'] - f['p99']:+.3f}",
-            floor_share=(f"{100 * f['p50'] / t50:.0f} % of the p50 target and " if t50 else "")
-            + f"{100 * f['p99'] / t99:.0f} % of the p99 target"))
-    return out + [""]
+    return [prose("outputs", "paths"),
+            table(["manipulator", "process", "rate", "sent / poses", "wrong", "written -> read p50 / p99 / max (ms)",
+                   "p50 / p99 against the targets", "above the floor p50 / p99 (ms)", "written -> taken p50 / p99 (ms)",
+                   "taken -> read p50 / p99 (ms)", "process CPU", "process summary"], body), prose("outputs", "targets")]
 
 
 def section(res, md_path=None) -> list[str]:
     """The section of BENCHMARKS.md from ``res["outputs"]`` (nothing when it did not run)."""
-    from .report import prose
+    from .report import md_blocks, prose
     from .scenarios import END_TO_END_TARGET_MS, LABEL
     o = res.get("outputs")
     if not o:
@@ -340,29 +277,28 @@ def section(res, md_path=None) -> list[str]:
     targets = "; ".join(f"{LABEL[key]} " + " and ".join(f"{q} ≤ {v:g} ms" for q, v in zip(("p50", "p99"), pair)
                                                          if v is not None)
                         for key, pair in END_TO_END_TARGET_MS.items() if key in o["keys"])
-    out = [HEADING, "", prose("outputs", extras_target=f"{EXTRAS_TARGET_US:g}", e2e_targets=targets), ""]
-    out += _costs(o["costs"], o["pace_s"]) + _paths(o["paths"])
-    if p := o.get("profile"):
+    out = [prose("outputs", extras_target=f"{EXTRAS_TARGET_US:g}", e2e_targets=targets)]
+    out += _costs(o["costs"]) if o["costs"] else []
+    out += _paths(o["paths"]) if o["paths"] else []
+    if p := o["profile"]:
         body = [*[[f"one Cyclone DDS write, {what}", _q(p[key]["cpu_us"], 1), _q(p[key]["wall_us"], 1)]
                   for key, what in (("write_alone", "no reader"), ("write_remote", "a reader in another process"))],
-                [f"Python thread wake-up round trip (`{p.get('wake_with', 'threading.Event')}`)", MISSING,
-                 _q(p["wake_us"], 1)]]
-        out += [prose("outputs", "profile", samples=p["samples"]), "",
-                table(["step", "CPU µs (p50 / p99)", "wall µs (p50 / p99)"], body), "",
-                prose("outputs", "profile_reading", write_remote=_q(p["write_remote"]["cpu_us"], 1, ("p50",)),
-                      write_alone=_q(p["write_alone"]["cpu_us"], 1, ("p50",)), wake=_q(p["wake_us"], 1, ("p50",))), ""]
-    if o.get("rclpy"):
-        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}",
-                 f"{100 * r['answered']:.1f} %", r["dropped"], r["wrong"], f"{r['p50']:.3f} / {r['p99']:.3f}",
-                 f"{r['cpu_us_per_input']:.0f}"] for r in o["rclpy"]]
-        setup = o["rclpy_setup"]
+                ["Python thread wake-up round trip (`queue.SimpleQueue`)", MISSING, _q(p["wake_us"], 1)]]
+        out += [prose("outputs", "profile", samples=p["samples"]),
+                table(["step", "CPU µs (p50 / p99)", "wall µs (p50 / p99)"], body),
+                prose("outputs", "profile_reading")]
+    if isinstance(o["rclpy"], str):
+        out.append(prose("outputs", "rclpy_not_run", reason=o["rclpy"]))
+    elif o["rclpy"]:
+        setup, rows = o["rclpy"]
+        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}", f"{100 * r['answered']:.1f} %",
+                 r["dropped"], r["wrong"], f"{r['p50']:.3f} / {r['p99']:.3f}", f"{r['cpu_us_per_input']:.0f}"]
+                for r in rows]
         out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
-                      seconds=f"{setup['seconds']:g}"), "",
+                      seconds=f"{setup['seconds']:g}"),
                 table(["variant", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
-                       "latency p50 / p99 (ms)", "node CPU µs per input"], body), ""]
-    elif o.get("rclpy_reason"):
-        out += [prose("outputs", "rclpy_not_run", reason=o["rclpy_reason"]), ""]
-    return out
+                       "latency p50 / p99 (ms)", "node CPU µs per input"], body)]
+    return md_blocks(HEADING, *out)
 
 
 if __name__ == "__main__":

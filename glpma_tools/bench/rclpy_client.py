@@ -1,10 +1,8 @@
-"""The outputs section's part 4, the rclpy adapter (importable where rclpy is): :func:`variants` runs the
-node in this process under each set-up of :data:`VARIANTS` against the client, this module run as a process
-(``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``): it publishes
-``leg_lengths`` along the simulated loop at ``RATE_HZ`` for ``SECONDS``, takes ``pose_estimate`` (and, with
-``EXTRAS`` = ``extras``, ``/tf`` and ``pose_estimate_cov``, as any TF listener or RViz does), pairs each pose
-with its input (:func:`~glpma_tools.bench.outputs.answers`; ``VARIANT`` = ``echo``: the echo floor's poses
-carry their legs) and prints: inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
+"""Part 4 of the ``outputs`` section, the rclpy adapter (imported only where rclpy is): :func:`variants` runs
+the node in this process under each set-up of :data:`VARIANTS` against :func:`main`, the client, in a process
+of its own: it publishes ``leg_lengths`` along the simulated loop, takes ``pose_estimate`` (and ``/tf`` and
+``pose_estimate_cov`` as any TF listener or RViz does, where asked), pairs each pose with its input and prints
+inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
 from __future__ import annotations
 
 import subprocess
@@ -24,8 +22,8 @@ from tf2_msgs.msg import TFMessage
 
 from glpma_ros.node.dds import cdr
 from glpma_ros.node.ros_node import FkNode
-from glpma_tools.bench.dds import END_TO_END
-from glpma_tools.bench.outputs import answers, params_of
+from glpma_tools.bench.dds import END_TO_END, params_of
+from glpma_tools.bench.outputs import answers
 from glpma_tools.sim.controller import Sent
 from glpma_tools.sim.echo_node import POSE_NUMBERS
 from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
@@ -133,11 +131,12 @@ def variants(sc, seconds: float, domain) -> tuple[dict, list[dict]]:
 
 
 def main(argv=None) -> int:
-    """The client process."""
+    """The client process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``
+    (``EXTRAS`` = ``extras``: also subscribe to ``/tf`` and ``pose_estimate_cov``; ``VARIANT`` = ``echo``:
+    the poses carry the legs they answer)."""
     config, rate, seconds, extras, variant = (argv or sys.argv[1:])[:5]
-    rate, seconds = float(rate), float(seconds)
-    plan = Plan(config)
-    samples = [plan.sample(i / rate) for i in range(int(rate * seconds))]
+    rate, plan = float(rate), Plan(config)
+    samples = [plan.sample(i / rate) for i in range(int(rate * float(seconds)))]
     rclpy.init()
     node = rclpy.create_node("glpma_fk_bench_client")
     received = []
@@ -165,9 +164,9 @@ def main(argv=None) -> int:
         sent.append(Sent(time.time_ns(), legs, position, quaternion))
         pub.publish(msg)
     time.sleep(SETTLE_S)
-    index, paired, wrong = answers(plan, sent, list(received), variant == "echo")
-    latency = np.array([(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)])
-    print(len(sent), len(received), np.percentile(latency, 50), np.percentile(latency, 99), wrong, flush=True)
+    index, paired, wrong, _ = answers(plan, sent, list(received), variant == "echo")
+    latency = [(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)]
+    print(len(sent), len(received), *np.percentile(latency, [50, 99]), wrong, flush=True)
     executor.shutdown()
     rclpy.try_shutdown()
     return 0

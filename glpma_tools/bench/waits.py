@@ -1,11 +1,6 @@
-"""How long an input waits for anything but its own solve, in-process.
-
-An input's wall time in the solving thread is its own work (the thread's CPU time) plus the time the thread
-did not run: *blocked* (waiting for a lock or for the interpreter held by another thread of the node) or
-*runnable* but waiting for a CPU the machine gave another process (the kernel's run delay).  Per input,
-``blocked = wall - thread CPU - run delay`` is the wait the node causes itself, in each of :data:`SETUPS`
-(what they run and why: ``templates/waits.md``); rounds alternate between the setups and the quietest
-round of each (fewest inputs over :data:`SLOW_S`) is reported, as the machine's load varies."""
+"""The ``waits`` section: how long an input waits in-process for anything but its own solve (*blocked* =
+wall - thread CPU - the kernel's run delay), in each of three setups (what they run and why:
+``templates/waits.md``), the quietest of alternating rounds reported; and :func:`timed`, which times calls."""
 from __future__ import annotations
 
 import os
@@ -20,6 +15,7 @@ from glpma_ros.node.loops import ReportLoop, SolveLoop
 from glpma_ros.node.service import FkService
 from glpma_tools.tables import fmt, table
 
+from .dds import SHIPPED_ON
 from .scenarios import load
 
 #: period of the reporting thread of ``handle + reports`` (s): 200x the node's default diagnostics rate,
@@ -33,10 +29,8 @@ SLOW_S = 0.3e-3
 TAIL = 99.9
 #: the goal for the tail of the wait (us)
 WAIT_GOAL_US = 20.0
-SETUPS = ("handle", "handle + reports", "node at 1 kHz")
 #: parameters of the measured node: the shipped 3-RPR, with the extra outputs of the last setup
 PARAMS = {"manipulator_config": str(config_dir() / "planar_3rpr_seed.yaml")}
-EXTRAS = {"publish_tf": True, "publish_covariance": True, "publish_twist": True}
 #: seconds to wait for the extras thread to finish a round's poses
 FLUSH_S = 10.0
 #: the columns of a row (us): the series and its percentile (100: the largest)
@@ -45,23 +39,24 @@ COLUMNS = {"wall p50 us": ("wall", 50), "wall p99.9 us": ("wall", TAIL), "off-cp
            "blocked max us": ("blocked", 100)}
 
 
-def _round(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Wall time, thread CPU time and run delay (s) of ``call(legs, stamp_ns)`` per input, the
-    inputs ``period_s`` apart (0: back to back)."""
+def timed(call, inputs, period_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Wall time, thread CPU time and run delay (s) of ``call(*item)`` per item of ``inputs``, the calls
+    ``period_s`` apart (0: back to back)."""
     wall, cpu, delay = (np.empty(len(inputs)) for _ in range(3))
     schedstat = f"/proc/self/task/{threading.get_native_id()}/schedstat"
     fd = os.open(schedstat, os.O_RDONLY) if os.path.exists(schedstat) else None
 
     def run_delay() -> int:     # the second field of the thread's schedstat; 0 where the kernel does not say
         return 0 if fd is None else int(os.pread(fd, 128, 0).split()[1])
+
     start = time.perf_counter()
     try:
-        for k, legs in enumerate(inputs):
+        for k, item in enumerate(inputs):
             if period_s:
                 time.sleep(max(0.0, start + k * period_s - time.perf_counter()))
             d0 = run_delay()
             t0, c0 = time.perf_counter_ns(), time.thread_time_ns()
-            call(legs, k + 1)
+            call(*item)
             c1, t1 = time.thread_time_ns(), time.perf_counter_ns()
             wall[k], cpu[k], delay[k] = (t1 - t0) * 1e-9, (c1 - c0) * 1e-9, (run_delay() - d0) * 1e-9
     finally:
@@ -78,11 +73,11 @@ def _row(setup, wall, cpu, delay, reports) -> dict:
 
 
 def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD_S) -> list[dict]:
-    """The quietest of ``rounds`` rounds of ``inputs`` inputs per setup (:data:`SETUPS`)."""
+    """The quietest of ``rounds`` rounds of ``inputs`` inputs per setup, a row each."""
     service = FkService(PARAMS)
     service.warm_up()
-    legs = [tuple(legs) for legs in load("3rpr").along(inputs)[1] * service.metres_per_unit]
-    node = FkService({**PARAMS, **EXTRAS})
+    legs = [(tuple(legs), k + 1) for k, legs in enumerate(load("3rpr").along(inputs)[1] * service.metres_per_unit)]
+    node = FkService({**PARAMS, **SHIPPED_ON})
     node.warm_up()
     loop = SolveLoop(node, lambda pose: None, publish_extras=lambda extras: None)
     # setup -> (the service reported on, report period (None: no reports), the call, the input period)
@@ -96,7 +91,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                 made: list = []
                 reporter = ReportLoop(svc, made.append, report_period).start() if report_period else None
                 try:
-                    wall, cpu, delay = _round(call, legs, input_period)
+                    wall, cpu, delay = timed(call, legs, input_period)
                 finally:
                     if reporter:
                         reporter.stop()
@@ -105,7 +100,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
                 best[setup] = min(best.get(setup, row), row, key=lambda r: r["slow"])     # the first of the quietest
     finally:
         loop.stop()
-    return [best[s] for s in SETUPS]
+    return list(best.values())
 
 
 def section(res, md_path=None) -> list[str]:
