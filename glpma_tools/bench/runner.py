@@ -7,7 +7,10 @@ import shlex
 import sys
 import tempfile
 import time
+from datetime import datetime, timezone
 from pathlib import Path
+
+import psutil
 
 from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
@@ -117,15 +120,10 @@ def _peer_runs(args, counts, key) -> dict:
                                                       "Python overhead per run)" for n in PEER_HEXAPOD_RUNS}}
 
 
-def _load_average() -> str:
-    try:
-        return "/".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        return "n/a"
-
-
 @command_main
 def main(argv=None) -> int:
+    """``glpma-fk bench``: the sections asked for, in this order, then the figures and the report (or only these,
+    from the measurements ``--render`` reads)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--"]:          # `glpma-fk bench -- --quick` (the CLI passes the rest through)
         argv = argv[1:]
@@ -136,16 +134,17 @@ def main(argv=None) -> int:
     if unknown:
         raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
                          f"choose from {', '.join(solvers.SOLVERS)}")
+    stress_figures = _reliability(args.reliability)       # before hours of measurements: it may not read
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, modes, offline, outputs, report, timing, tracking, waits
+    from . import dds, modes, offline, outputs, timing, tracking, waits
     from . import experiments as ex
     from .scenarios import load
 
     t_start = time.perf_counter()
 
     def say(msg, section=None):
-        if section:
-            res["load"].append((section, _load_average()))
+        if section:         # the load average at the start of each section, for the report's header
+            res["load"].append((section, "/".join(f"{v:.2f}" for v in psutil.getloadavg())))
         print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     out_dir, args.markdown = output_paths(args)
@@ -153,11 +152,12 @@ def main(argv=None) -> int:
     if args.render:                 # the models hold compiled functions: the pickle names the scenarios
         saved = pickle.loads(args.render.read_bytes())
         saved.update(scenarios={k: load(k) for k in saved["scenarios"]}, figures={})
-        return finish(saved, args, out_dir, say)
+        return finish(saved, args, out_dir, say, stress_figures)
     sections, progress = set(args.sections or SECTIONS), not args.no_progress
     scenarios = {k: load(k) for k in args.only or ["3rpr", "hexapod"]}
     runs, hex_runs, listed = counts["runs"], counts["hexapod_runs"], list(scenarios.values())
-    res = {"date": report.timestamp(), "machine": machine(), "revision": git_revision(), "quick": args.quick,
+    res = {"date": datetime.now(timezone.utc).astimezone().strftime("%Y-%m-%d %H:%M %Z"), "machine": machine(),
+           "revision": git_revision(), "quick": args.quick,
            # the canonical command, and the command line this process was started with
            "command": (shlex.join(["glpma-fk", "bench", *argv]), shlex.join(getattr(sys, "orig_argv", sys.argv))),
            "scenarios": scenarios, "tables": {}, "peers": {}, "gap": None, "all_solutions": {}, "tracking": {},
@@ -207,39 +207,32 @@ def main(argv=None) -> int:
         res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick,
                                          hexapod="hexapod" in scenarios)
     res["wall_s"] = time.perf_counter() - t_start
-    if args.save_data:
-        save(res, args.save_data)
+    code = finish(res, args, out_dir, say, stress_figures)
+    if args.save_data:              # the models hold compiled functions: a render loads them again by their keys
+        args.save_data.write_bytes(pickle.dumps({**res, "scenarios": list(scenarios), "figures": {}}))
         say(f"saved the measurements to {args.save_data}")
-    return finish(res, args, out_dir, say)
+    return code
 
 
-def save(res, path):
-    """Pickle the measurements; a part that cannot be pickled is left out with a notice."""
-    data = {**res, "scenarios": list(res["scenarios"])}     # the keys: a render loads them again
-    for key in list(data):
-        try:
-            pickle.dumps(data[key])
-        except Exception as exc:  # noqa: BLE001 - the report matters more than the pickle
-            print(f"bench: --save-data leaves out {key!r} ({type(exc).__name__}: {exc})", file=sys.stderr)
-            data[key] = {} if isinstance(data[key], dict) else []
-    Path(path).write_bytes(pickle.dumps(data))
+def _reliability(path: Path) -> tuple[dict | None, str]:
+    """The figures ``glpma-fk stress`` wrote to ``path`` (None: none yet), and where they are, for the report."""
+    from glpma_tools.stress.report import read_json
+    try:
+        figures = read_json(path)
+    except (OSError, ValueError) as exc:
+        raise GlpmaError(f"glpma-fk bench: cannot read {path}: {exc}") from exc
+    path = path.resolve()
+    return figures, str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
 
 
-def finish(res, args, out_dir, say) -> int:
-    """Figures and the report from the measurements."""
+def finish(res, args, out_dir, say, reliability) -> int:
+    """Figures and the report from the measurements; ``reliability``: :func:`_reliability`'s."""
     from . import plots, report
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
         say("figures")
         res["figures"] = plots.draw(res, out_dir)
-    try:
-        stress_figures = report.load_reliability(args.reliability)
-    except (OSError, ValueError) as exc:
-        print(f"error: glpma-fk bench: cannot read {args.reliability}: {exc}", file=sys.stderr)
-        return 2
-    rpath = args.reliability.resolve()
-    source = str(rpath.relative_to(REPO_ROOT)) if rpath.is_relative_to(REPO_ROOT) else str(rpath)
     args.markdown.parent.mkdir(parents=True, exist_ok=True)
-    args.markdown.write_text(report.render(res, args.markdown, stress_figures, source))
+    args.markdown.write_text(report.render(res, args.markdown, *reliability))
     say(f"wrote {args.markdown}")
     return 0
