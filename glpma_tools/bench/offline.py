@@ -1,50 +1,57 @@
-"""Offline tools through their command-line entry points, as a user runs them: ``glpma-fk bag`` on a recorded
-3-RPR run (throughput, where its time goes) and on a fleet of bags per engine; ``glpma-fk map`` on each engine
-(local processes, a Dask ``LocalCluster``) and its counting methods compared; ``glpma-fk calibrate``'s time and
-accuracy on simulated data."""
+"""Offline tools through their entry points, as a user runs them: ``glpma-fk bag`` (throughput, where its time goes,
+a fleet of bags), ``glpma-fk map`` (on each engine, its counting methods), ``glpma-fk calibrate`` (time, accuracy)."""
 from __future__ import annotations
 
 import contextlib
 import io
 import json
+import logging
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.config import config_dir
-from glpma_tools.bag_run import FLOAT64_MULTI_ARRAY
+from glpma_ros.config import config_dir, load_document, model_from_dict
+from glpma_ros.estimator import Estimator
+from glpma_ros.exact import ExactUnavailableError, msolve_executable
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from glpma_ros.node import params as P
+from glpma_ros.node.dds import cdr
+from glpma_ros.node.ros_args import parse_ros_args
+from glpma_ros.node.service import FkService
+from glpma_tools import bag, workspace_map
+from glpma_tools.bag_run import FLOAT64_MULTI_ARRAY, OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
+from glpma_tools.calibrate import main as calibrate_main
+from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
+from glpma_tools.sim.trajectories import start_pose
 
 from .dds import params_file
 from .report import dict_table, key_values, md_blocks, prose
+from .scenarios import load
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
-#: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default before the
-#: multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
-COMPARE_RUNS = 50
-EXACT_POINTS = 50
+#: the counting methods compared: G3-PCX runs per point (the papers' way) and the points msolve certifies
+#: (glpma-fk map --exact); --quick: QUICK_RUNS each
+COMPARE_RUNS = EXACT_POINTS = 50
 QUICK_RUNS = 5
-#: the fleet: bags and inputs per bag
+#: the bags of the fleet
 FLEET_BAGS = 4
 #: log time of the first message and the period of the recorded legs (1 kHz)
-T0_NS = 1_700_000_000_000_000_000
-PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each this many times
-#: (the median and the smallest are reported: a shared machine only adds time)
-CALIBRATION_SIZES = (200, 10_000)
-CALIBRATION_REPEATS = 5
-#: fresh true poses at which the forward kinematics with the nominal and the calibrated config is compared with truth
-CALIBRATION_FK_POSES = 20
+T0_NS, PERIOD_NS = 1_700_000_000_000_000_000, 1_000_000
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22), each this many times (the median and
+#: the smallest are reported: a shared machine only adds time); its forward kinematics checked at fresh true poses
+CALIBRATION_SIZES, CALIBRATION_REPEATS, CALIBRATION_FK_POSES = (200, 10_000), 5, 20
 PARAMS_3RPR = ["--ros-args", "--params-file", str(params_file("planar_3rpr"))]
-#: the stand-in for a status message in the breakdown's writes (bytes)
+#: what the breakdown writes per input, as glpma-fk bag does: the input's copy, the pose, /tf and a status (a
+#: stand-in of this many bytes)
+WRITTEN = ("/leg_lengths", "/pose", "/tf", "/status")
 STATUS_BYTES = 100
 
 
 def _recorded_legs(n: int) -> np.ndarray:
     """``n`` leg readings (metres) along the simulated loop of the seed 3-RPR."""
-    from .scenarios import load
     sc = load("3rpr")
     return sc.along(n)[1] * sc.model.metres_per_unit
 
@@ -99,14 +106,6 @@ def bag_breakdown(messages: int) -> dict:
     poses per second of wall and of CPU time; and where its CPU time goes per input (µs), one part of its loop at a
     time on the same inputs: reading the bag, decoding the legs, the node's service (validation, estimator,
     statistics), the assembly-mode watch, encoding the pose and /tf, writing the four messages of an input."""
-    import logging
-
-    from glpma_ros.node import params as P
-    from glpma_ros.node.dds import cdr
-    from glpma_ros.node.ros_args import parse_ros_args
-    from glpma_ros.node.service import FkService
-    from glpma_tools import bag
-    from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
     ts = _typestore()
     values, _ = P.resolve({**parse_ros_args(PARAMS_3RPR).overrides, "time_budget_ms": OFFLINE_BUDGET_MS})
     service = FkService(values, logger=logging.getLogger("bench.bag"), node_name="glpma_fk")
@@ -125,11 +124,9 @@ def bag_breakdown(messages: int) -> dict:
         for o in outcomes:
             w(o.estimate.x, o.legs)
 
-    def encoded(t, raw, pose):
-        return [(f"/t{k}", t, data) for k, data in enumerate((
-            raw, encode.pose_stamped(pose.stamp_ns, "base", pose.position, pose.orientation),
-            encode.tf_message(pose.stamp_ns, "base", "platform", pose.position, pose.orientation),
-            bytes(STATUS_BYTES)))]
+    def encoded(pose):
+        return (encode.pose_stamped(pose.stamp_ns, "base", pose.position, pose.orientation),
+                encode.tf_message(pose.stamp_ns, "base", "platform", pose.position, pose.orientation))
     with tempfile.TemporaryDirectory(prefix="glpma_bench_bag_") as tmp:
         src = Path(tmp) / "recorded"
         _write_legs_bag(src, _recorded_legs(messages), ts)
@@ -138,9 +135,10 @@ def bag_breakdown(messages: int) -> dict:
         outcomes = timed("the node's service (validate, estimate, statistics)",
                          lambda: [service.handle(legs_m, t) for legs_m, (t, _) in zip(legs, raws)])
         timed("assembly-mode watch", lambda: watch(outcomes))
-        records = timed("encode pose and /tf", lambda: [r for (t, raw), o in zip(raws, outcomes)
-                                                        for r in encoded(t, raw, o.pose)])
-        timed("write 4 messages (rosbags MCAP writer)", lambda: _write_bag(Path(tmp) / "written", records, ts))
+        poses = timed("encode pose and /tf", lambda: [encoded(o.pose) for o in outcomes])
+        timed("write 4 messages (rosbags MCAP writer)", lambda: _write_bag(Path(tmp) / "written", (
+            (topic, t, data) for (t, raw), (pose, tf) in zip(raws, poses)
+            for topic, data in zip(WRITTEN, (raw, pose, tf, bytes(STATUS_BYTES)))), ts))
         wall, _, summary = _run_json(bag.main, [str(src), str(Path(tmp) / "estimated"), "--json", "--no-progress",
                                                 *PARAMS_3RPR])
     per_cpu_s = summary["converged"] / summary["cpu_s"] if summary["cpu_s"] else None
@@ -169,7 +167,6 @@ def _engines(workers=MAP_WORKERS):
 def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
     """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each engine: wall
     time and whether every engine wrote the same statuses."""
-    from glpma_tools import bag
     each, ts = max(1, messages // bags), _typestore()
     legs_m = _recorded_legs(each * bags)
     rows, statuses = [], []
@@ -190,7 +187,6 @@ def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
 def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple]:
     """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each point
     (shape 2 x rows x columns) and the grid's axes."""
-    from glpma_tools import workspace_map
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
         # with --exact, exit status 1 says a count differs from msolve's: a result, reported in the table
         wall, _, summary = _run_json(workspace_map.main, [config, "--out", tmp, "--no-progress", "--json", *options],
@@ -220,7 +216,6 @@ def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_PO
     """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers' ``runs``
     polished G3-PCX searches per point; where they differ, and msolve's certified count at ``exact`` points of the
     multistart's map (``--exact``) when the extra is installed."""
-    from glpma_ros.exact import ExactUnavailableError, msolve_executable
     options = ["--resolution", str(resolution), "--workers", str(max(MAP_WORKERS))]
     wall_g, _, (g, _), _ = _map_run("planar_3rpr_seed", [*options, "--method", "g3pcx", "--runs", str(runs)])
     try:
@@ -254,8 +249,6 @@ def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod
 def _fk_error(model, sim, legs, p, R) -> float:
     """The largest displacement of a platform joint between the forward kinematics (the node's estimator, started at
     the true pose) of ``legs`` with ``model`` and the true pose ``p, R``."""
-    from glpma_ros.estimator import Estimator
-    from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
     d = len(p)
     R3 = np.eye(3)
     R3[:d, :d] = R
@@ -272,10 +265,6 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
     NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
     kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses: rows
     under the report's column names."""
-    from glpma_ros.config import load_document, model_from_dict
-    from glpma_tools.calibrate import main as calibrate_main
-    from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
-    from glpma_tools.sim.trajectories import start_pose
     rows = []
     for name in ("planar_3rpr_seed", "hexapod_66_rolland"):
         path = config_dir() / f"{name}.yaml"

@@ -19,7 +19,7 @@ from glpma_tools.timing import REPO_ROOT, git_revision, machine
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
             "offline")
 
-#: run counts: option -> (full, --quick, type, what it counts); 0 skips what it counts
+#: run counts (and the tracking budget): option -> (full, --quick, type, what it counts); 0 skips what it counts
 DEFAULTS = {
     "runs": (100, 10, int, "runs per configuration of ours, every row but the pure hexapod ones"),
     "hexapod_runs": (100, 5, int, "runs per pure hexapod configuration (up to 500,000 evaluations each)"),
@@ -45,9 +45,12 @@ DEFAULTS = {
     "map_resolution": (101, 8, int, "points per axis of the glpma-fk map grids, 3-RPR and 6-6 slice "
                        "(the command's default)"),
     "table2_runs": (50, 5, int, "runs per 004 Table II row (paper: 50)"),
+    "solve_all_runs": (100, 100, int, "searches per solve_all (paper: 100)"),
+    "track_budget_ms": (20.0, 20.0, float, "Estimator time budget while tracking, so latency is not clipped"),
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
+QUICK_SKIP = "skipped in --quick (500,000 evaluations of Python overhead per run)"
 #: where a full run writes its report and figures, and reads the stress test's figures
 DEFAULT_MARKDOWN = REPO_ROOT / "BENCHMARKS.md"
 DEFAULT_OUT = REPO_ROOT / "doc" / "bench"
@@ -55,6 +58,7 @@ DEFAULT_RELIABILITY = DEFAULT_OUT / "reliability.json"
 
 
 def build_parser() -> OneLineParser:
+    """The options; the run counts from :data:`DEFAULTS`."""
     p = OneLineParser(
         prog="glpma-fk bench",
         description="Reproduce the papers' tables (001 Tables 5 and 8, 002's all-solutions experiment) against "
@@ -66,14 +70,11 @@ def build_parser() -> OneLineParser:
     p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", help="restrict to these manipulators")
     p.add_argument("--sections", choices=SECTIONS, nargs="+",
                    help=f"run only these sections (default: all of {', '.join(SECTIONS)})")
-    p.add_argument("--track-budget-ms", type=float, default=20.0,
-                   help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
     p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
     p.add_argument("--deadline-solvers", nargs="+", metavar="SOLVER",
                    help="solvers of the deadline section (default: every registered solver)")
-    p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     for name, (full, quick, kind, what) in DEFAULTS.items():
-        default = "" if full is None else f" (default {full:,}; --quick {quick:,})"
+        default = "" if full is None else f" (default {full:,g}; --quick {quick:,g})"
         p.add_argument("--" + name.replace("_", "-"), type=kind, metavar="N", help=what + default)
     p.add_argument("--out", type=Path,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
@@ -102,6 +103,7 @@ def output_paths(args) -> tuple[Path, Path]:
 
 
 def _count(args, name):
+    """The option ``name``'s value, else its default for a full or a --quick run."""
     value = getattr(args, name)
     if value is not None and value < 0:
         raise GlpmaError(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
@@ -110,14 +112,11 @@ def _count(args, name):
 
 def _peer_runs(args, counts, key) -> dict:
     """Runs per peer on manipulator ``key`` (and why a peer does not run, under ``<peer>_why``)."""
-    if key != "hexapod":
-        return dict.fromkeys(PEER_HEXAPOD_RUNS, counts["peer_runs"])
-    if args.peer_hexapod_runs is not None:
-        return dict.fromkeys(PEER_HEXAPOD_RUNS, args.peer_hexapod_runs)
-    if not args.quick:
-        return dict(PEER_HEXAPOD_RUNS)
-    return {**dict.fromkeys(PEER_HEXAPOD_RUNS, 0), **{f"{n}_why": "skipped in --quick (500,000 evaluations of "
-                                                      "Python overhead per run)" for n in PEER_HEXAPOD_RUNS}}
+    n = counts["peer_hexapod_runs" if key == "hexapod" else "peer_runs"]
+    runs = dict(PEER_HEXAPOD_RUNS) if n is None else dict.fromkeys(PEER_HEXAPOD_RUNS, n)
+    if key == "hexapod" and args.quick and args.peer_hexapod_runs is None:
+        runs.update({f"{name}_why": QUICK_SKIP for name in PEER_HEXAPOD_RUNS})
+    return runs
 
 
 @command_main
@@ -174,7 +173,7 @@ def main(argv=None) -> int:
         res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
     for k, sc in scenarios.items() if "solve-all" in sections else ():
         say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
-        res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
+        res["all_solutions"][k] = ex.all_solutions(sc, counts["solve_all_runs"], max(1, counts["solve_all_repeats"]),
                                                    progress)
     if "solve-all" in sections:
         say("all real assembly modes: multistart, msolve, G3-PCX", "solve-all modes")
@@ -182,7 +181,7 @@ def main(argv=None) -> int:
                                                 progress)
     for k, sc in scenarios.items() if "tracking" in sections else ():
         say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
-        res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
+        res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), counts["track_budget_ms"], progress)
         res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
