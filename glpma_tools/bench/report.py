@@ -108,8 +108,6 @@ def summary_section(res, md_path) -> list[str]:
 
 def measured_apart(md_path) -> list[str]:
     """The Markdown of :data:`APART` that exists beside ``md_path`` (the repository root's BENCHMARKS.md)."""
-    if md_path is None:
-        return []
     paths = [Path(os.path.dirname(os.path.abspath(md_path)), name) for name in APART]
     return md_blocks(*(p.read_text(encoding="utf-8").rstrip() for p in paths if p.is_file()))
 
