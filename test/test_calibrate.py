@@ -560,11 +560,12 @@ def test_benchmark_section_measures_and_renders():
     its figures, the calibrated forward kinematics beats the nominal one, the table renders."""
     from glpma_tools.bench.offline import calibration, calibration_section
     rows = calibration(sizes=(120,), repeats=1, fk_poses=2)
-    assert [r["manipulator"] for r in rows] == ["planar_3rpr_seed", "hexapod_66_rolland"]
+    assert [r["config"] for r in rows] == ["planar_3rpr_seed", "hexapod_66_rolland"]
     for r in rows:
         assert r["measurements"] == 120 and r["fitted"] == 96
         assert r["FK error calibrated mm (median / max)"][1] < r["FK error nominal mm (median / max)"][0]
-        assert r["held-out RMS after mm"] < r["held-out RMS before mm"]
+        before, after = r["held-out leg RMS mm (before / after)"]
+        assert after < before
     text = "\n".join(calibration_section(rows))
     assert "### Calibration" in text and text.count("| hexapod_66_rolland |") == 1
 

@@ -1,65 +1,92 @@
-"""Offline tools, each through its command-line entry point as a user runs it: ``glpma-fk bag`` throughput on a
-recorded 3-RPR run and where its time goes, a fleet of bags on each engine; ``glpma-fk map``: the default 3-RPR map
-and a 6-6 slice on local processes and on a Dask cluster (a ``LocalCluster`` of as many workers as local processes),
-the multistart's mode counts against the papers' G3-PCX runs and msolve's certified counts; ``glpma-fk calibrate``'s
-time and accuracy on simulated data."""
+"""Offline tools through their entry points, as a user runs them: ``glpma-fk bag`` (throughput, where its time goes,
+a fleet of bags), ``glpma-fk map`` (on each engine, its counting methods), ``glpma-fk calibrate`` (time, accuracy)."""
 from __future__ import annotations
 
 import contextlib
 import io
 import json
+import logging
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.config import config_dir
-from glpma_tools.tables import fmt, table
+from glpma_ros.config import config_dir, load_document, model_from_dict
+from glpma_ros.estimator import Estimator
+from glpma_ros.exact import ExactUnavailableError, msolve_executable
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from glpma_ros.node import params as P
+from glpma_ros.node.dds import cdr
+from glpma_ros.node.ros_args import parse_ros_args
+from glpma_ros.node.service import FkService
+from glpma_tools import bag, workspace_map
+from glpma_tools.bag_run import FLOAT64_MULTI_ARRAY, OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
+from glpma_tools.calibrate import main as calibrate_main
+from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
+from glpma_tools.sim.trajectories import start_pose
 
 from .dds import params_file
-from .report import md_blocks, prose
+from .report import dict_table, key_values, md_blocks, prose
+from .scenarios import load
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
-#: the comparison of the counting methods: G3-PCX runs per point (the papers' way, the maps' default before the
-#: multistart) and the points certified by msolve (glpma-fk map --exact); --quick: QUICK_RUNS each
-COMPARE_RUNS = 50
-EXACT_POINTS = 50
+#: the counting methods compared: G3-PCX runs per point (the papers' way) and the points msolve certifies
+#: (glpma-fk map --exact); --quick: QUICK_RUNS each
+COMPARE_RUNS = EXACT_POINTS = 50
 QUICK_RUNS = 5
-#: the fleet: bags and inputs per bag
+#: the bags of the fleet
 FLEET_BAGS = 4
 #: log time of the first message and the period of the recorded legs (1 kHz)
-T0_NS = 1_700_000_000_000_000_000
-PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22: 200 and 10,000), each this many times
-#: (the median and the smallest are reported: a shared machine only adds time)
-CALIBRATION_SIZES = (200, 10_000)
-CALIBRATION_REPEATS = 5
-#: fresh true poses at which the forward kinematics with the nominal and the calibrated config is compared with truth
-CALIBRATION_FK_POSES = 20
+T0_NS, PERIOD_NS = 1_700_000_000_000_000_000, 1_000_000
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22), each this many times (the median and
+#: the smallest are reported: a shared machine only adds time); its forward kinematics checked at fresh true poses
+CALIBRATION_SIZES, CALIBRATION_REPEATS, CALIBRATION_FK_POSES = (200, 10_000), 5, 20
 PARAMS_3RPR = ["--ros-args", "--params-file", str(params_file("planar_3rpr"))]
+#: what the breakdown writes per input, as glpma-fk bag does: the input's copy, the pose, /tf and a status (a
+#: stand-in of this many bytes)
+WRITTEN = ("/leg_lengths", "/pose", "/tf", "/status")
+STATUS_BYTES = 100
 
 
 def _recorded_legs(n: int) -> np.ndarray:
     """``n`` leg readings (metres) along the simulated loop of the seed 3-RPR."""
-    from .scenarios import load
     sc = load("3rpr")
     return sc.along(n)[1] * sc.model.metres_per_unit
 
 
-def _write_legs_bag(path: Path, legs_m) -> None:
-    """An MCAP rosbag2 with ``/leg_lengths`` (std_msgs/msg/Float64MultiArray, metres) at 1 kHz."""
+def _write_bag(path: Path, records, typestore) -> None:
+    """An MCAP rosbag2 of ``(topic, log time ns, CDR bytes)`` records, each topic a Float64MultiArray."""
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-    ts = get_typestore(Stores.ROS2_JAZZY)
-    T, name = ts.types, "std_msgs/msg/Float64MultiArray"
-    layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
-        conn = w.add_connection("/leg_lengths", name, typestore=ts)
-        for i, row in enumerate(legs_m):
-            msg = T[name](layout=layout, data=np.asarray(row, dtype=float))
-            w.write(conn, T0_NS + i * PERIOD_NS, bytes(ts.serialize_cdr(msg, name)))
+        conns = {}
+        for topic, t, raw in records:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, FLOAT64_MULTI_ARRAY, typestore=typestore)
+            w.write(conns[topic], t, raw)
+
+
+def _write_legs_bag(path: Path, legs_m, typestore) -> None:
+    """A recording of ``/leg_lengths`` (metres) at 1 kHz."""
+    T = typestore.types
+    layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    messages = (T[FLOAT64_MULTI_ARRAY](layout=layout, data=np.asarray(row, dtype=float)) for row in legs_m)
+    _write_bag(path, (("/leg_lengths", T0_NS + i * PERIOD_NS, bytes(typestore.serialize_cdr(m, FLOAT64_MULTI_ARRAY)))
+                      for i, m in enumerate(messages)), typestore)
+
+
+def _read_bag(path: Path, topic: str | None = None) -> list:
+    """``(log time ns, CDR bytes)`` of the messages of the bag at ``path`` (on ``topic``; None: all)."""
+    from rosbags.rosbag2 import Reader
+    with Reader(path) as reader:
+        return [(t, bytes(raw)) for c, t, raw in reader.messages() if topic in (None, c.topic)]
+
+
+def _typestore():
+    """The ROS 2 Jazzy message types of ``rosbags``."""
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
@@ -75,74 +102,51 @@ def _run_json(main, argv, ok=(0,)) -> tuple[float, float, dict]:
 
 
 def bag_breakdown(messages: int) -> dict:
-    """``glpma-fk bag`` on a recorded 3-RPR run of ``messages`` inputs (the node's parameters of
-    ``config/params_3rpr.yaml``): poses per second of wall and of CPU time; and where its CPU time goes, per input
-    (µs): reading the bag, decoding the legs, the node's service (validation, estimator, statistics), the
-    assembly-mode watch, encoding the pose and /tf and writing the four messages of an input (the copy, pose, /tf,
-    status), measured one part at a time on the same run."""
-    import logging
-
-    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    from glpma_ros.node import params as P
-    from glpma_ros.node.dds import cdr
-    from glpma_ros.node.ros_args import parse_ros_args
-    from glpma_ros.node.service import FkService
-    from glpma_tools import bag
-    from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
-    ts = get_typestore(Stores.ROS2_JAZZY)
+    """``glpma-fk bag`` on a recorded 3-RPR run of ``messages`` inputs (``config/params_3rpr.yaml``): its figures,
+    poses per second of wall and of CPU time; and where its CPU time goes per input (µs), one part of its loop at a
+    time on the same inputs: reading the bag, decoding the legs, the node's service (validation, estimator,
+    statistics), the assembly-mode watch, encoding the pose and /tf, writing the four messages of an input."""
+    ts = _typestore()
     values, _ = P.resolve({**parse_ros_args(PARAMS_3RPR).overrides, "time_budget_ms": OFFLINE_BUDGET_MS})
     service = FkService(values, logger=logging.getLogger("bench.bag"), node_name="glpma_fk")
     service.warm_up(solvers=(values["solver"],))
-    encode = cdr.Encoder()          # as glpma-fk bag writes them (the node's codec)
+    encode, cpu_us = cdr.Encoder(), {}          # pose and /tf as glpma-fk bag writes them (the node's codec)
+
+    def timed(part: str, work):
+        """``work()``, its CPU time (this process's) per input kept under ``part``."""
+        c0 = time.process_time()
+        value = work()
+        cpu_us[part] = (time.process_time() - c0) / messages * 1e6
+        return value
+
+    def watch(outcomes):
+        w = BranchWatch(service.model)
+        for o in outcomes:
+            w(o.estimate.x, o.legs)
+
+    def encoded(pose):
+        return (encode.pose_stamped(pose.stamp_ns, "base", pose.position, pose.orientation),
+                encode.tf_message(pose.stamp_ns, "base", "platform", pose.position, pose.orientation))
     with tempfile.TemporaryDirectory(prefix="glpma_bench_bag_") as tmp:
-        src, dst = Path(tmp) / "recorded", Path(tmp) / "estimated"
-        _write_legs_bag(src, _recorded_legs(messages))
-
-        def read(_):
-            with Reader(src) as reader:
-                return [(t, bytes(raw)) for _, t, raw in reader.messages()]
-
-        def watch(outcomes):
-            w = BranchWatch(service.model)
-            for o in outcomes:
-                w(o.estimate.x, o.legs)
-            return outcomes
-
-        def write(encoded):
-            with Writer(Path(tmp) / "written", version=9, storage_plugin=StoragePlugin.MCAP) as w:
-                conns = [w.add_connection(f"/t{k}", "std_msgs/msg/Float64MultiArray", typestore=ts) for k in range(4)]
-                for (t, raw), p, f in encoded:
-                    for conn, data in zip(conns, (raw, p, f, bytes(100))):
-                        w.write(conn, t, data)
-        raws = []
-
-        def decode(read_raws):
-            raws.extend(read_raws)
-            return [decode_float64_multi_array(raw, ts) for _, raw in read_raws]
-        parts = [
-            ("read the bag", read), ("decode the legs", decode),
-            ("the node's service (validate, estimate, statistics)",
-             lambda legs: [service.handle(l, t) for l, (t, _) in zip(legs, raws)]),
-            ("assembly-mode watch", watch),
-            ("encode pose and /tf", lambda outcomes: [
-                (raw, encode.pose_stamped(o.pose.stamp_ns, "base", o.pose.position, o.pose.orientation),
-                 encode.tf_message(o.pose.stamp_ns, "base", "platform", o.pose.position, o.pose.orientation))
-                for raw, o in zip(raws, outcomes)]),
-            ("write 4 messages (rosbags MCAP writer)", write)]
-        per, value = {}, None        # CPU s of this process per part, each part given what the one before returned
-        for name, part in parts:
-            c0 = time.process_time()
-            value = part(value)
-            per[name] = time.process_time() - c0
-        wall, _, summary = _run_json(bag.main, [str(src), str(dst), "--json", "--no-progress", *PARAMS_3RPR])
+        src = Path(tmp) / "recorded"
+        _write_legs_bag(src, _recorded_legs(messages), ts)
+        raws = timed("read the bag", lambda: _read_bag(src))
+        legs = timed("decode the legs", lambda: [decode_float64_multi_array(raw, ts) for _, raw in raws])
+        outcomes = timed("the node's service (validate, estimate, statistics)",
+                         lambda: [service.handle(legs_m, t) for legs_m, (t, _) in zip(legs, raws)])
+        timed("assembly-mode watch", lambda: watch(outcomes))
+        poses = timed("encode pose and /tf", lambda: [encoded(o.pose) for o in outcomes])
+        timed("write 4 messages (rosbags MCAP writer)", lambda: _write_bag(Path(tmp) / "written", (
+            (topic, t, data) for (t, raw), (pose, tf) in zip(raws, poses)
+            for topic, data in zip(WRITTEN, (raw, pose, tf, bytes(STATUS_BYTES)))), ts))
+        wall, _, summary = _run_json(bag.main, [str(src), str(Path(tmp) / "estimated"), "--json", "--no-progress",
+                                                *PARAMS_3RPR])
     per_cpu_s = summary["converged"] / summary["cpu_s"] if summary["cpu_s"] else None
-    run = {"messages": messages, "converged": summary["converged"], "rejected": summary["rejected"],
-           "assembly-mode changes": summary["assembly_mode_changes"], "wall s (incl. warm-up)": wall,
-           "run s": summary["elapsed_s"], "poses/s": summary["poses_per_s"], "poses per CPU s": per_cpu_s}
-    return {"inputs": messages, "CPU µs per input": {k: v / messages * 1e6 for k, v in per.items()},
-            "whole run CPU µs per input": 1e6 / per_cpu_s if per_cpu_s else None, "run": run}
+    cpu_us["the whole run (the parts above plus the loop itself)"] = 1e6 / per_cpu_s if per_cpu_s else None
+    return {"CPU µs per input": cpu_us, "run": {
+        "messages": messages, "converged": summary["converged"], "rejected": summary["rejected"],
+        "assembly-mode changes": summary["assembly_mode_changes"], "wall s (incl. warm-up)": wall,
+        "run s": summary["elapsed_s"], "poses/s": summary["poses_per_s"], "poses per CPU s": per_cpu_s}}
 
 
 @contextlib.contextmanager
@@ -163,34 +167,26 @@ def _engines(workers=MAP_WORKERS):
 def bag_fleet(messages: int, bags: int = FLEET_BAGS) -> dict:
     """``glpma-fk bag`` on ``bags`` recordings of ``messages / bags`` inputs each (``--out-dir``) on each engine: wall
     time and whether every engine wrote the same statuses."""
-    from rosbags.rosbag2 import Reader
-
-    from glpma_tools import bag
-    each = max(1, messages // bags)
+    each, ts = max(1, messages // bags), _typestore()
     legs_m = _recorded_legs(each * bags)
-    rows, outputs = [], []
+    rows, statuses = [], []
     with tempfile.TemporaryDirectory(prefix="glpma_bench_fleet_") as tmp, _engines() as engines:
         fleet = Path(tmp) / "fleet"
         for k in range(bags):
-            _write_legs_bag(fleet / f"run{k}", legs_m[k * each:(k + 1) * each])
-        for label, options in engines:
-            out = Path(tmp) / label.replace(" ", "_").replace(",", "")
+            _write_legs_bag(fleet / f"run{k}", legs_m[k * each:(k + 1) * each], ts)
+        for n, (label, options) in enumerate(engines):
+            out = Path(tmp) / f"out{n}"
             wall, _, summary = _run_json(bag.main, [str(fleet), "--out-dir", str(out), *options, "--json",
                                                     "--no-progress", *PARAMS_3RPR])
             rows.append({"engine": label, "wall s": wall, "converged": summary["total"]["converged"]})
-            digest = []
-            for k in range(bags):
-                with Reader(out / f"run{k}") as r:
-                    digest.append([bytes(raw) for c, _, raw in r.messages() if c.topic == "/glpma_fk/status"])
-            outputs.append(digest)
+            statuses.append([raw for k in range(bags) for _, raw in _read_bag(out / f"run{k}", "/glpma_fk/status")])
     return {"bags": bags, "inputs per bag": each, "runs": rows,
-            "same statuses on every engine": all(o == outputs[0] for o in outputs)}
+            "same statuses on every engine": all(s == statuses[0] for s in statuses)}
 
 
 def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple]:
     """``glpma-fk map CONFIG OPTIONS``: wall s, its JSON summary, the counts with the double modes of each point
     (shape 2 x rows x columns) and the grid's axes."""
-    from glpma_tools import workspace_map
     with tempfile.TemporaryDirectory(prefix="glpma_bench_map_") as tmp:
         # with --exact, exit status 1 says a count differs from msolve's: a result, reported in the table
         wall, _, summary = _run_json(workspace_map.main, [config, "--out", tmp, "--no-progress", "--json", *options],
@@ -201,17 +197,18 @@ def _map_run(config: str, options: list) -> tuple[float, dict, np.ndarray, tuple
 
 def map_scaling(resolution: int, workers=MAP_WORKERS, config: str = "planar_3rpr_seed") -> dict:
     """``glpma-fk map CONFIG`` (default method, the multistart) on a ``resolution``² grid on each engine: wall time
-    (spawning and loading the workers included), points per second, and whether the mode counts (and the double modes
-    of the points on a singularity) are identical."""
-    rows, counts = [], []
+    (spawning and loading the workers included), points per second; the first engine's mode counts (and the points
+    on a singularity), and whether they (and the double modes) are identical on every engine."""
+    rows, counts, summaries = [], [], []
     with _engines(workers) as engines:
         for label, extra in engines:
             wall, summary, c, _ = _map_run(config, ["--resolution", str(resolution), *extra])
             counts.append(c)
+            summaries.append(summary)
             rows.append({"engine": label, "wall s": wall, "points/s": summary["points"] / wall,
-                         "modes": summary["modes"], "on_singularity": summary["on_singularity"],
                          "speed-up": (rows[0]["wall s"] if rows else wall) / wall})
-    return {"config": config, "grid": f"{resolution} x {resolution}", "at": "", "runs": rows,
+    return {"config": config, "grid": f"{resolution} x {resolution}", "runs": rows, "modes": summaries[0]["modes"],
+            "on_singularity": summaries[0]["on_singularity"],
             "identical counts": all(np.array_equal(c, counts[0]) for c in counts)}
 
 
@@ -219,7 +216,6 @@ def map_methods(resolution: int, runs: int = COMPARE_RUNS, exact: int = EXACT_PO
     """The seed 3-RPR map counted both ways on the same grid: the multistart (default) and the papers' ``runs``
     polished G3-PCX searches per point; where they differ, and msolve's certified count at ``exact`` points of the
     multistart's map (``--exact``) when the extra is installed."""
-    from glpma_ros.exact import ExactUnavailableError, msolve_executable
     options = ["--resolution", str(resolution), "--workers", str(max(MAP_WORKERS))]
     wall_g, _, (g, _), _ = _map_run("planar_3rpr_seed", [*options, "--method", "g3pcx", "--runs", str(runs)])
     try:
@@ -253,8 +249,6 @@ def measure(bag_messages: int, map_resolution: int, quick: bool = False, hexapod
 def _fk_error(model, sim, legs, p, R) -> float:
     """The largest displacement of a platform joint between the forward kinematics (the node's estimator, started at
     the true pose) of ``legs`` with ``model`` and the true pose ``p, R``."""
-    from glpma_ros.estimator import Estimator
-    from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
     d = len(p)
     R3 = np.eye(3)
     R3[:d, :d] = R
@@ -269,11 +263,8 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
     """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
     3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
     NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
-    kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses."""
-    from glpma_ros.config import load_document, model_from_dict
-    from glpma_tools.calibrate import main as calibrate_main
-    from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
-    from glpma_tools.sim.trajectories import start_pose
+    kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses: rows
+    under the report's column names."""
     rows = []
     for name in ("planar_3rpr_seed", "hexapod_66_rolland"):
         path = config_dir() / f"{name}.yaml"
@@ -293,64 +284,45 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
             readings = true_readings(sim.truth, fresh.position, fresh.rotation)
             errors = {label: [_fk_error(m, sim, *args) * mm for args in zip(readings, fresh.position, fresh.rotation)]
                       for label, m in (("nominal", model), ("calibrated", calibrated))}
-            rows.append({"manipulator": name, "measurements": size, "fitted": out["fitted"],
-                         "wall s median": float(np.median(walls)), "wall s min": float(min(walls)),
-                         "cpu s median": float(np.median(cpus)),
-                         "identify s median": float(np.median([o["identify_s"] for o in outs])),
-                         "iterations": out["iterations"],
-                         "held-out RMS before mm": out["holdout_rms_before"] * mm,
-                         "held-out RMS after mm": out["holdout_rms_after"] * mm,
+            rows.append({"config": name, "measurements": size, "fitted": out["fitted"],
+                         "command wall s (median / min)": (float(np.median(walls)), float(min(walls))),
+                         "command CPU s": float(np.median(cpus)),
+                         "identification ms": float(np.median([o["identify_s"] for o in outs])) * 1e3,
+                         "Gauss-Newton iterations": out["iterations"],
+                         "held-out leg RMS mm (before / after)": (out["holdout_rms_before"] * mm,
+                                                                  out["holdout_rms_after"] * mm),
                          **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v))
                             for k, v in errors.items()},
                          "weak directions": len(out["weak"])})
     return rows
 
 
-# -- the report's section ----------------------------------------------------------------------------
 def offline_section(res, md_path) -> list[str]:
     """``glpma-fk bag``: throughput, where the time goes, a fleet on each engine; ``glpma-fk map``: the
-    default 3-RPR map and a 6-6 slice on each engine, the counting methods compared (:mod:`.offline`)."""
+    default 3-RPR map and a 6-6 slice on each engine, the counting methods compared; ``glpma-fk calibrate``."""
     o = res["offline"]
-    bag, fleet, methods = o["bag"], o["fleet"], o["methods"]
+    fleet, methods = o["fleet"], o["methods"]
     out = md_blocks(
         "## Offline: bag processing and workspace maps", prose("offline"),
-        table(["glpma-fk bag (3-RPR, MCAP)", "value"],
-              [[k, fmt(v) if isinstance(v, float) else str(v)] for k, v in bag["run"].items()]),
-        table(["where the CPU time of one input goes", "µs"],
-              [[k, fmt(v)] for k, v in bag["CPU µs per input"].items()]
-              + [["the whole run (the parts above plus the loop itself)", fmt(bag["whole run CPU µs per input"])]]),
-        table([f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} inputs)", "wall s",
-               "converged"], [[r["engine"], fmt(r["wall s"]), fmt(r["converged"])] for r in fleet["runs"]]),
+        key_values("glpma-fk bag (3-RPR, MCAP)", o["bag"]["run"]),
+        key_values("where the CPU time of one input goes", o["bag"]["CPU µs per input"], "µs"),
+        dict_table(fleet["runs"], f"glpma-fk bag --out-dir ({fleet['bags']} bags of {fleet['inputs per bag']:,} "
+                                  "inputs)"),
         f"Same statuses on every engine: {'yes' if fleet['same statuses on every engine'] else 'NO'}.")
-    for mp in filter(None, (o["map"], o.get("hexapod map"))):
-        first = mp["runs"][0]
-        sing = first.get("on_singularity") or {}
-        singular = (f"; on a singularity (a double mode): {sum(sing.values()):,} ("
-                    + ", ".join(f"{k} distinct: {v:,}" for k, v in sing.items()) + ")") if sing else ""
-        out += md_blocks(
-            table([f"glpma-fk map {mp['config']} ({mp['grid']}{', ' + mp['at'] if mp['at'] else ''})", "wall s",
-                   "points/s", "speed-up"],
-                  [[r["engine"], fmt(r["wall s"]), fmt(r["points/s"]), fmt(r["speed-up"])] for r in mp["runs"]]),
-            "Mode counts (points per count, first engine): "
-            + ", ".join(f"{k}: {v:,}" for k, v in first["modes"].items())
-            + f"{singular}; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.")
-    out += md_blocks(table([f"counting methods, seed 3-RPR map {methods['grid']}", "value"],
-                           [[k, fmt(v) if isinstance(v, (int, float)) else str(v)]
-                            for k, v in methods.items() if k != "grid"]))
-    return out + (calibration_section(o["calibration"]) if o.get("calibration") else [])
+    for mp in filter(None, (o["map"], o["hexapod map"])):
+        sing = mp["on_singularity"]
+        singular = "; on a singularity (a double mode): {:,} ({})".format(
+            sum(sing.values()), ", ".join(f"{k} distinct: {v:,}" for k, v in sing.items())) if sing else ""
+        out += md_blocks(dict_table(mp["runs"], f"glpma-fk map {mp['config']} ({mp['grid']})"),
+                         "Mode counts (points per count, first engine): "
+                         + ", ".join(f"{k}: {v:,}" for k, v in mp["modes"].items())
+                         + f"{singular}; identical on every engine: {'yes' if mp['identical counts'] else 'NO'}.")
+    out += md_blocks(key_values(f"counting methods, seed 3-RPR map {methods['grid']}",
+                                {k: v for k, v in methods.items() if k != "grid"}))
+    return out + (calibration_section(o["calibration"]) if o["calibration"] else [])
 
 
 def calibration_section(rows) -> list[str]:
     """``glpma-fk calibrate``: time for 200 and 10,000 measurements, accuracy before and after."""
-    body = [[r["manipulator"], f"{r['measurements']:,} ({r['fitted']:,} fitted)", fmt(r["wall s median"]),
-             fmt(r["cpu s median"]), fmt(r["identify s median"] * 1e3), r["iterations"],
-             f"{fmt(r['held-out RMS before mm'])} -> {fmt(r['held-out RMS after mm'])}",
-             " / ".join(fmt(v) for v in r["FK error nominal mm (median / max)"]),
-             " / ".join(fmt(v) for v in r["FK error calibrated mm (median / max)"]), r["weak directions"]]
-            for r in rows]
     return md_blocks("### Calibration", prose("offline", "calibration", repeats=CALIBRATION_REPEATS,
-                                              fk_poses=CALIBRATION_FK_POSES),
-                     table(["config", "measurements", "command wall s", "command CPU s", "identification ms",
-                            "Gauss-Newton iterations", "held-out leg RMS mm, before -> after",
-                            "FK error nominal mm (median / max)", "FK error calibrated mm (median / max)",
-                            "weak directions"], body))
+                                              fk_poses=CALIBRATION_FK_POSES), dict_table(rows))

@@ -4,10 +4,8 @@ experiment's data, ours beside the papers' and the peers' figures, in the report
 from __future__ import annotations
 
 import functools
-import json
 import os
 import re
-from datetime import datetime, timezone
 from importlib.resources import files
 from pathlib import Path
 from string import Template
@@ -23,12 +21,9 @@ from .scenarios import LATENCY_TARGET_MS
 
 SOLVER_LABEL = {"rcga": "RCGA", "g3pcx": "G3-PCX", "glpma": "GLPMA", "de": "DE"}
 _BLOCK = re.compile(r"^<!-- (\w+) -->$", re.M)
-#: looser success thresholds of the gap section
-#: a published solution counts as found when one found is this close (mm)
 #: sections measured by scripts of their own (``tools/bench_gough.py --markdown doc/bench/gough.md``), kept
 #: in BENCHMARKS.md when the benchmark rewrites it
 APART = ("doc/bench/gough.md",)
-#: the papers' figures of a row they do not print: every cell a dash
 
 
 @functools.lru_cache(maxsize=None)
@@ -54,15 +49,31 @@ def figure_link(res, name, md_path, alt=None) -> str | None:
     return link and f"![{alt or os.path.basename(path)}]({link})"
 
 
-def timestamp() -> str:
-    return datetime.now(timezone.utc).astimezone().strftime("%Y-%m-%d %H:%M %Z")
-
-
 def pct(v, digits: int = 3) -> str:
+    """A percentage for a table."""
     return fmt(v, digits) + " %"
 
 
+def cell(v) -> str:
+    """A table cell: text as it is, a tuple as ``a / b``, a number through :func:`fmt`."""
+    if isinstance(v, tuple):
+        return " / ".join(map(cell, v))
+    return v if isinstance(v, str) else fmt(v)
+
+
+def dict_table(rows: list[dict], first: str | None = None) -> str:
+    """Rows of one shape as a table under their keys (the first column's header: ``first`` when given)."""
+    head = list(rows[0])
+    return table([first or head[0], *head[1:]], [[cell(v) for v in row.values()] for row in rows])
+
+
+def key_values(title: str, values: dict, unit: str = "value") -> str:
+    """A two-column table: each key and its value (under ``unit``)."""
+    return table([title, unit], [[k, cell(v)] for k, v in values.items()])
+
+
 def header(res) -> list[str]:
+    """The title, the command, the machine and the conditions of the measurements."""
     canonical, invoked = res["command"]
     loads = "; ".join(f"{name} {load}" for name, load in res.get("load", []))
     return md_blocks(prose("header", **res["machine"], date=res["date"], minutes=f"{res['wall_s'] / 60:.1f}",
@@ -72,71 +83,31 @@ def header(res) -> list[str]:
 
 
 def summary_section(res, md_path) -> list[str]:
+    """The headline figures of the sections that ran: the papers' success rates, warm tracking, all solutions,
+    deadlines."""
     from .timing import all_overruns, share_on_time, worst_overrun
     from .tracking import calm_distribution
-    scenarios = res["scenarios"]
-    lines = [f"- {scenarios[key].label} ({TABLE_NAME[scenarios[key].model.kind]} protocol): " + "; ".join(
-        f"{SOLVER_LABEL[r.config.solver]} {r.config.pop_label} {r.config.mode}: {summarize(r.runs).success_pct:.0f} %"
-        for r in rows) + "." for key, rows in res["tables"].items()]
+    label = {key: sc.label for key, sc in res["scenarios"].items()}
+    lines = [f"- {label[key]} ({TABLE_NAME[res['scenarios'][key].model.kind]} protocol): " + "; ".join(
+        f"{SOLVER_LABEL[c.solver]} {c.pop_label} {c.mode}: {summarize(r.runs).success_pct:.0f} %"
+        for r in rows for c in [r.config]) + "." for key, rows in res["tables"].items()]
     for key, t in res["tracking"].items():
         st, calm = t.stats, calm_distribution(t.latency_s, t.preempted)
-        lines.append(f"- {scenarios[key].label} warm tracking: p50 {st['p50']:.3f} ms, p99 {st['p99']:.3f} ms "
+        lines.append(f"- {label[key]} warm tracking: p50 {st['p50']:.3f} ms, p99 {st['p99']:.3f} ms "
                      f"({calm['p99']:.3f} ms over the {int(np.sum(~t.preempted))} steps not preempted; "
                      f"target ≤ {LATENCY_TARGET_MS[key]:g}), max error {np.max(t.errors):.1e} mm.")
-    lines += [f"- {scenarios[key].label} all solutions: {r.repeats[0][1]} distinct in {r.repeats[0][2]:.2f} s "
-              f"({r.runs} runs)." for key, r in res["all_solutions"].items()]
+    lines += [f"- {label[key]} all solutions: {r.repeats[0][1]} distinct in {r.repeats[0][2]:.2f} s ({r.runs} runs)."
+              for key, r in res["all_solutions"].items()]
     if res["deadline"]:
         total, calm = all_overruns(res["deadline"])
-        lines.append(f"- Deadlines: {share_on_time(total):.2f} % within budget + {DEADLINE_MARGIN_MS} ms, worst overrun "
-                     f"{worst_overrun(total)} ms" + (f"; without the preempted solves {share_on_time(calm):.2f} %, worst "
-                                              f"{worst_overrun(calm)} ms." if calm.size else "."))
+        calm_part = f"; without the preempted solves {share_on_time(calm):.2f} %, worst {worst_overrun(calm)} ms"
+        lines.append(f"- Deadlines: {share_on_time(total):.2f} % within budget + {DEADLINE_MARGIN_MS} ms, worst "
+                     f"overrun {worst_overrun(total)} ms{calm_part if calm.size else ''}.")
     return ["## Summary", "", *lines, ""]
-
-
-def load_reliability(path) -> dict | None:
-    """The stress figures in ``path``, or None when there is no such file."""
-    path = Path(path)
-    return json.loads(path.read_text()) if path.exists() else None
-
-
-def reliability_section(res: dict | None, source=None) -> list[str]:
-    """The Reliability section from the figures ``glpma-fk stress`` wrote as JSON (``doc/bench/reliability.json``
-    after a full run: the stress test measures, the benchmark writes); without them, a note of where
-    ``glpma-fk stress`` puts them."""
-    from glpma_tools.stress import report as stress
-    from glpma_tools.stress import session as ses
-    from glpma_tools.timing import WARM_UP_QUIET
-    if res is None:
-        return md_blocks("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
-    secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")
-    floods = [k for k in stress.FLOOD_SECTIONS if k in secs]
-    restarts = stress.restart_rows(secs)
-    return md_blocks(
-        "## Reliability",
-        prose("reliability", **res["machine"], command=res.get("command") or "glpma-fk stress", date=res["date"],
-              minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"],
-              load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
-              checks="all passed" if res["passed"] else "some failed (see below)",
-              expectations="all met" if res.get("expectations_met", True) else "some missed (see below)"),
-        res.get("quick") and prose("reliability", "quick"),
-        node and prose("reliability", "node", command=node["command"], manipulator=node["manipulator"],
-                       budget=f"{node['time_budget_ms']:g}", depth=node["qos_depth"], warmup=f"{ses.WARMUP_S:g}"),
-        floods and table(*stress.flood_rows(secs)),
-        "\n".join(f"- {k}: {stress.check_result(secs[k])}" for k in floods),
-        floods and prose("reliability", "flood", rss_slack=f"{ses.RSS_SLACK_MB:g}",
-                         lost_slack=f"{100 * ses.LOST_SLACK:g}"),
-        restarts and "### Restarts and a jump",
-        restarts and table(["scenario", "what happened", "checks"], restarts),
-        restarts and prose("reliability", "restarts"),
-        d and "### Deadlines (in-process Estimator)",
-        d and prose("reliability", "deadline", manipulator=d["manipulator"], quiet=WARM_UP_QUIET),
-        d and table(stress.DEADLINE_HEAD, stress.deadline_rows(d["rows"])))
 
 
 def measured_apart(md_path) -> list[str]:
     """The Markdown of :data:`APART` that exists beside ``md_path`` (the repository root's BENCHMARKS.md)."""
-    if md_path is None:
-        return []
     paths = [Path(os.path.dirname(os.path.abspath(md_path)), name) for name in APART]
     return md_blocks(*(p.read_text(encoding="utf-8").rstrip() for p in paths if p.is_file()))
 
@@ -144,13 +115,17 @@ def measured_apart(md_path) -> list[str]:
 def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
+    from glpma_tools.stress.report import reliability_section
+
     from . import dds, experiments, modes, offline, outputs, timing, tracking, waits
     # the sections in the report's order, each with the measurements it renders (None: it looks for them itself)
-    sections = ((None, summary_section), ("tables", experiments.paper_tables_section), (None, experiments.figures_section),
-                ("peers", experiments.peers_section), (None, experiments.gap_section), ("all_solutions", experiments.all_solutions_section),
-                ("modes_comparison", modes.section), ("tracking", tracking.tracking_section), ("scipy", tracking.scipy_section),
-                ("deadline", timing.deadline_section), ("baselines", experiments.baselines_section), (None, dds.section),
-                (None, outputs.section), ("waits", waits.section), ("offline", offline.offline_section))
+    sections = ((None, summary_section), ("tables", experiments.paper_tables_section),
+                (None, experiments.figures_section), ("peers", experiments.peers_section),
+                (None, experiments.gap_section), ("all_solutions", experiments.all_solutions_section),
+                ("modes_comparison", modes.section), ("tracking", tracking.tracking_section),
+                ("scipy", tracking.scipy_section), ("deadline", timing.deadline_section),
+                ("baselines", experiments.baselines_section), (None, dds.section), (None, outputs.section),
+                ("waits", waits.section), ("offline", offline.offline_section))
     parts = header(res)
     for key, section in sections:
         parts += section(res, md_path) if key is None or res.get(key) else []

@@ -7,7 +7,10 @@ import shlex
 import sys
 import tempfile
 import time
+from datetime import datetime, timezone
 from pathlib import Path
+
+import psutil
 
 from glpma_ros.cli import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
@@ -16,7 +19,7 @@ from glpma_tools.timing import REPO_ROOT, git_revision, machine
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
             "offline")
 
-#: run counts: option -> (full, --quick, type, what it counts); 0 skips what it counts
+#: run counts (and the tracking budget): option -> (full, --quick, type, what it counts); 0 skips what it counts
 DEFAULTS = {
     "runs": (100, 10, int, "runs per configuration of ours, every row but the pure hexapod ones"),
     "hexapod_runs": (100, 5, int, "runs per pure hexapod configuration (up to 500,000 evaluations each)"),
@@ -42,9 +45,12 @@ DEFAULTS = {
     "map_resolution": (101, 8, int, "points per axis of the glpma-fk map grids, 3-RPR and 6-6 slice "
                        "(the command's default)"),
     "table2_runs": (50, 5, int, "runs per 004 Table II row (paper: 50)"),
+    "solve_all_runs": (100, 100, int, "searches per solve_all (paper: 100)"),
+    "track_budget_ms": (20.0, 20.0, float, "Estimator time budget while tracking, so latency is not clipped"),
 }
 #: peers' runs on the hexapod: each costs 500,000 evaluations of Python overhead (see BENCHMARKS.md)
 PEER_HEXAPOD_RUNS = {"pypop7": 10, "pymoo": 3}
+QUICK_SKIP = "skipped in --quick (500,000 evaluations of Python overhead per run)"
 #: where a full run writes its report and figures, and reads the stress test's figures
 DEFAULT_MARKDOWN = REPO_ROOT / "BENCHMARKS.md"
 DEFAULT_OUT = REPO_ROOT / "doc" / "bench"
@@ -52,6 +58,7 @@ DEFAULT_RELIABILITY = DEFAULT_OUT / "reliability.json"
 
 
 def build_parser() -> OneLineParser:
+    """The options; the run counts from :data:`DEFAULTS`."""
     p = OneLineParser(
         prog="glpma-fk bench",
         description="Reproduce the papers' tables (001 Tables 5 and 8, 002's all-solutions experiment) against "
@@ -63,14 +70,11 @@ def build_parser() -> OneLineParser:
     p.add_argument("--only", choices=["3rpr", "hexapod"], nargs="+", help="restrict to these manipulators")
     p.add_argument("--sections", choices=SECTIONS, nargs="+",
                    help=f"run only these sections (default: all of {', '.join(SECTIONS)})")
-    p.add_argument("--track-budget-ms", type=float, default=20.0,
-                   help="Estimator time budget while tracking (default 20 ms, so latency is not clipped)")
     p.add_argument("--budgets-ms", type=float, nargs="+", default=[1.0, 2.0, 5.0], help="deadline budgets")
     p.add_argument("--deadline-solvers", nargs="+", metavar="SOLVER",
                    help="solvers of the deadline section (default: every registered solver)")
-    p.add_argument("--solve-all-runs", type=int, default=100, help="searches per solve_all (paper: 100)")
     for name, (full, quick, kind, what) in DEFAULTS.items():
-        default = "" if full is None else f" (default {full:,}; --quick {quick:,})"
+        default = "" if full is None else f" (default {full:,g}; --quick {quick:,g})"
         p.add_argument("--" + name.replace("_", "-"), type=kind, metavar="N", help=what + default)
     p.add_argument("--out", type=Path,
                    help="directory for the PNGs (default doc/bench; --quick: the --markdown file's directory or a "
@@ -99,6 +103,7 @@ def output_paths(args) -> tuple[Path, Path]:
 
 
 def _count(args, name):
+    """The option ``name``'s value, else its default for a full or a --quick run."""
     value = getattr(args, name)
     if value is not None and value < 0:
         raise GlpmaError(f"glpma-fk bench: --{name.replace('_', '-')} must be >= 0")
@@ -107,25 +112,17 @@ def _count(args, name):
 
 def _peer_runs(args, counts, key) -> dict:
     """Runs per peer on manipulator ``key`` (and why a peer does not run, under ``<peer>_why``)."""
-    if key != "hexapod":
-        return dict.fromkeys(PEER_HEXAPOD_RUNS, counts["peer_runs"])
-    if args.peer_hexapod_runs is not None:
-        return dict.fromkeys(PEER_HEXAPOD_RUNS, args.peer_hexapod_runs)
-    if not args.quick:
-        return dict(PEER_HEXAPOD_RUNS)
-    return {**dict.fromkeys(PEER_HEXAPOD_RUNS, 0), **{f"{n}_why": "skipped in --quick (500,000 evaluations of "
-                                                      "Python overhead per run)" for n in PEER_HEXAPOD_RUNS}}
-
-
-def _load_average() -> str:
-    try:
-        return "/".join(f"{v:.2f}" for v in os.getloadavg())
-    except OSError:
-        return "n/a"
+    n = counts["peer_hexapod_runs" if key == "hexapod" else "peer_runs"]
+    runs = dict(PEER_HEXAPOD_RUNS) if n is None else dict.fromkeys(PEER_HEXAPOD_RUNS, n)
+    if key == "hexapod" and args.quick and args.peer_hexapod_runs is None:
+        runs.update({f"{name}_why": QUICK_SKIP for name in PEER_HEXAPOD_RUNS})
+    return runs
 
 
 @command_main
 def main(argv=None) -> int:
+    """``glpma-fk bench``: the sections asked for, in this order, then the figures and the report (or only these,
+    from the measurements ``--render`` reads)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["--"]:          # `glpma-fk bench -- --quick` (the CLI passes the rest through)
         argv = argv[1:]
@@ -136,16 +133,17 @@ def main(argv=None) -> int:
     if unknown:
         raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
                          f"choose from {', '.join(solvers.SOLVERS)}")
+    stress_figures = _reliability(args.reliability)       # before hours of measurements: it may not read
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, modes, offline, outputs, report, timing, tracking, waits
+    from . import dds, modes, offline, outputs, timing, tracking, waits
     from . import experiments as ex
     from .scenarios import load
 
     t_start = time.perf_counter()
 
     def say(msg, section=None):
-        if section:
-            res["load"].append((section, _load_average()))
+        if section:         # the load average at the start of each section, for the report's header
+            res["load"].append((section, "/".join(f"{v:.2f}" for v in psutil.getloadavg())))
         print(f"[bench {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     out_dir, args.markdown = output_paths(args)
@@ -153,11 +151,12 @@ def main(argv=None) -> int:
     if args.render:                 # the models hold compiled functions: the pickle names the scenarios
         saved = pickle.loads(args.render.read_bytes())
         saved.update(scenarios={k: load(k) for k in saved["scenarios"]}, figures={})
-        return finish(saved, args, out_dir, say)
+        return finish(saved, args, out_dir, say, stress_figures)
     sections, progress = set(args.sections or SECTIONS), not args.no_progress
     scenarios = {k: load(k) for k in args.only or ["3rpr", "hexapod"]}
     runs, hex_runs, listed = counts["runs"], counts["hexapod_runs"], list(scenarios.values())
-    res = {"date": report.timestamp(), "machine": machine(), "revision": git_revision(), "quick": args.quick,
+    res = {"date": datetime.now(timezone.utc).astimezone().strftime("%Y-%m-%d %H:%M %Z"), "machine": machine(),
+           "revision": git_revision(), "quick": args.quick,
            # the canonical command, and the command line this process was started with
            "command": (shlex.join(["glpma-fk", "bench", *argv]), shlex.join(getattr(sys, "orig_argv", sys.argv))),
            "scenarios": scenarios, "tables": {}, "peers": {}, "gap": None, "all_solutions": {}, "tracking": {},
@@ -174,7 +173,7 @@ def main(argv=None) -> int:
         res["gap"] = ex.gap_diagnostics(scenarios["3rpr"], counts["gap_runs"], progress)
     for k, sc in scenarios.items() if "solve-all" in sections else ():
         say(f"{sc.label}: all solutions", f"{sc.key} solve-all")
-        res["all_solutions"][k] = ex.all_solutions(sc, args.solve_all_runs, max(1, counts["solve_all_repeats"]),
+        res["all_solutions"][k] = ex.all_solutions(sc, counts["solve_all_runs"], max(1, counts["solve_all_repeats"]),
                                                    progress)
     if "solve-all" in sections:
         say("all real assembly modes: multistart, msolve, G3-PCX", "solve-all modes")
@@ -182,7 +181,7 @@ def main(argv=None) -> int:
                                                 progress)
     for k, sc in scenarios.items() if "tracking" in sections else ():
         say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
-        res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), args.track_budget_ms, progress)
+        res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), counts["track_budget_ms"], progress)
         res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
@@ -207,39 +206,32 @@ def main(argv=None) -> int:
         res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick,
                                          hexapod="hexapod" in scenarios)
     res["wall_s"] = time.perf_counter() - t_start
-    if args.save_data:
-        save(res, args.save_data)
+    code = finish(res, args, out_dir, say, stress_figures)
+    if args.save_data:              # the models hold compiled functions: a render loads them again by their keys
+        args.save_data.write_bytes(pickle.dumps({**res, "scenarios": list(scenarios), "figures": {}}))
         say(f"saved the measurements to {args.save_data}")
-    return finish(res, args, out_dir, say)
+    return code
 
 
-def save(res, path):
-    """Pickle the measurements; a part that cannot be pickled is left out with a notice."""
-    data = {**res, "scenarios": list(res["scenarios"])}     # the keys: a render loads them again
-    for key in list(data):
-        try:
-            pickle.dumps(data[key])
-        except Exception as exc:  # noqa: BLE001 - the report matters more than the pickle
-            print(f"bench: --save-data leaves out {key!r} ({type(exc).__name__}: {exc})", file=sys.stderr)
-            data[key] = {} if isinstance(data[key], dict) else []
-    Path(path).write_bytes(pickle.dumps(data))
+def _reliability(path: Path) -> tuple[dict | None, str]:
+    """The figures ``glpma-fk stress`` wrote to ``path`` (None: none yet), and where they are, for the report."""
+    from glpma_tools.stress.report import read_json
+    try:
+        figures = read_json(path)
+    except (OSError, ValueError) as exc:
+        raise GlpmaError(f"glpma-fk bench: cannot read {path}: {exc}") from exc
+    path = path.resolve()
+    return figures, str(path.relative_to(REPO_ROOT)) if path.is_relative_to(REPO_ROOT) else str(path)
 
 
-def finish(res, args, out_dir, say) -> int:
-    """Figures and the report from the measurements."""
+def finish(res, args, out_dir, say, reliability) -> int:
+    """Figures and the report from the measurements; ``reliability``: :func:`_reliability`'s."""
     from . import plots, report
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
         say("figures")
         res["figures"] = plots.draw(res, out_dir)
-    try:
-        stress_figures = report.load_reliability(args.reliability)
-    except (OSError, ValueError) as exc:
-        print(f"error: glpma-fk bench: cannot read {args.reliability}: {exc}", file=sys.stderr)
-        return 2
-    rpath = args.reliability.resolve()
-    source = str(rpath.relative_to(REPO_ROOT)) if rpath.is_relative_to(REPO_ROOT) else str(rpath)
     args.markdown.parent.mkdir(parents=True, exist_ok=True)
-    args.markdown.write_text(report.render(res, args.markdown, stress_figures, source))
+    args.markdown.write_text(report.render(res, args.markdown, *reliability))
     say(f"wrote {args.markdown}")
     return 0

@@ -38,6 +38,7 @@ class Scenario:
 
 
 def load(key: str) -> Scenario:
+    """The manipulator ``key`` of :data:`CONFIGS`, ready to benchmark."""
     path = config_dir() / CONFIGS[key]
     doc = load_document(path)
     model = model_from_dict(doc, str(path))
