@@ -16,8 +16,8 @@ setup(
     name=package_name,
     version=VERSION,
     packages=find_packages(exclude=["test", "test.*"]),
-    # the prose of BENCHMARKS.md, read by glpma_tools.bench.report
-    package_data={"glpma_tools.bench": ["templates/*.md"]},
+    # the prose of BENCHMARKS.md (read by glpma_tools.bench.report) and the papers' published figures
+    package_data={"glpma_tools.bench": ["templates/*.md", "papers.yaml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
