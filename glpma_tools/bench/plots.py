@@ -6,7 +6,15 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_ros import solvers
+from glpma_ros.compat import version_tuple
 from glpma_tools.stats import distribution
+from glpma_tools.timing import DEADLINE_MARGIN_MS
+
+from .common import SUCCESS_TOLERANCE
+from .report import SOLVER_LABEL
+from .scenarios import LATENCY_TARGET_MS
+from .tracking import DRAWN_PEER
 
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",
           "pymoo": "tab:brown"}
@@ -14,15 +22,11 @@ COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypo
 EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1000): "gold"}
 #: a run's history needs this many points (median over runs) for a convergence curve
 MIN_HISTORY_POINTS = 4
+DPI = 110
 
 
 def draw(res, out_dir: Path) -> dict:
     """Every figure of the measurements ``res`` into ``out_dir``: ``{name: path}``."""
-    from glpma_ros import solvers
-    from glpma_tools.timing import DEADLINE_MARGIN_MS
-
-    from .report import SOLVER_LABEL
-    from .scenarios import LATENCY_TARGET_MS
     figures = {}
     for k, sc in res["scenarios"].items():
         series = [(f"{SOLVER_LABEL[c.solver]} {c.pop_label} {'default' if c.polish else 'pure'}",
@@ -39,23 +43,21 @@ def draw(res, out_dir: Path) -> dict:
                 out_dir / f"latency_{k}.png", f"{sc.label}: warm tracking, solve time per step",
                 res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
     if res["deadline"]:
-        figures["deadline"] = deadline_plot(out_dir / "deadline.png", res["deadline"], DEADLINE_MARGIN_MS)
+        figures["deadline"] = deadline_plot(out_dir / "deadline.png", res["deadline"])
     return figures
 
 
 def _subplots(*args, figsize, **kwargs):
-    """A new figure and its axes: a bare ``Figure``, which saves through matplotlib's Agg canvas (no window,
-    no pyplot state to close)."""
+    """A new bare ``Figure`` (it saves through matplotlib's Agg canvas: no window, no pyplot state) and its axes."""
     from matplotlib.figure import Figure
     fig = Figure(figsize=figsize)
     return fig, fig.subplots(*args, **kwargs)
 
 
-def _save(fig, path: Path, title: str | None = None) -> Path:
-    if title:
-        fig.suptitle(title)
+def _save(fig, path: Path, title: str) -> Path:
+    fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     return path
 
 
@@ -82,9 +84,7 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
     fig, (ax1, ax2) = _subplots(1, 2, figsize=(12, 4.5))
     grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
     coarse = []
-    for label, color, ls, runs in series:
-        if not runs:
-            continue
+    for label, color, ls, runs in (s for s in series if s[3]):
         ok = np.sort([r.nfev for r in runs if r.success])
         ax1.step(grid, 100 * np.searchsorted(ok, grid, side="right") / len(runs), where="post", color=color, ls=ls,
                  label=f"{label} ({len(runs)} runs)")
@@ -94,30 +94,30 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
             coarse.append(label)
         else:
             ax2.step(grid, np.maximum(_median_best(runs, grid), 1e-32), where="post", color=color, ls=ls, label=label)
-    for ax, ylabel, title_ in ((ax1, "runs with fitness < 1e-20 (%)", "success vs evaluations"),
+    for ax, ylabel, title_ in ((ax1, f"runs with fitness < {SUCCESS_TOLERANCE:g} (%)", "success vs evaluations"),
                                (ax2, "median best fitness", "convergence (median over runs)")):
         ax.set(xscale="log", xlabel="fitness evaluations", ylabel=ylabel, xlim=(1, max_evals), title=title_)
         ax.grid(alpha=0.3)
     ax1.set_ylim(-2, 102)
     ax1.legend(fontsize=7, loc="upper left")
     ax2.set_yscale("log")
-    ax2.axhline(1e-20, color="k", lw=0.8, ls=":")
+    ax2.axhline(SUCCESS_TOLERANCE, color="k", lw=0.8, ls=":")
     if coarse:
         ax2.text(0.02, 0.07, "not drawn (the whole run is one compiled chunk; no history):\n" + "\n".join(coarse),
                  transform=ax2.transAxes, fontsize=7, va="bottom")
     return _save(fig, path, title)
 
 
-def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) -> Path:
+def latency_histogram(path: Path, title, latency_s, target_ms, peers=()) -> Path:
+    """The solve times of the warm tracking (ours, and the peer :data:`DRAWN_PEER`), its p50, p99 and target."""
     fig, ax = _subplots(figsize=(7, 4))
     ms = np.asarray(latency_s) * 1e3
     hi = max(float(np.percentile(ms, 99.9)) * 1.3, target_ms * 1.2)
     bins = np.linspace(0.0, hi, 80)
     ax.hist(np.clip(ms, 0, hi), bins=bins, color="tab:green", alpha=0.75, label="ours: Estimator (warm)")
-    for row in scipy_rows:
-        if row.latency_s is not None and row.method == "lm" and row.jac == "analytic":
-            ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
-                    label="scipy least_squares lm, analytic J")
+    for row in (r for r in peers if r.label == DRAWN_PEER and r.latency_s is not None):
+        ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
+                label="scipy least_squares lm, analytic J")
     d = distribution(ms)
     for q, ls in (("p50", "--"), ("p99", "-")):
         ax.axvline(d[q], color="k", ls=ls, lw=1, label=f"{q} {d[q]:.3f} ms")
@@ -126,13 +126,14 @@ def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) ->
            ylabel="steps", title=title)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return _save(fig, path)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    return path
 
 
-def deadline_plot(path: Path, rows, margin_ms) -> Path:
+def deadline_plot(path: Path, rows) -> Path:
+    """The overruns of each deadline cell (case and solver), one panel per budget."""
     import matplotlib
-
-    from glpma_ros.compat import version_tuple
     # horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
     horizontal = ({"orientation": "horizontal"} if version_tuple(matplotlib.__version__) >= (3, 10)
                   else {"vert": False})
@@ -145,7 +146,7 @@ def deadline_plot(path: Path, rows, margin_ms) -> Path:
         ax.boxplot([by_label.get(label, np.array([np.nan])) for label in labels], whis=(0, 100), showfliers=False,
                    **horizontal)
         ax.axvline(0.0, color="k", lw=0.8)
-        ax.axvline(margin_ms, color="tab:red", ls=":", label=f"budget + {margin_ms:g} ms")
+        ax.axvline(DEADLINE_MARGIN_MS, color="tab:red", ls=":", label=f"budget + {DEADLINE_MARGIN_MS:g} ms")
         ax.set(xlabel="elapsed − budget (ms)", title=f"budget {b:g} ms")
         ax.grid(alpha=0.3)
     axes[0][0].set_yticks(range(1, len(labels) + 1), labels, fontsize=7)
