@@ -5,6 +5,8 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from matplotlib import __version__ as MATPLOTLIB_VERSION
+from matplotlib.figure import Figure
 
 from glpma_ros import solvers
 from glpma_ros.compat import version_tuple
@@ -23,6 +25,8 @@ EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1
 #: a run's history needs this many points (median over runs) for a convergence curve
 MIN_HISTORY_POINTS = 4
 DPI = 110
+#: horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
+HORIZONTAL = {"orientation": "horizontal"} if version_tuple(MATPLOTLIB_VERSION) >= (3, 10) else {"vert": False}
 
 
 def draw(res, out_dir: Path) -> dict:
@@ -47,15 +51,10 @@ def draw(res, out_dir: Path) -> dict:
     return figures
 
 
-def _subplots(*args, figsize, **kwargs):
-    """A new bare ``Figure`` (it saves through matplotlib's Agg canvas: no window, no pyplot state) and its axes."""
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=figsize)
-    return fig, fig.subplots(*args, **kwargs)
-
-
-def _save(fig, path: Path, title: str) -> Path:
-    fig.suptitle(title)
+def _save(fig, path: Path, title: str | None = None) -> Path:
+    """Save the bare ``Figure`` ``fig`` (through matplotlib's Agg canvas: no window, no pyplot state to close)."""
+    if title:
+        fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     return path
@@ -81,7 +80,8 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
 
     ``series``: list of (label, color, linestyle, runs) where runs are ``common.Run``; dashed
     series (the refined runs, which converge in their first compiled chunk) appear on the left only."""
-    fig, (ax1, ax2) = _subplots(1, 2, figsize=(12, 4.5))
+    fig = Figure(figsize=(12, 4.5))
+    ax1, ax2 = fig.subplots(1, 2)
     grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
     coarse = []
     for label, color, ls, runs in (s for s in series if s[3]):
@@ -110,7 +110,8 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
 
 def latency_histogram(path: Path, title, latency_s, target_ms, peers=()) -> Path:
     """The solve times of the warm tracking (ours, and the peer :data:`DRAWN_PEER`), its p50, p99 and target."""
-    fig, ax = _subplots(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
     ms = np.asarray(latency_s) * 1e3
     hi = max(float(np.percentile(ms, 99.9)) * 1.3, target_ms * 1.2)
     bins = np.linspace(0.0, hi, 80)
@@ -126,25 +127,19 @@ def latency_histogram(path: Path, title, latency_s, target_ms, peers=()) -> Path
            ylabel="steps", title=title)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    return path
+    return _save(fig, path)
 
 
 def deadline_plot(path: Path, rows) -> Path:
     """The overruns of each deadline cell (case and solver), one panel per budget."""
-    import matplotlib
-    # horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
-    horizontal = ({"orientation": "horizontal"} if version_tuple(matplotlib.__version__) >= (3, 10)
-                  else {"vert": False})
     budgets = sorted({r.budget_ms for r in rows})
     labels = list(dict.fromkeys(r.label for r in rows))
-    fig, axes = _subplots(1, len(budgets), figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6),
-                          sharey=True, squeeze=False)
+    fig = Figure(figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6))
+    axes = fig.subplots(1, len(budgets), sharey=True, squeeze=False)
     for ax, b in zip(axes[0], budgets):
         by_label = {r.label: r.overrun_ms for r in rows if r.budget_ms == b}
         ax.boxplot([by_label.get(label, np.array([np.nan])) for label in labels], whis=(0, 100), showfliers=False,
-                   **horizontal)
+                   **HORIZONTAL)
         ax.axvline(0.0, color="k", lw=0.8)
         ax.axvline(DEADLINE_MARGIN_MS, color="tab:red", ls=":", label=f"budget + {DEADLINE_MARGIN_MS:g} ms")
         ax.set(xlabel="elapsed − budget (ms)", title=f"budget {b:g} ms")

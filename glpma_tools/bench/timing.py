@@ -1,8 +1,9 @@
 """The bench's deadline experiment (:func:`deadlines`) and its section, on the timed calls every tool shares
-(:mod:`glpma_tools.timing`)."""
+(:mod:`glpma_tools.timing`).  A row (a ``SimpleNamespace``): ``case``, ``solver``, ``label`` (the figure's: the
+case in short and the solver) and the fields of its :class:`~glpma_tools.timing.TimedCalls`, with ``overrun_ms``."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -18,16 +19,7 @@ DEADLINE_WARM_UP_QUIET = 3
 DEADLINE_WARM_UP_MAX_CALLS = 30
 
 
-@dataclass
-class DeadlineRow(timing.TimedCalls):
-    """The timed calls of one case, solver and budget; ``label``: the case in short and the solver (the figure's)."""
-
-    case: str = ""
-    solver: str = ""
-    label: str = ""
-
-
-def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRow]:
+def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[SimpleNamespace]:
     """The bench's deadline experiment: cold searches that cannot converge, stopped only by their time
     budget (every registered solver, and the Estimator as the node runs it, cold: every stage runs until the
     deadline)."""
@@ -60,7 +52,8 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[DeadlineRo
     for case, short, solver, b, call in cells:
         timing.warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
         calls = timing.timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
-        rows.append(DeadlineRow(**{**vars(calls), "results": []}, case=case, solver=solver, label=f"{short} | {solver}"))
+        rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
+                                    solver=solver, label=f"{short} | {solver}"))
     return rows
 
 
@@ -88,14 +81,16 @@ def deadline_section(res, md_path) -> list[str]:
         return pct(share_on_time(over), 4) if over.size else MISSING
     body = [[r.case, r.solver, f"{r.budget_ms:g}", f"{len(over)} (stopped)" if r.stopped_early else len(over),
              on_time(over), fmt(distribution(r.elapsed_s, 1e3)["p99"]), worst_overrun(over), int(np.sum(r.preempted)),
-             on_time(calm), worst_overrun(calm)] for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~r.preempted])]]
+             on_time(calm), worst_overrun(calm)]
+            for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~r.preempted])]]
     total, calm = all_overruns(rows)
     late = sorted({r.solver for r in rows if np.any(r.overrun_ms[~r.preempted] > DEADLINE_MARGIN_MS)})
     return md_blocks(
         "## Deadline honouring",
         prose("deadline", margin=DEADLINE_MARGIN_MS, stop_after=STOP_AFTER, stop_factor=f"{STOP_OVERRUN_FACTOR:g}"),
-        calm.size and prose("deadline", "overall", on_time=on_time(total), solves=total.size, worst=worst_overrun(total),
-                            preempted=total.size - calm.size, calm_on_time=on_time(calm), calm_worst=worst_overrun(calm)),
+        calm.size and prose("deadline", "overall", on_time=on_time(total), solves=total.size,
+                            worst=worst_overrun(total), preempted=total.size - calm.size, calm_on_time=on_time(calm),
+                            calm_worst=worst_overrun(calm)),
         late and "Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
         table(["case", "solver", "budget ms", "solves", "on time", "p99 elapsed ms", "worst overrun ms", "preempted",
                "on time, not preempted", "worst overrun, not preempted"], body),

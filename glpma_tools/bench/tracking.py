@@ -1,11 +1,10 @@
 """Warm tracking: the Estimator along the simulated loop (solve time per step, accuracy), and its peers from the
 same warm starts (``scipy.optimize.least_squares``, a plain NumPy Newton iteration); their two sections.
 
-A row of solves (a ``SimpleNamespace``) has a ``label`` and, per step, ``latency_s``, ``preempted`` (by another
-process: an involuntary context switch), ``leg_residual`` (max |IK(x) - legs|, config unit) and ``evaluations``
-(``latency_s`` None: the peer is not installed).  The Estimator's also has ``stats`` (the latency distribution,
-ms), ``budget_ms``, ``errors`` (distance to the true pose), ``statuses`` and ``stages`` (counts), and each
-step's warm start and legs (``starts``, ``legs``: its peers' inputs)."""
+A row of solves (a ``SimpleNamespace``): ``label``, ``stats`` (latency distribution, ms) and per step ``latency_s``,
+``preempted`` (by another process), ``leg_residual`` (max |IK(x) - legs|) and ``evaluations`` (``latency_s`` None:
+not installed); the Estimator's also ``budget_ms``, ``errors`` (distance to the true pose), ``statuses`` and
+``stages`` (counts), and each step's warm start and legs (``starts``, ``legs``: its peers' inputs)."""
 from __future__ import annotations
 
 import functools
@@ -19,7 +18,7 @@ from glpma_ros.estimator import Estimator
 from glpma_ros.solvers.lm import LEG_RTOL
 from glpma_tools.sim import trajectories as traj
 from glpma_tools.stats import distribution
-from glpma_tools.tables import MISSING, fmt, ratio, table
+from glpma_tools.tables import fmt, ratio, table
 from glpma_tools.timing import timed_calls, warm_up
 
 from .peers import available
@@ -40,8 +39,9 @@ def _solves(label, calls, model, found, given, evaluations, **more) -> SimpleNam
     """A row of solves from the timed ``calls`` and the solutions ``found`` (None: none) for the legs ``given``."""
     residual = [math.inf if x is None else float(np.max(np.abs(model.inverse_kinematics(x) - legs)))
                 for x, legs in zip(found, given)]
-    return SimpleNamespace(label=label, latency_s=calls.elapsed_s, preempted=calls.preempted,
-                           leg_residual=np.array(residual), evaluations=np.array(evaluations), **more)
+    return SimpleNamespace(label=label, stats=distribution(calls.elapsed_s, 1e3), latency_s=calls.elapsed_s,
+                           preempted=calls.preempted, leg_residual=np.array(residual),
+                           evaluations=np.array(evaluations), **more)
 
 
 def tracking(sc, steps, budget_ms, progress) -> SimpleNamespace:
@@ -60,8 +60,7 @@ def tracking(sc, steps, budget_ms, progress) -> SimpleNamespace:
     calls = timed_calls(step, steps, budget_ms, f"{sc.label} tracking", progress, stop_early=False)
     found = [e.x if e.x is not None and np.all(np.isfinite(e.x)) else None for e in calls.results]
     return _solves("ours: Estimator (warm: compiled LM)", calls, model, found, legs[1:],
-                   [e.evaluations for e in calls.results], stats=distribution(calls.elapsed_s, 1e3),
-                   budget_ms=budget_ms, starts=np.array(starts), legs=legs[1:],
+                   [e.evaluations for e in calls.results], budget_ms=budget_ms, starts=np.array(starts), legs=legs[1:],
                    errors=np.array([math.inf if x is None else model.distance(x, t) for x, t in zip(found, poses[1:])]),
                    statuses=Counter(e.status for e in calls.results), stages=Counter(e.start for e in calls.results))
 
@@ -74,8 +73,6 @@ def scipy_warm(sc, ours, progress) -> list[SimpleNamespace]:
         from scipy.optimize import least_squares
         peers.update({f"scipy `{method}`, {jac}": functools.partial(scipy_solve, least_squares, sc.model, method, jac)
                       for method, jac in SCIPY_VARIANTS})
-    else:
-        print(f"bench: scipy {why}; its rows are marked 'not installed'")
     out, m = [], min(WARM_UP_STEPS, len(ours.legs))
     for label, solve in peers.items():
         warm_up(lambda i, solve=solve: solve(ours.starts[i % m], ours.legs[i % m]), ours.budget_ms)
@@ -93,24 +90,16 @@ def calm_distribution(latency_s, preempted) -> dict:
     return distribution(latency_s[~preempted] if np.any(~preempted) else latency_s, 1e3)
 
 
-#: the latency and accuracy columns of both sections' tables, and their cells of a row of solves
+#: the latency and accuracy columns of both sections' tables (:func:`_solves_cells`)
 SOLVES_HEAD = ["p50 ms", "p99 ms", "max ms", "preempted", "p99 ms not preempted", "max ms not preempted", "mean ms",
                "median max leg residual", "worst max leg residual", "mean evals"]
 
 
 def _solves_cells(row) -> list:
-    if row.latency_s is None:
-        return [MISSING] * (len(SOLVES_HEAD) - 1) + ["not installed"]
-    s, calm = distribution(row.latency_s, 1e3), calm_distribution(row.latency_s, row.preempted)
+    s, calm = row.stats, calm_distribution(row.latency_s, row.preempted)
     return [fmt(s["p50"]), fmt(s["p99"]), fmt(s["max"]), int(np.sum(row.preempted)), fmt(calm["p99"]),
             fmt(calm["max"]), fmt(s["mean"]), f"{np.median(row.leg_residual):.1e}", f"{np.max(row.leg_residual):.1e}",
             fmt(float(np.mean(row.evaluations)))]
-
-
-def _ratios(ours, row) -> list[str]:
-    """Our latency over ``row``'s at p50 and at p99 (``ours``: our distribution)."""
-    theirs = distribution(row.latency_s, 1e3) if row.latency_s is not None else {}
-    return [ratio(ours[q], theirs.get(q)) for q in ("p50", "p99")]
 
 
 def tracking_section(res, md_path) -> list[str]:
@@ -121,8 +110,9 @@ def tracking_section(res, md_path) -> list[str]:
         return f"{share * model.scale:.3g} {model.unit}" if model else f"{100 * share:g} % of the scale"
     body = []
     for key, t in res["tracking"].items():
-        p99, calm_p99, target = t.stats["p99"], calm_distribution(t.latency_s, t.preempted)["p99"], LATENCY_TARGET_MS[key]
-        verdict = "met" if p99 <= target else "**missed** (met without preemption)" if calm_p99 <= target else "**missed**"
+        calm_p99, target = calm_distribution(t.latency_s, t.preempted)["p99"], LATENCY_TARGET_MS[key]
+        verdict = "met" if t.stats["p99"] <= target else (
+            "**missed** (met without preemption)" if calm_p99 <= target else "**missed**")
         body.append([res["scenarios"][key].label, len(t.latency_s), f"{t.budget_ms:g}", *_solves_cells(t),
                      f"≤ {target:g}", verdict, f"{np.max(t.errors):.2e}",
                      *(", ".join(f"{k} {v}" for k, v in sorted(count.items())) for count in (t.statuses, t.stages))])
@@ -139,13 +129,15 @@ def tracking_section(res, md_path) -> list[str]:
 
 
 def scipy_section(res, md_path) -> list[str]:
-    """Ours against its peers from the same warm starts, per manipulator, and ours/theirs at p50 and p99."""
+    """Ours beside its peers from the same warm starts, per manipulator, and our latency over theirs."""
     out = md_blocks("## Warm solve against `scipy.optimize.least_squares`", prose("scipy"))
     for key, peers in res["scipy"].items():
-        ours = res["tracking"][key]
-        body = [[r.label, *_solves_cells(r), *_ratios(ours.stats, r)] for r in (ours, *peers)]
+        ours, missing = res["tracking"][key], [r.label for r in peers if r.latency_s is None]
+        body = [[r.label, *_solves_cells(r), ratio(ours.stats["p50"], r.stats["p50"]),
+                 ratio(ours.stats["p99"], r.stats["p99"])] for r in (ours, *peers) if r.latency_s is not None]
         out += md_blocks(f"### {res['scenarios'][key].label} ({len(ours.latency_s)} steps)",
-                         table(["solver", *SOLVES_HEAD, "ours/row (p50)", "ours/row (p99)"], body))
+                         table(["solver", *SOLVES_HEAD, "ours/row (p50)", "ours/row (p99)"], body),
+                         missing and "Not installed: " + ", ".join(missing) + ".")
     return out + md_blocks(prose("scipy", "note"))
 
 
