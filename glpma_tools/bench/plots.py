@@ -10,7 +10,6 @@ from matplotlib.figure import Figure
 
 from glpma_ros import solvers
 from glpma_ros.compat import version_tuple
-from glpma_tools.stats import distribution
 from glpma_tools.timing import DEADLINE_MARGIN_MS
 
 from .common import SUCCESS_TOLERANCE
@@ -45,7 +44,7 @@ def draw(res, out_dir: Path) -> dict:
         if k in res["tracking"]:
             figures[f"latency_{k}"] = latency_histogram(
                 out_dir / f"latency_{k}.png", f"{sc.label}: warm tracking, solve time per step",
-                res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
+                res["tracking"][k], res["scipy"].get(k, ()), LATENCY_TARGET_MS[k])
     if res["deadline"]:
         figures["deadline"] = deadline_plot(out_dir / "deadline.png", res["deadline"])
     return figures
@@ -94,13 +93,13 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
             coarse.append(label)
         else:
             ax2.step(grid, np.maximum(_median_best(runs, grid), 1e-32), where="post", color=color, ls=ls, label=label)
-    for ax, ylabel, title_ in ((ax1, f"runs with fitness < {SUCCESS_TOLERANCE:g} (%)", "success vs evaluations"),
-                               (ax2, "median best fitness", "convergence (median over runs)")):
-        ax.set(xscale="log", xlabel="fitness evaluations", ylabel=ylabel, xlim=(1, max_evals), title=title_)
+    evaluations = {"xscale": "log", "xlabel": "fitness evaluations", "xlim": (1, max_evals)}
+    ax1.set(**evaluations, ylabel=f"runs with fitness < {SUCCESS_TOLERANCE:g} (%)", ylim=(-2, 102),
+            title="success vs evaluations")
+    ax2.set(**evaluations, yscale="log", ylabel="median best fitness", title="convergence (median over runs)")
+    for ax in (ax1, ax2):
         ax.grid(alpha=0.3)
-    ax1.set_ylim(-2, 102)
     ax1.legend(fontsize=7, loc="upper left")
-    ax2.set_yscale("log")
     ax2.axhline(SUCCESS_TOLERANCE, color="k", lw=0.8, ls=":")
     if coarse:
         ax2.text(0.02, 0.07, "not drawn (the whole run is one compiled chunk; no history):\n" + "\n".join(coarse),
@@ -108,20 +107,19 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
     return _save(fig, path, title)
 
 
-def latency_histogram(path: Path, title, latency_s, target_ms, peers=()) -> Path:
-    """The solve times of the warm tracking (ours, and the peer :data:`DRAWN_PEER`), its p50, p99 and target."""
+def latency_histogram(path: Path, title, ours, peers, target_ms) -> Path:
+    """The solve times of the warm tracking (``ours``, and the peer :data:`DRAWN_PEER`), our p50, p99 and target."""
     fig = Figure(figsize=(7, 4))
     ax = fig.subplots()
-    ms = np.asarray(latency_s) * 1e3
+    ms = ours.latency_s * 1e3
     hi = max(float(np.percentile(ms, 99.9)) * 1.3, target_ms * 1.2)
     bins = np.linspace(0.0, hi, 80)
     ax.hist(np.clip(ms, 0, hi), bins=bins, color="tab:green", alpha=0.75, label="ours: Estimator (warm)")
     for row in (r for r in peers if r.label == DRAWN_PEER and r.latency_s is not None):
         ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
                 label="scipy least_squares lm, analytic J")
-    d = distribution(ms)
     for q, ls in (("p50", "--"), ("p99", "-")):
-        ax.axvline(d[q], color="k", ls=ls, lw=1, label=f"{q} {d[q]:.3f} ms")
+        ax.axvline(ours.stats[q], color="k", ls=ls, lw=1, label=f"{q} {ours.stats[q]:.3f} ms")
     ax.axvline(target_ms, color="tab:red", ls=":", lw=1.5, label=f"target p99 ≤ {target_ms:g} ms")
     ax.set(yscale="log", xlabel="solve time per step (ms), values above the range clipped into the last bin",
            ylabel="steps", title=title)

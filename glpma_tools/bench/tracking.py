@@ -56,7 +56,6 @@ def tracking(sc, steps, budget_ms, progress) -> SimpleNamespace:
     def step(i):
         starts.append(np.array(est.last_x, dtype=float))
         return est.estimate(legs[i + 1])
-
     calls = timed_calls(step, steps, budget_ms, f"{sc.label} tracking", progress, stop_early=False)
     found = [e.x if e.x is not None and np.all(np.isfinite(e.x)) else None for e in calls.results]
     return _solves("ours: Estimator (warm: compiled LM)", calls, model, found, legs[1:],
@@ -154,10 +153,9 @@ def _left_jacobian(w):
 
 def scipy_solve(least_squares, model, method, jac, x_start, legs):
     """One warm-started ``least_squares`` solve, ``(variables, nfev)``.  ``jac="analytic"``: leg residuals in the
-    model's pose parameterisation with its analytic Jacobian (3-RPR: the variables; hexapod: position plus a
-    rotation vector ``w`` applied as ``exp(w) R0`` (``pose_retract``), Jacobian composed with the left Jacobian of
-    SO(3), exact); ``"2-point"``: the residual vector of the solver variables (hexapod: the nine-variable model with
-    its rigidity terms) and finite differences."""
+    model's pose parameterisation, its analytic Jacobian (hexapod: a step of position and rotation vector ``w``,
+    ``exp(w) R0``, the Jacobian composed with SO(3)'s left Jacobian: exact); ``"2-point"``: the residual vector of
+    the solver variables (hexapod: nine, with the rigidity terms) and finite differences."""
     options = {"method": method, "xtol": SCIPY_TOL, "ftol": SCIPY_TOL, "gtol": SCIPY_TOL}
     x0 = np.asarray(x_start, dtype=float)
     if jac == "2-point":
@@ -173,17 +171,15 @@ def scipy_solve(least_squares, model, method, jac, x_start, legs):
         s = np.frombuffer(key)
         r, J = model.pose_residuals_jacobian(pose(s), legs)
         return r, J if planar else np.hstack((J[:, :3], J[:, 3:] @ _left_jacobian(s[3:])))
-
     res = least_squares(lambda s: rj(s.tobytes())[0], x0 if planar else np.zeros(6), jac=lambda s: rj(s.tobytes())[1],
                         **options)
     return model.pose_variables(pose(res.x)), res.nfev
 
 
 def numpy_newton(model, x_start, legs):
-    """A plain NumPy Gauss-Newton iteration from the warm start, ``(variables, evaluations)``: what a user writes in
-    a few lines with the model's pose parameterisation and analytic Jacobian, undamped, stopped by the Estimator's
-    leg criterion (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after
-    :data:`NEWTON_MAX_STEPS` steps."""
+    """A plain NumPy Gauss-Newton iteration from the warm start, ``(variables, evaluations)``: what a user writes with
+    the model's pose parameterisation and analytic Jacobian, undamped, stopped by the Estimator's leg criterion
+    (``max |r| <= LEG_RTOL * max(scale, max leg)``, then one more step) or after :data:`NEWTON_MAX_STEPS` steps."""
     tol = LEG_RTOL * max(model.scale, float(np.max(legs)))
     state = model.pose_state(x_start)
     r, J = model.pose_residuals_jacobian(state, legs)
