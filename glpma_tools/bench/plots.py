@@ -15,7 +15,7 @@ from glpma_tools.timing import DEADLINE_MARGIN_MS
 from .common import SUCCESS_TOLERANCE
 from .report import SOLVER_LABEL
 from .scenarios import LATENCY_TARGET_MS
-from .tracking import DRAWN_PEER
+from .timing import DRAWN_PEER
 
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",
           "pymoo": "tab:brown"}
