@@ -15,7 +15,6 @@ from glpma_tools.timing import DEADLINE_MARGIN_MS
 from .common import SUCCESS_TOLERANCE
 from .report import SOLVER_LABEL
 from .scenarios import LATENCY_TARGET_MS
-from .timing import DRAWN_PEER
 
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",
           "pymoo": "tab:brown"}
@@ -23,6 +22,8 @@ COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypo
 EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1000): "gold"}
 #: a run's history needs this many points (median over runs) for a convergence curve
 MIN_HISTORY_POINTS = 4
+#: the warm peer (its row's label, :func:`.timing.tracking`) the latency figures draw beside ours
+DRAWN_PEER = "scipy `lm`, analytic"
 DPI = 110
 #: horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
 HORIZONTAL = {"orientation": "horizontal"} if version_tuple(MATPLOTLIB_VERSION) >= (3, 10) else {"vert": False}

@@ -32,8 +32,6 @@ WARM_UP_STEPS = 19
 #: scipy's variants (method, Jacobian), with tolerances at round-off so that accuracy is comparable
 SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]
 SCIPY_TOL = 1e-15
-#: the peer the latency figures draw beside ours
-DRAWN_PEER = "scipy `lm`, analytic"
 NEWTON_MAX_STEPS = 20
 #: the deadline cells are small: a short warm-up is enough
 DEADLINE_WARM_UP_QUIET = 3
