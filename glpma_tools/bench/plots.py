@@ -5,8 +5,16 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from matplotlib import __version__ as MATPLOTLIB_VERSION
+from matplotlib.figure import Figure
 
-from glpma_tools.stats import distribution
+from glpma_ros import solvers
+from glpma_ros.compat import version_tuple
+from glpma_tools.timing import DEADLINE_MARGIN_MS
+
+from .common import SUCCESS_TOLERANCE
+from .report import SOLVER_LABEL
+from .scenarios import LATENCY_TARGET_MS
 
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",
           "pymoo": "tab:brown"}
@@ -14,15 +22,15 @@ COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypo
 EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1000): "gold"}
 #: a run's history needs this many points (median over runs) for a convergence curve
 MIN_HISTORY_POINTS = 4
+#: the warm peer (its row's label, :func:`.timing.tracking`) the latency figures draw beside ours
+DRAWN_PEER = "scipy `lm`, analytic"
+DPI = 110
+#: horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
+HORIZONTAL = {"orientation": "horizontal"} if version_tuple(MATPLOTLIB_VERSION) >= (3, 10) else {"vert": False}
 
 
 def draw(res, out_dir: Path) -> dict:
     """Every figure of the measurements ``res`` into ``out_dir``: ``{name: path}``."""
-    from glpma_ros import solvers
-    from glpma_tools.timing import DEADLINE_MARGIN_MS
-
-    from .report import SOLVER_LABEL
-    from .scenarios import LATENCY_TARGET_MS
     figures = {}
     for k, sc in res["scenarios"].items():
         series = [(f"{SOLVER_LABEL[c.solver]} {c.pop_label} {'default' if c.polish else 'pure'}",
@@ -37,25 +45,18 @@ def draw(res, out_dir: Path) -> dict:
         if k in res["tracking"]:
             figures[f"latency_{k}"] = latency_histogram(
                 out_dir / f"latency_{k}.png", f"{sc.label}: warm tracking, solve time per step",
-                res["tracking"][k].latency_s, LATENCY_TARGET_MS[k], res["scipy"].get(k, ()))
+                res["tracking"][k], res["scipy"].get(k, ()), LATENCY_TARGET_MS[k])
     if res["deadline"]:
-        figures["deadline"] = deadline_plot(out_dir / "deadline.png", res["deadline"], DEADLINE_MARGIN_MS)
+        figures["deadline"] = deadline_plot(out_dir / "deadline.png", res["deadline"])
     return figures
 
 
-def _subplots(*args, figsize, **kwargs):
-    """A new figure and its axes: a bare ``Figure``, which saves through matplotlib's Agg canvas (no window,
-    no pyplot state to close)."""
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=figsize)
-    return fig, fig.subplots(*args, **kwargs)
-
-
 def _save(fig, path: Path, title: str | None = None) -> Path:
+    """Save the bare ``Figure`` ``fig`` (through matplotlib's Agg canvas: no window, no pyplot state to close)."""
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=DPI)
     return path
 
 
@@ -79,12 +80,11 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
 
     ``series``: list of (label, color, linestyle, runs) where runs are ``common.Run``; dashed
     series (the refined runs, which converge in their first compiled chunk) appear on the left only."""
-    fig, (ax1, ax2) = _subplots(1, 2, figsize=(12, 4.5))
+    fig = Figure(figsize=(12, 4.5))
+    ax1, ax2 = fig.subplots(1, 2)
     grid = np.unique(np.logspace(0, np.log10(max_evals), 400).astype(int))
     coarse = []
-    for label, color, ls, runs in series:
-        if not runs:
-            continue
+    for label, color, ls, runs in (s for s in series if s[3]):
         ok = np.sort([r.nfev for r in runs if r.success])
         ax1.step(grid, 100 * np.searchsorted(ok, grid, side="right") / len(runs), where="post", color=color, ls=ls,
                  label=f"{label} ({len(runs)} runs)")
@@ -94,33 +94,33 @@ def success_curves(path: Path, title, max_evals, series) -> Path:
             coarse.append(label)
         else:
             ax2.step(grid, np.maximum(_median_best(runs, grid), 1e-32), where="post", color=color, ls=ls, label=label)
-    for ax, ylabel, title_ in ((ax1, "runs with fitness < 1e-20 (%)", "success vs evaluations"),
-                               (ax2, "median best fitness", "convergence (median over runs)")):
-        ax.set(xscale="log", xlabel="fitness evaluations", ylabel=ylabel, xlim=(1, max_evals), title=title_)
+    evaluations = {"xscale": "log", "xlabel": "fitness evaluations", "xlim": (1, max_evals)}
+    ax1.set(**evaluations, ylabel=f"runs with fitness < {SUCCESS_TOLERANCE:g} (%)", ylim=(-2, 102),
+            title="success vs evaluations")
+    ax2.set(**evaluations, yscale="log", ylabel="median best fitness", title="convergence (median over runs)")
+    for ax in (ax1, ax2):
         ax.grid(alpha=0.3)
-    ax1.set_ylim(-2, 102)
     ax1.legend(fontsize=7, loc="upper left")
-    ax2.set_yscale("log")
-    ax2.axhline(1e-20, color="k", lw=0.8, ls=":")
+    ax2.axhline(SUCCESS_TOLERANCE, color="k", lw=0.8, ls=":")
     if coarse:
         ax2.text(0.02, 0.07, "not drawn (the whole run is one compiled chunk; no history):\n" + "\n".join(coarse),
                  transform=ax2.transAxes, fontsize=7, va="bottom")
     return _save(fig, path, title)
 
 
-def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) -> Path:
-    fig, ax = _subplots(figsize=(7, 4))
-    ms = np.asarray(latency_s) * 1e3
+def latency_histogram(path: Path, title, ours, peers, target_ms) -> Path:
+    """The solve times of the warm tracking (``ours``, and the peer :data:`DRAWN_PEER`), our p50, p99 and target."""
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
+    ms = ours.latency_s * 1e3
     hi = max(float(np.percentile(ms, 99.9)) * 1.3, target_ms * 1.2)
     bins = np.linspace(0.0, hi, 80)
     ax.hist(np.clip(ms, 0, hi), bins=bins, color="tab:green", alpha=0.75, label="ours: Estimator (warm)")
-    for row in scipy_rows:
-        if row.latency_s is not None and row.method == "lm" and row.jac == "analytic":
-            ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
-                    label="scipy least_squares lm, analytic J")
-    d = distribution(ms)
+    for row in (r for r in peers if r.label == DRAWN_PEER and r.latency_s is not None):
+        ax.hist(np.clip(row.latency_s * 1e3, 0, hi), bins=bins, histtype="step", color="tab:red",
+                label="scipy least_squares lm, analytic J")
     for q, ls in (("p50", "--"), ("p99", "-")):
-        ax.axvline(d[q], color="k", ls=ls, lw=1, label=f"{q} {d[q]:.3f} ms")
+        ax.axvline(ours.stats[q], color="k", ls=ls, lw=1, label=f"{q} {ours.stats[q]:.3f} ms")
     ax.axvline(target_ms, color="tab:red", ls=":", lw=1.5, label=f"target p99 ≤ {target_ms:g} ms")
     ax.set(yscale="log", xlabel="solve time per step (ms), values above the range clipped into the last bin",
            ylabel="steps", title=title)
@@ -129,23 +129,18 @@ def latency_histogram(path: Path, title, latency_s, target_ms, scipy_rows=()) ->
     return _save(fig, path)
 
 
-def deadline_plot(path: Path, rows, margin_ms) -> Path:
-    import matplotlib
-
-    from glpma_ros.compat import version_tuple
-    # horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
-    horizontal = ({"orientation": "horizontal"} if version_tuple(matplotlib.__version__) >= (3, 10)
-                  else {"vert": False})
+def deadline_plot(path: Path, rows) -> Path:
+    """The overruns of each deadline cell (case and solver), one panel per budget."""
     budgets = sorted({r.budget_ms for r in rows})
     labels = list(dict.fromkeys(r.label for r in rows))
-    fig, axes = _subplots(1, len(budgets), figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6),
-                          sharey=True, squeeze=False)
+    fig = Figure(figsize=(3.6 * len(budgets) + 3.0, 0.35 * len(labels) + 1.6))
+    axes = fig.subplots(1, len(budgets), sharey=True, squeeze=False)
     for ax, b in zip(axes[0], budgets):
         by_label = {r.label: r.overrun_ms for r in rows if r.budget_ms == b}
         ax.boxplot([by_label.get(label, np.array([np.nan])) for label in labels], whis=(0, 100), showfliers=False,
-                   **horizontal)
+                   **HORIZONTAL)
         ax.axvline(0.0, color="k", lw=0.8)
-        ax.axvline(margin_ms, color="tab:red", ls=":", label=f"budget + {margin_ms:g} ms")
+        ax.axvline(DEADLINE_MARGIN_MS, color="tab:red", ls=":", label=f"budget + {DEADLINE_MARGIN_MS:g} ms")
         ax.set(xlabel="elapsed − budget (ms)", title=f"budget {b:g} ms")
         ax.grid(alpha=0.3)
     axes[0][0].set_yticks(range(1, len(labels) + 1), labels, fontsize=7)
