@@ -85,8 +85,7 @@ def header(res) -> list[str]:
 def summary_section(res, md_path) -> list[str]:
     """The headline figures of the sections that ran: the papers' success rates, warm tracking, all solutions,
     deadlines."""
-    from .timing import all_overruns, share_on_time, worst_overrun
-    from .tracking import calm_distribution
+    from .timing import all_overruns, calm_distribution, share_on_time, worst_overrun
     label = {key: sc.label for key, sc in res["scenarios"].items()}
     lines = [f"- {label[key]} ({TABLE_NAME[res['scenarios'][key].model.kind]} protocol): " + "; ".join(
         f"{SOLVER_LABEL[c.solver]} {c.pop_label} {c.mode}: {summarize(r.runs).success_pct:.0f} %"
@@ -117,13 +116,13 @@ def render(res, md_path, reliability=None, reliability_source=None) -> str:
     ``reliability_source`` (None: there are none yet)."""
     from glpma_tools.stress.report import reliability_section
 
-    from . import dds, experiments, modes, offline, outputs, timing, tracking, waits
+    from . import dds, experiments, modes, offline, outputs, timing, waits
     # the sections in the report's order, each with the measurements it renders (None: it looks for them itself)
     sections = ((None, summary_section), ("tables", experiments.paper_tables_section),
                 (None, experiments.figures_section), ("peers", experiments.peers_section),
                 (None, experiments.gap_section), ("all_solutions", experiments.all_solutions_section),
-                ("modes_comparison", modes.section), ("tracking", tracking.tracking_section),
-                ("scipy", tracking.scipy_section), ("deadline", timing.deadline_section),
+                ("modes_comparison", modes.section), ("tracking", timing.tracking_section),
+                ("deadline", timing.deadline_section),
                 ("baselines", experiments.baselines_section), (None, dds.section), (None, outputs.section),
                 ("waits", waits.section), ("offline", offline.offline_section))
     parts = header(res)

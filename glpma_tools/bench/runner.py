@@ -135,7 +135,7 @@ def main(argv=None) -> int:
                          f"choose from {', '.join(solvers.SOLVERS)}")
     stress_figures = _reliability(args.reliability)       # before hours of measurements: it may not read
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, modes, offline, outputs, timing, tracking, waits
+    from . import dds, modes, offline, outputs, timing, waits
     from . import experiments as ex
     from .scenarios import load
 
@@ -181,8 +181,8 @@ def main(argv=None) -> int:
                                                 progress)
     for k, sc in scenarios.items() if "tracking" in sections else ():
         say(f"{sc.label}: warm tracking and scipy least_squares", f"{sc.key} tracking")
-        res["tracking"][k] = tracking.tracking(sc, max(2, counts["track_steps"]), counts["track_budget_ms"], progress)
-        res["scipy"][k] = tracking.scipy_warm(sc, res["tracking"][k], progress)
+        res["tracking"][k], res["scipy"][k] = timing.tracking(sc, max(2, counts["track_steps"]),
+                                                              counts["track_budget_ms"], progress)
     if "deadline" in sections:
         say("deadline honouring", "deadline")
         res["deadline"] = timing.deadlines(listed, args.budgets_ms, max(1, counts["deadline_solves"]), progress,
