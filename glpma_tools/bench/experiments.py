@@ -192,8 +192,9 @@ def paper_tables_section(res, md_path) -> list[str]:
         for c, s, runs in ((r.config, summarize(r.runs), r.runs) for r in rows):
             p = PUBLISHED[kind][(c.solver, c.population, c.local_population)]
             body.append([SOLVER_LABEL[c.solver], c.pop_label, c.mode, *summary_cells(runs),
-                         fmt(p["success"], unit=" %"), fmt_ci(p["evals"], p["evals_pm"]), ratio(s.evals_mean, p["evals"]),
-                         fmt(p["time_s"] * 1e3), ratio(s.time_mean_ms, p["time_s"] * 1e3)])
+                         fmt(p["success"], unit=" %"), fmt_ci(p["evals"], p["evals_pm"]),
+                         ratio(s.evals_mean, p["evals"]), fmt(p["time_s"] * 1e3),
+                         ratio(s.time_mean_ms, p["time_s"] * 1e3)])
         glpma = " " + prose("tables", "glpma", intensity=st["ls_intensity"]) if "ls_intensity" in st else ""
         out += md_blocks(f"### {sc.label}: {TABLE_NAME[kind]}",
                          prose("tables", low=f"{st['init_range'][0]:g}", high=f"{st['init_range'][1]:g}",
@@ -213,7 +214,8 @@ def g3pcx_runs(res, key) -> dict:
     tables ran, then each peer that ran)."""
     pop = solvers.PAPER_SETTINGS[res["scenarios"][key].model.kind]["population"]
     ours = [r.runs for r in res["tables"].get(key, []) if r.config == Config("g3pcx", pop, None, False)]
-    return ({"ours": ours[0]} if ours else {}) | {r.name: r.runs for r in res["peers"].get(key, []) if r.status == "run"}
+    peers = {r.name: r.runs for r in res["peers"].get(key, []) if r.status == "run"}
+    return ({"ours": ours[0]} if ours else {}) | peers
 
 
 def spread_cells(runs) -> list:

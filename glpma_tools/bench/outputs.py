@@ -264,7 +264,8 @@ def _paths(rows) -> list:
     return [prose("outputs", "paths"),
             table(["manipulator", "process", "rate", "sent / poses", "wrong", "written -> read p50 / p99 / max (ms)",
                    "p50 / p99 against the targets", "above the floor p50 / p99 (ms)", "written -> taken p50 / p99 (ms)",
-                   "taken -> read p50 / p99 (ms)", "process CPU", "process summary"], body), prose("outputs", "targets")]
+                   "taken -> read p50 / p99 (ms)", "process CPU", "process summary"], body),
+            prose("outputs", "targets")]
 
 
 def section(res, md_path=None) -> list[str]:

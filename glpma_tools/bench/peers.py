@@ -1,6 +1,7 @@
 """Peer implementations of pure G3-PCX, pypop7's and pymoo's (benchmark-only dependencies, imported lazily), on the
 identical fitness: the compiled one of our solvers through :class:`CountingFitness`, so that evaluations are counted
-the same way for everyone.  :func:`available` also tells :mod:`.timing` (warm tracking) whether scipy, its warm peer, imports."""
+the same way for everyone.  :func:`available` also tells :mod:`.timing` (warm tracking) whether scipy, its warm
+peer, imports."""
 from __future__ import annotations
 
 import importlib
