@@ -97,8 +97,9 @@ def test_node_restart_mid_trajectory_cold_then_warm(session, capsys):
 # -- the figures as JSON, rendered by the bench (no node needed) ----------------------------------------
 
 def test_the_bench_renders_the_stress_figures(tmp_path):
+    from glpma_tools.bench.report import reliability_section
     from glpma_tools.stress.report import read_json as load
-    from glpma_tools.stress.report import reliability_section, write_json
+    from glpma_tools.stress.report import write_json
     flood = {"inputs": 10, "send_s": 0.5, "send_rate_hz": 20.0, "late_sends": 0, "received": 9, "solved": 7,
              "rejected": 1, "dropped": 1, "deadline_misses": 0, "lost_in_transport": 1, "rss_before_mb": 80.0,
              "rss_after_mb": 80.5, "rss_growth_mb": 0.5, "node_latency_ms": {"p50": 1.0, "p99": 2.0, "max": 3.0},

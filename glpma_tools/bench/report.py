@@ -105,6 +105,40 @@ def summary_section(res, md_path) -> list[str]:
     return ["## Summary", "", *lines, ""]
 
 
+def reliability_section(res: dict | None, source=None) -> list[str]:
+    """The Reliability section from the figures ``glpma-fk stress`` wrote as JSON (``doc/bench/reliability.json``
+    after a full run: the stress test measures, the benchmark writes; :func:`glpma_tools.stress.report.read_json`);
+    without them, a note of where ``glpma-fk stress`` puts them."""
+    from glpma_tools.stress import report as stress
+    from glpma_tools.stress import session as ses
+    from glpma_tools.timing import WARM_UP_QUIET
+    if res is None:
+        return md_blocks("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
+    secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")
+    floods = [k for k in stress.FLOOD_SECTIONS if k in secs]
+    restarts = stress.restart_rows(secs)
+    return md_blocks(
+        "## Reliability",
+        prose("reliability", **res["machine"], command=res.get("command") or "glpma-fk stress", date=res["date"],
+              minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"],
+              load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
+              checks="all passed" if res["passed"] else "some failed (see below)",
+              expectations="all met" if res.get("expectations_met", True) else "some missed (see below)"),
+        res.get("quick") and prose("reliability", "quick"),
+        node and prose("reliability", "node", command=node["command"], manipulator=node["manipulator"],
+                       budget=f"{node['time_budget_ms']:g}", depth=node["qos_depth"], warmup=f"{ses.WARMUP_S:g}"),
+        floods and table(*stress.flood_rows(secs)),
+        "\n".join(f"- {k}: {stress.check_result(secs[k])}" for k in floods),
+        floods and prose("reliability", "flood", rss_slack=f"{ses.RSS_SLACK_MB:g}",
+                         lost_slack=f"{100 * ses.LOST_SLACK:g}"),
+        restarts and "### Restarts and a jump",
+        restarts and table(["scenario", "what happened", "checks"], restarts),
+        restarts and prose("reliability", "restarts"),
+        d and "### Deadlines (in-process Estimator)",
+        d and prose("reliability", "deadline", manipulator=d["manipulator"], quiet=WARM_UP_QUIET),
+        d and table(stress.DEADLINE_HEAD, stress.deadline_rows(d["rows"])))
+
+
 def measured_apart(md_path) -> list[str]:
     """The Markdown of :data:`APART` that exists beside ``md_path`` (the repository root's BENCHMARKS.md)."""
     paths = [Path(os.path.dirname(os.path.abspath(md_path)), name) for name in APART]
@@ -114,8 +148,6 @@ def measured_apart(md_path) -> list[str]:
 def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
-    from glpma_tools.stress.report import reliability_section
-
     from . import dds, experiments, modes, offline, outputs, timing, waits
     # the sections in the report's order, each with the measurements it renders (None: it looks for them itself)
     sections = ((None, summary_section), ("tables", experiments.paper_tables_section),

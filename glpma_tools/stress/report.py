@@ -1,5 +1,5 @@
 """The stress test's figures as tables: the rows the terminal output here and the benchmark's
-Reliability section (:func:`reliability_section`, BENCHMARKS.md) share, and the JSON file that carries
+Reliability section (:func:`glpma_tools.bench.report.reliability_section`) share, and the JSON file that carries
 the figures from the one to the other."""
 from __future__ import annotations
 
@@ -159,37 +159,3 @@ def read_json(path) -> dict | None:
     path = Path(path)
     return json.loads(path.read_text()) if path.exists() else None
 
-
-def reliability_section(res: dict | None, source=None) -> list[str]:
-    """BENCHMARKS.md's Reliability section (prose: ``glpma_tools/bench/templates/reliability.md``) from the figures
-    :func:`read_json` read (``doc/bench/reliability.json`` after a full run: the stress test measures, the benchmark
-    writes); without them, a note of where ``glpma-fk stress`` puts them."""
-    from glpma_tools.bench.report import md_blocks, prose
-    from glpma_tools.timing import WARM_UP_QUIET
-
-    from . import session as ses
-    if res is None:
-        return md_blocks("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
-    secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")
-    floods = [k for k in FLOOD_SECTIONS if k in secs]
-    restarts = restart_rows(secs)
-    return md_blocks(
-        "## Reliability",
-        prose("reliability", **res["machine"], command=res.get("command") or "glpma-fk stress", date=res["date"],
-              minutes=f"{res['wall_s'] / 60:.1f}", revision=res["revision"],
-              load_start=f"{res['load_average_start'][0]:.2f}", load_end=f"{res['load_average_end'][0]:.2f}",
-              checks="all passed" if res["passed"] else "some failed (see below)",
-              expectations="all met" if res.get("expectations_met", True) else "some missed (see below)"),
-        res.get("quick") and prose("reliability", "quick"),
-        node and prose("reliability", "node", command=node["command"], manipulator=node["manipulator"],
-                       budget=f"{node['time_budget_ms']:g}", depth=node["qos_depth"], warmup=f"{ses.WARMUP_S:g}"),
-        floods and table(*flood_rows(secs)),
-        "\n".join(f"- {k}: {check_result(secs[k])}" for k in floods),
-        floods and prose("reliability", "flood", rss_slack=f"{ses.RSS_SLACK_MB:g}",
-                         lost_slack=f"{100 * ses.LOST_SLACK:g}"),
-        restarts and "### Restarts and a jump",
-        restarts and table(["scenario", "what happened", "checks"], restarts),
-        restarts and prose("reliability", "restarts"),
-        d and "### Deadlines (in-process Estimator)",
-        d and prose("reliability", "deadline", manipulator=d["manipulator"], quiet=WARM_UP_QUIET),
-        d and table(DEADLINE_HEAD, deadline_rows(d["rows"])))
