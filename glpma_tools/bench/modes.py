@@ -54,7 +54,8 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
         exact_status = "run"
     except GlpmaError as exc:
         exact_status = str(exc)
-    rows, hexapods_done, cases = [], 0, _cases(scenarios, per_kind)
+    rows, hexapods_done = [], 0
+    cases = _cases(scenarios, per_kind)
     for kind in {c[1].kind for c in cases}:             # load the compiled code before timing
         _, model, legs, _ = next(c for c in cases if c[1].kind == kind)
         solve_all(model, legs, max_starts=2)

@@ -32,17 +32,22 @@ from .scenarios import load
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
-#: the counting methods compared: G3-PCX runs per point (the papers' way) and the points msolve certifies
-#: (glpma-fk map --exact); --quick: QUICK_RUNS each
-COMPARE_RUNS = EXACT_POINTS = 50
+#: the counting methods compared: G3-PCX runs per point (the papers' way) ...
+COMPARE_RUNS = 50
+#: ... and the points msolve certifies (glpma-fk map --exact)
+EXACT_POINTS = 50
+#: both with --quick
 QUICK_RUNS = 5
 #: the bags of the fleet
 FLEET_BAGS = 4
-#: log time of the first message and the period of the recorded legs (1 kHz)
-T0_NS, PERIOD_NS = 1_700_000_000_000_000_000, 1_000_000
+#: log time of the first message of the recorded legs, and their period (1 kHz)
+T0_NS = 1_700_000_000_000_000_000
+PERIOD_NS = 1_000_000
 #: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22), each this many times (the median and
 #: the smallest are reported: a shared machine only adds time); its forward kinematics checked at fresh true poses
-CALIBRATION_SIZES, CALIBRATION_REPEATS, CALIBRATION_FK_POSES = (200, 10_000), 5, 20
+CALIBRATION_SIZES = (200, 10_000)
+CALIBRATION_REPEATS = 5
+CALIBRATION_FK_POSES = 20
 PARAMS_3RPR = ["--ros-args", "--params-file", str(params_file("planar_3rpr"))]
 #: what the breakdown writes per input, as glpma-fk bag does: the input's copy, the pose, /tf and a status (a
 #: stand-in of this many bytes)

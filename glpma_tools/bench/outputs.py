@@ -180,7 +180,11 @@ def micro_profile(sc, n: int, domain: int) -> dict:
             match([ctl.writer], "the echo")
             out["write_remote"] = _cpu_wall(ctl.raw_writer.write, writes)
     ping, pong = queue.SimpleQueue(), queue.SimpleQueue()
-    other = threading.Thread(target=lambda: [pong.put(ping.get()) for _ in range(n)], daemon=True)
+
+    def answer():
+        for _ in range(n):
+            pong.put(ping.get())
+    other = threading.Thread(target=answer, daemon=True)
     other.start()
     out["wake_us"] = _cpu_wall(lambda: (ping.put(True), pong.get()), [()] * n)["wall_us"]
     other.join()
@@ -254,12 +258,16 @@ def _paths(rows) -> list:
     floor = {r["manipulator"]: r["total_ms"] for r in rows if r["target"] == ECHO}
 
     def against(d, targets) -> str:
-        return " / ".join("no target" if t is None else f"{100 * d[q] / t:.0f} % ({_verdict(d[q], t)})"
-                          for q, t in zip(("p50", "p99"), targets))
+        return " / ".join("no target" if t is None else MISSING if d.get(q) is None
+                          else f"{100 * d[q] / t:.0f} % ({_verdict(d[q], t)})" for q, t in zip(("p50", "p99"), targets))
+
+    def above(d, f) -> str:
+        return " / ".join(MISSING if f is None or None in (d.get(q), f.get(q)) else f"{d[q] - f[q]:+.3f}"
+                          for q in ("p50", "p99"))
     body = [[r["manipulator"], r["target"], f"{r['rate_hz']:g} Hz, {r['seconds']:g} s",
              f"{r['sent']:,} / {r['paired']:,}", r["wrong"], f"{_q(r['total_ms'])} / {_q(r['total_ms'], 2, ('max',))}",
              against(r["total_ms"], END_TO_END_TARGET_MS[r["key"]]),
-             " / ".join(f"{r['total_ms'][q] - floor[r['manipulator']][q]:+.3f}" for q in ("p50", "p99")),
+             above(r["total_ms"], floor.get(r["manipulator"])),
              _q(r["to_node_ms"]), _q(r["in_node_ms"]), f"{r['cpu_percent']:.0f} %", r["summary"]] for r in rows]
     return [prose("outputs", "paths"),
             table(["manipulator", "process", "rate", "sent / poses", "wrong", "written -> read p50 / p99 / max (ms)",

@@ -24,6 +24,7 @@ EXTRA_COLORS = {("rcga", 50): "tab:cyan", ("g3pcx", 600): "tab:red", ("g3pcx", 1
 MIN_HISTORY_POINTS = 4
 #: the warm peer (its row's label, :func:`.timing.tracking`) the latency figures draw beside ours
 DRAWN_PEER = "scipy `lm`, analytic"
+#: the figures' resolution (dots per inch)
 DPI = 110
 #: horizontal boxes: orientation= from matplotlib 3.10 on, vert=False before (Ubuntu 24.04, Debian 12: 3.6)
 HORIZONTAL = {"orientation": "horizontal"} if version_tuple(MATPLOTLIB_VERSION) >= (3, 10) else {"vert": False}

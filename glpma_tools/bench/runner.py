@@ -206,11 +206,10 @@ def main(argv=None) -> int:
         res["offline"] = offline.measure(counts["bag_messages"], counts["map_resolution"], args.quick,
                                          hexapod="hexapod" in scenarios)
     res["wall_s"] = time.perf_counter() - t_start
-    code = finish(res, args, out_dir, say, stress_figures)
-    if args.save_data:              # the models hold compiled functions: a render loads them again by their keys
-        args.save_data.write_bytes(pickle.dumps({**res, "scenarios": list(scenarios), "figures": {}}))
+    if args.save_data:              # first: the figures or the report may fail; the models hold compiled functions,
+        args.save_data.write_bytes(pickle.dumps({**res, "scenarios": list(scenarios)}))     # a render loads them
         say(f"saved the measurements to {args.save_data}")
-    return code
+    return finish(res, args, out_dir, say, stress_figures)
 
 
 def _reliability(path: Path) -> tuple[dict | None, str]:

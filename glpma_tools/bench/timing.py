@@ -32,6 +32,7 @@ WARM_UP_STEPS = 19
 #: scipy's variants (method, Jacobian), with tolerances at round-off so that accuracy is comparable
 SCIPY_VARIANTS = [("lm", "analytic"), ("trf", "analytic"), ("lm", "2-point"), ("trf", "2-point")]
 SCIPY_TOL = 1e-15
+#: the NumPy Newton iteration's last step (a plain Newton that has not converged by then will not)
 NEWTON_MAX_STEPS = 20
 #: the deadline cells are small: a short warm-up is enough
 DEADLINE_WARM_UP_QUIET = 3

@@ -95,7 +95,8 @@ def build_parser() -> OneLineParser:
     p.add_argument("--params-file", type=Path, default=DEFAULT_PARAMS, help="the node's parameters")
     p.add_argument("-p", dest="params", action="append", default=[], metavar="NAME:=VALUE",
                    help="more node parameters (as after --ros-args -p)")
-    p.add_argument("--domain", type=int, help="ROS_DOMAIN_ID (default: one this run claims, that no other run on the host uses)")
+    p.add_argument("--domain", type=int,
+                   help="ROS_DOMAIN_ID (default: one this run claims, that no other run on the host uses)")
     p.add_argument("--log-dir", type=Path, help="where the node's stdout/stderr go (default a temporary directory)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on stdout")
     p.add_argument("--json-out", type=Path, metavar="FILE",

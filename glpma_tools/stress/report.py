@@ -158,4 +158,3 @@ def read_json(path) -> dict | None:
     """The figures :func:`write_json` wrote to ``path``, or None when there is no such file."""
     path = Path(path)
     return json.loads(path.read_text()) if path.exists() else None
-
