@@ -159,8 +159,8 @@ def _legs(model, legs):
     """Validated leg lengths (config unit) from the sensors' readings ``legs`` (the config's
     ``leg_offsets`` added); legs off by a unit factor get a one-line hint."""
     from .config import check_units
-    if np.asarray(legs).size == model.n_legs:
-        check_units(model, legs)
+    if np.asarray(legs).size == model.n_legs and not getattr(model, "actuated", False):
+        check_units(model, legs)          # (an actuated family's readings are actuator positions)
     return model.check_legs(model.legs_from_sensors(legs))
 
 
@@ -220,12 +220,15 @@ def cmd_solve_all(args) -> int:
     """Every real assembly mode; the one-time load of the compiled code is done first and reported
     apart (``load_s``), so that ``elapsed_s`` is the search alone."""
     from . import precompile
-    from .solve_all import solve_all
+    from .solve_all import has_closed_form, solve_all
     model = _load(args.config)
     legs = _legs(model, args.legs)
     if args.exact and args.method is not None:
         raise GlpmaError(f"--exact and --method {args.method} exclude each other")
-    method = "exact" if args.exact else args.method or ("g3pcx" if args.runs is not None else "multistart")
+    default = "closed_form" if has_closed_form(model) else "multistart"
+    method = "exact" if args.exact else args.method or ("g3pcx" if args.runs is not None else default)
+    if method == "closed_form" and not has_closed_form(model):
+        raise GlpmaError(f"{model.kind} has no closed-form forward kinematics; use --method multistart")
     if args.runs is not None and method != "g3pcx":
         raise GlpmaError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
     if (args.max_starts is not None or args.budget_s is not None) and method != "multistart":
@@ -235,7 +238,7 @@ def cmd_solve_all(args) -> int:
         if value is not None and not ok(value):
             raise GlpmaError(f"{name} must be {'positive' if name == '--budget-s' else 'at least 1'}")
     # the compiled code of the method that runs (msolve is a separate program: nothing to load)
-    load_s = 0.0 if method == "exact" else precompile.exercise_solve_all(model, methods=(method,))
+    load_s = 0.0 if method in ("exact", "closed_form") else precompile.exercise_solve_all(model, methods=(method,))
     res = solve_all(model, legs, method=method, runs=args.runs, seed=args.seed, max_starts=args.max_starts,
                     budget_s=args.budget_s, leg_noise_std=args.leg_noise_std)
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
@@ -252,7 +255,8 @@ def cmd_solve_all(args) -> int:
                           "runs": res.runs, "elapsed_s": res.elapsed_s, **extra}))
     else:
         work = {"g3pcx": f"{res.runs} G3-PCX runs", "multistart": f"{res.starts} starts ({res.stop_reason})",
-                "exact": f"msolve, {res.complex_solutions} complex solutions"}[res.method]
+                "exact": f"msolve, {res.complex_solutions} complex solutions",
+                "closed_form": "the closed form"}[res.method]
         print(f"{len(res.solutions)} distinct real assembly modes from {work} in {res.elapsed_s:.3f} s")
         if res.method == "multistart" and res.starts:
             print(f"  chance that one more start finds a new mode (Good-Turing): {res.miss_probability:.3g}; "
@@ -276,6 +280,8 @@ def mode_columns(model) -> list:
     theta; hexapod: position and unit quaternion platform -> base), then the hexapod's solver
     variables (the platform joints B1..B3), then the fitness."""
     unit = model.unit
+    if model.variable_names == ("x", "y", "z"):      # a platform that only translates (deltas)
+        return [f"px [{unit}]", f"py [{unit}]", f"pz [{unit}]", "fitness"]
     if model.kind == "planar_3rpr":
         pose = [f"x [{unit}]", f"y [{unit}]", "theta [rad]"]
         return pose + ["fitness"]
@@ -288,7 +294,7 @@ def mode_table(model, solutions) -> list:
     names = mode_columns(model)
     lines = ["   #" + "".join(n.rjust(MODE_COLUMN) for n in names)]
     for k, s in enumerate(solutions, 1):
-        if model.kind == "planar_3rpr":
+        if model.kind == "planar_3rpr" or model.variable_names == ("x", "y", "z"):
             values = list(s.x)
         else:
             p = model.pose(s.x)
@@ -320,11 +326,14 @@ def build_parser() -> argparse.ArgumentParser:
                        "when at least one is found, 1 when none is (with the reason on stderr), 2 on bad input "
                        "or when --exact cannot run (extra not installed, degenerate geometry).")
     a.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
-    a.add_argument("--legs", type=float, nargs="+", required=True, help="leg lengths, config unit")
-    a.add_argument("--method", choices=("multistart", "g3pcx"), default=None,
+    a.add_argument("--legs", type=float, nargs="+", required=True,
+                   help="leg lengths, config unit (an actuated family, e.g. delta: the actuator positions, "
+                   "radians for revolute actuators)")
+    a.add_argument("--method", choices=("multistart", "g3pcx", "closed_form"), default=None,
                    help="multistart (default): Levenberg-Marquardt from random poses within the legs' reach, "
                    "stopped when many starts in a row find nothing new; g3pcx: the papers' independent "
-                   "polished G3-PCX searches (default when --runs is given)")
+                   "polished G3-PCX searches (default when --runs is given); closed_form: the Delta's "
+                   "sphere intersection (its default)")
     a.add_argument("--exact", action="store_true",
                    help="certified: solve the polynomial system with msolve (pip install 'glpma_ros[exact]'), "
                    "report the number of complex solutions")
@@ -361,7 +370,9 @@ def _add_solve(sub) -> None:
                        "start, or a warm start from --near. The time budget counts the solve only; the "
                        "one-time load of the compiled solvers is reported separately (load_s).")
     s.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
-    s.add_argument("--legs", type=float, nargs="+", required=True, help="leg lengths, in the config's unit")
+    s.add_argument("--legs", type=float, nargs="+", required=True,
+                   help="leg lengths, in the config's unit (an actuated family, e.g. delta: the actuator "
+                   "positions, radians for revolute actuators)")
     s.add_argument("--solver", choices=list(SOLVERS), default="glpma",
                    help="glpma (default), g3pcx, rcga (the papers'), or the baselines sa, gasa, de")
     s.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (default 0)")

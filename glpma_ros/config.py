@@ -2,7 +2,7 @@
 
 Schema (see ``config/*.yaml`` and ``doc/interface.md``)::
 
-    manipulator: planar_3rpr | hexapod_66
+    manipulator: planar_3rpr | hexapod_66  (the actuated families, delta | rus_6: :mod:`.models.families`)
     unit: mm | cm | m            # required: unit of every length in the file and on the CLI
     base: [[...], ...]           # base joints A_i in the base frame, one per leg (3-RPR: 3 to 12
                                  # legs, hexapod: 6 to 12; more than 3 / 6 are redundant legs)
@@ -32,6 +32,7 @@ import yaml
 
 from .errors import ConfigError, InputError
 from .models import MODELS, Manipulator
+from .models.families import FAMILIES, is_family, model_from_family
 from .models.hexapod_66 import COINCIDENT_RELATIVE, frame_joints
 
 UNIT_TO_METRES = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -168,11 +169,13 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
     line (``N problems: a; b``); checks that need a valid ``manipulator`` or joints run once those are."""
     if not isinstance(doc, dict):
         raise ConfigError(f"{path}: expected a YAML mapping with keys {', '.join(REQUIRED_KEYS)}")
+    if is_family(doc):              # an actuated family (delta, rus_6): legs of the one leg model
+        return model_from_family(doc, path)
     problems = _Problems(path)
     problems.found += _unknown_keys(doc)
     kind = doc.get("manipulator")
     if kind not in MODELS:
-        problems.found.append(f"'manipulator' must be one of {', '.join(MODELS)}, got {kind!r}")
+        problems.found.append(f"'manipulator' must be one of {', '.join([*MODELS, *FAMILIES])}, got {kind!r}")
     unit = doc.get("unit")
     if "unit" not in doc:
         problems.found.append(f"missing key 'unit' (the unit of every length in the file: "

@@ -145,7 +145,11 @@ class Estimate:
 def cold_range(model):
     """The papers' initial range for ``model`` as per-variable ``(low, high)`` in its config unit:
     the same physical range whatever the unit (lengths converted from :data:`PAPER_UNIT`, angles
-    kept)."""
+    kept).  An actuated family has its own, in its config unit: the box its legs can reach
+    (``initial_range``, :mod:`glpma_ros.models.actuated`)."""
+    own = getattr(model, "initial_range", None)
+    if own is not None:
+        return np.array(own[0], dtype=float), np.array(own[1], dtype=float)
     low, high = solvers.PAPER_SETTINGS[model.kind]["init_range"]
     factor = UNIT_TO_METRES[PAPER_UNIT] / UNIT_TO_METRES.get(model.unit, UNIT_TO_METRES[PAPER_UNIT])
     f = np.array([1.0 if name in ANGLE_VARIABLES else factor for name in model.variable_names])
@@ -362,6 +366,21 @@ class Estimator:
                           distance=0.0 if self.last_x is None else self.model.distance(x, self.last_x))
         return own, best, nfev + at.nfev
 
+    def _closed_form(self, legs):
+        """A model with a closed-form forward kinematics (the three-leg Delta's sphere intersection,
+        :meth:`~glpma_ros.models.actuated.DeltaTranslation.closed_form`): every mode polished, as candidates
+        ``(key, point, "cold")``; the key is the distance from the previous pose, or without one the model's
+        preference (its working mode first).  None for the other models."""
+        modes = getattr(self.model, "closed_form", None)
+        xs = None if modes is None else modes(legs)
+        if xs is None:
+            return None
+        found = []
+        for rank, x in enumerate(self.model.preferred_order(xs)):
+            p = self._polish(x, legs)
+            found.append((p.distance if self.last_x is not None else float(rank), p, "cold"))
+        return found
+
     def _search(self, legs, t0, warm) -> Estimate:
         """The population stages, then the decision (``warm``: the warm stage's LocalResult, or None)."""
         model = self.model
@@ -385,6 +404,12 @@ class Estimator:
             spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
+        closed = self._closed_form(legs)
+        if closed is not None:    # a closed form gives every mode: no search
+            evaluations += sum(p.nfev for _, p, _ in closed)
+            tried += [(p, stage) for _, p, stage in closed]
+            candidates += [c for c in closed if c[1].converged]
+            stages = []
         # a cold-only estimate gets the cold stage's share, i.e. the whole budget
         for (stage, spread), share in zip(stages, STAGE_SHARE[-len(stages):]):
             now = time.perf_counter()
@@ -426,7 +451,8 @@ class Estimator:
                 "leg residuals at round-off" if self._isolator is None else "least-squares pose"
             return self._accept(Estimate(STATUS_CONVERGED, stage, p.x, Pose(p.position, p.orientation), p.fitness,
                                          evaluations, elapsed, p.conditioning, self.solver,
-                                         f"{stage} start, {how}{note}", p.max_residual), legs, p.leg_fitness, t0)
+                                         f"{stage} start{' (closed form)' if closed else ''}, {how}{note}",
+                                         p.max_residual), legs, p.leg_fitness, t0)
         p, stage = min(tried, key=lambda t: t[0].leg_fitness)
         rms = math.sqrt(p.leg_fitness / model.n_legs)
         cond = p.conditioning

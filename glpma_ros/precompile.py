@@ -37,7 +37,11 @@ SOLVE_ALL_STARTS = 64
 
 
 def warm_up_pose(model) -> np.ndarray:
-    """Solver variables of a pose clear of the base joints (platform lifted by the scale)."""
+    """Solver variables of a pose clear of the base joints (platform lifted by the scale); an actuated
+    family's home pose (:meth:`~glpma_ros.models.actuated.ActuatedLegs.home_variables`), inside its workspace."""
+    home = getattr(model, "home_variables", None)
+    if home is not None:
+        return home()
     s = model.scale
     return model.variables_from_pose([0.25 * s, 0.25 * s, s], [0.0, 0.0, 0.0, 1.0])
 
@@ -60,6 +64,8 @@ def exercise(model, solver: str) -> float:
     t0 = time.perf_counter()
     feasible = warm_up_legs(model)
     infeasible = np.full(model.n_legs, INFEASIBLE_SCALE * model.scale)
+    if model.leg_vector_size != model.n_legs:        # an actuated family: the rods of its leg vector
+        infeasible = np.concatenate((infeasible, feasible[model.n_legs:]))
     if model.leg_limits is not None:
         infeasible = np.clip(infeasible, *model.leg_limits)
     for legs in (feasible, infeasible):

@@ -66,6 +66,10 @@ Three methods (``solve_all(model, legs, method=...)``):
   initial range ``U[-2R, 2R]^n`` (Rolland & Chandra 2016, section 5.5.2 collect the 16 hexapod
   solutions with 100 runs from U[-2000, 2000]^9), de-duplicated the same way.
 
+``"closed_form"`` -- a model's closed-form forward kinematics (the three-leg Delta's sphere intersection,
+  :meth:`~glpma_ros.models.actuated.DeltaTranslation.closed_form`: two mirror modes), each polished; the
+  default for such a model.
+
 ``"exact"`` -- the certified count (:mod:`glpma_ros.exact`, msolve's real root isolation of
   the rational polynomial system; the optional ``exact`` extra): every real solution,
   polished, and the number of complex solutions.
@@ -96,7 +100,7 @@ from .solvers.common import CONVERGED, SolveResult
 from .solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
 from .solvers.local import LocalSolver, make_settings
 
-METHODS = ("multistart", "g3pcx", "exact")
+METHODS = ("multistart", "g3pcx", "exact", "closed_form")
 
 #: two polished solutions closer than this share of the scale are the same mode
 DEDUP_RELATIVE = 1e-4
@@ -207,7 +211,7 @@ def _leg_fitness(model, x, legs) -> float:
 
 
 def wide_range(model, legs) -> tuple[float, float]:
-    half = RANGE_FACTOR * max(model.scale, float(np.max(legs)))
+    half = RANGE_FACTOR * max(model.scale, float(np.max(model.rods_of(legs))))
     return -half, half
 
 
@@ -224,7 +228,7 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
     if leg_noise_std is not None:
         leg_noise(model, leg_noise_std)         # checked up front, for every model
     if method is None:
-        method = "g3pcx" if runs is not None else "multistart"
+        method = "g3pcx" if runs is not None else "closed_form" if has_closed_form(model) else "multistart"
     if runs is not None and method != "g3pcx":
         raise GlpmaError(f"runs counts G3-PCX searches (method g3pcx); {method} does not take it")
     if (max_starts is not None or budget_s is not None or not polish) and method != "multistart":
@@ -237,6 +241,8 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
                           max_evals=max_evals, leg_noise_std=leg_noise_std)
     if method == "exact":
         return exact_modes(model, legs, seed=seed)
+    if method == "closed_form":
+        return closed_form_modes(model, legs, seed=seed)
     raise GlpmaError(f"unknown solve_all method {method!r}; choose one of {', '.join(METHODS)}")
 
 
@@ -347,10 +353,13 @@ class StartSampler:
         self.model = model
         self.planar = model.platform.shape[1] == 2
         self.centroid = model.platform.mean(axis=0)
-        radius = legs + np.linalg.norm(model.platform - self.centroid, axis=1)
-        self.centres, self.radii = model.base, radius
-        self.low = np.max(model.base - radius[:, None], axis=0)
-        self.high = np.min(model.base + radius[:, None], axis=0)
+        radius = model.rods_of(legs) + np.linalg.norm(model.platform - self.centroid, axis=1)
+        # the legs' proximal points: the base joints, or an actuated family's for these actuator positions
+        centres = np.ascontiguousarray(model.proximal_points(legs), dtype=float)
+        self.translation = model.n_pose == 3 and not self.planar     # deltas: the platform only translates
+        self.centres, self.radii = centres, radius
+        self.low = np.max(centres - radius[:, None], axis=0)
+        self.high = np.min(centres + radius[:, None], axis=0)
         self.empty = bool(np.any(self.low > self.high))
         self.tried = self.accepted = 0
         self.acceptance = 1.0                # share of the box's candidates inside, as seen so far
@@ -386,6 +395,8 @@ class StartSampler:
         P = self.centres_in_reach(rng, m)
         if self.planar:
             return _planar_starts(P, rng.uniform(-math.pi, math.pi, size=m), self.centroid)
+        if self.translation:
+            return np.ascontiguousarray(P - self.centroid)
         return _spatial_starts(P, rng.standard_normal((m, 4)), self.model.frame - self.centroid)
 
 
@@ -433,7 +444,7 @@ class _Search:
         self.local = LocalSolver(model)
         self.settings = make_settings(model, max_iter=LOCAL_MAX_ITER)
         self.legs = np.ascontiguousarray(legs, dtype=float)
-        self.ref = max(model.scale, float(np.max(legs)))
+        self.ref = max(model.scale, float(np.max(model.rods_of(legs))))
         # redundant legs: a consistent least-squares pose has a residual (the leg noise's limit)
         self.tolerance = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
         self.dedup = DEDUP_RELATIVE * model.scale
@@ -593,3 +604,25 @@ def exact_modes(model, legs, *, seed=0) -> AllSolutions:
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "exact", polished=True))
     return AllSolutions(_sorted(model, found), 0, time.perf_counter() - t0, evaluations, method="exact",
                         complex_solutions=sol.complex_solutions)
+
+
+# -- closed form ----------------------------------------------------------------------------------
+def has_closed_form(model) -> bool:
+    """The model's forward kinematics has a closed form (:meth:`DeltaTranslation.closed_form
+    <glpma_ros.models.actuated.DeltaTranslation.closed_form>`: a Delta with three legs)."""
+    return getattr(model, "closed_form", None) is not None and model.n_legs == model.n_pose
+
+
+def closed_form_modes(model, legs, *, seed=0) -> AllSolutions:
+    """Every real mode of the model's closed form, each polished to round-off."""
+    if not has_closed_form(model):
+        raise GlpmaError(f"{model.kind} has no closed-form forward kinematics; use multistart or exact")
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    found, evaluations = [], 0
+    for x in model.closed_form(legs):
+        t1 = time.perf_counter()
+        xp, fp, nfev, _ = refine.polish(model, x, legs, rng)
+        evaluations += nfev
+        found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "closed_form", polished=True))
+    return AllSolutions(_sorted(model, found), 0, time.perf_counter() - t0, evaluations, method="closed_form")

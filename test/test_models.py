@@ -90,7 +90,7 @@ GOOD = {"manipulator": "planar_3rpr", "unit": "mm", "base": [[0, 0], [200, 0], [
 
 
 @pytest.mark.parametrize("change, message", [
-    ({"manipulator": "delta"}, "'manipulator' must be one of"),
+    ({"manipulator": "scara"}, "'manipulator' must be one of"),
     ({"unit": "furlong"}, "'unit' must be one of"),
     ({"base": [[0, 0], [200, 0]]}, "'base' must have 3 to 12 points"),
     ({"platform": [[0, 0, 0], [1, 0, 0], [0, 1, 0]]}, "'platform' must have 3 points of 2"),

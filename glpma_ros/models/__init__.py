@@ -6,10 +6,12 @@ from .. import numba_cache
 numba_cache.install()
 
 from . import kernels  # noqa: E402
+from .actuated import ActuatedPlanar, ActuatedSpatial, DeltaTranslation  # noqa: E402
 from .base import Manipulator, Pose  # noqa: E402
 from .hexapod_66 import Hexapod66  # noqa: E402
 from .planar_3rpr import Planar3RPR  # noqa: E402
 
 MODELS = {Planar3RPR.kind: Planar3RPR, Hexapod66.kind: Hexapod66}
 
-__all__ = ["Manipulator", "Pose", "Planar3RPR", "Hexapod66", "MODELS", "kernels"]
+__all__ = ["Manipulator", "Pose", "Planar3RPR", "Hexapod66", "MODELS", "kernels", "DeltaTranslation",
+           "ActuatedSpatial", "ActuatedPlanar"]

@@ -102,6 +102,21 @@ class Manipulator:
         X2 = np.ascontiguousarray(np.atleast_2d(np.asarray(X, dtype=float)))
         return population_fitness(X2, self.kind_id, self.data, np.asarray(legs, dtype=float), self.n_res)
 
+    # -- the leg model (:mod:`.legs`): fixed proximal points, the legs are the rods -------------
+    @property
+    def leg_vector_size(self) -> int:
+        """Length of the vector the solvers take for one input (here the leg lengths; an actuated
+        family's leg vector also carries its proximal points, :mod:`.actuated`)."""
+        return self.n_legs
+
+    def proximal_points(self, legs) -> np.ndarray:
+        """The points the legs start from for input ``legs``: the base joints, fixed here."""
+        return self.base
+
+    def rods_of(self, legs) -> np.ndarray:
+        """The rod lengths of input ``legs``: the leg lengths themselves here."""
+        return np.asarray(legs, dtype=float)
+
     # -- measured legs ---------------------------------------------------
     def legs_from_sensors(self, measured) -> np.ndarray:
         """The leg lengths the kinematics needs, |B_i - A_i|, from the sensors' readings (config unit):

@@ -18,7 +18,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .residuals import KIND_PLANAR_3RPR, hexapod_66_residuals, planar_3rpr_residuals
+from .residuals import (
+    KIND_HEXAPOD_66,
+    KIND_PLANAR_3RPR,
+    actuated_residuals,
+    hexapod_66_residuals,
+    planar_3rpr_residuals,
+)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -26,8 +32,10 @@ def residuals_into(x, kind, data, legs, out):
     """Residual vector of individual ``x`` into ``out`` (not counted: callers count)."""
     if kind == KIND_PLANAR_3RPR:
         planar_3rpr_residuals(x, data, legs, out)
-    else:
+    elif kind == KIND_HEXAPOD_66:
         hexapod_66_residuals(x, data, legs, out)
+    else:
+        actuated_residuals(x, kind, data, legs, out)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

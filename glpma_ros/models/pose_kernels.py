@@ -8,7 +8,12 @@ Rolland 2014, Eq. 6-7, for 3-RPR); the retraction of a step (3-RPR: added; hexap
 ``exp([w]x) R`` by Rodrigues' formula); rotation matrix <-> unit quaternion; the least-squares rigid fit of
 the frame joints CB_F1..CB_F3 (``Manipulator.frame``) onto the hexapod's nine solver variables (Kabsch 1976);
 the platform-joint distance of two solver-variable vectors.  Every leg counts (``base.shape[0]`` of them:
-redundant legs included)."""
+redundant legs included).
+
+The actuated kinds (:mod:`.actuated`) are the same pieces with the proximal points and rods of the
+per-solve leg vector (:func:`~glpma_ros.models.residuals.split_leg_vector`): planar and spatial full pose
+as 3-RPR and the hexapod; a platform that only translates (deltas) has the state ``p`` (R = I kept in
+the state) and ``J_i = u_i``."""
 from __future__ import annotations
 
 import math
@@ -16,7 +21,13 @@ import math
 from numba import njit
 
 from ..linalg import jacobi_svd
-from .residuals import KIND_PLANAR_3RPR
+from .residuals import (
+    KIND_ACTUATED_PLANAR,
+    KIND_ACTUATED_SPATIAL,
+    KIND_ACTUATED_TRANSLATION,
+    KIND_PLANAR_3RPR,
+    split_leg_vector,
+)
 
 #: rotation angle below which Rodrigues' formula uses its second-order Taylor expansion
 SMALL_ANGLE = 1e-8
@@ -66,10 +77,40 @@ def _hex_residuals_jacobian(state, base, platform, legs, r, J):
 
 
 @njit(cache=True, error_model="numpy")
+def _translation_residuals_jacobian(state, base, platform, legs, r, J):
+    for j in range(base.shape[0]):
+        ex = state[0] + platform[j, 0] - base[j, 0]
+        ey = state[1] + platform[j, 1] - base[j, 1]
+        ez = state[2] + platform[j, 2] - base[j, 2]
+        n = math.sqrt(ex * ex + ey * ey + ez * ez)
+        J[j, 0] = ex / n
+        J[j, 1] = ey / n
+        J[j, 2] = ez / n
+        r[j] = n - legs[j]
+
+
+@njit(cache=True)
+def is_planar(kind):
+    """The kinds whose pose is ``(x, y, theta)``."""
+    return kind == KIND_PLANAR_3RPR or kind == KIND_ACTUATED_PLANAR
+
+
+@njit(cache=True, error_model="numpy")
 def residuals_jacobian(kind, state, base, platform, legs, r, J):
-    """Leg residuals and Jacobian at ``state``; returns the sum of squares (inf when not finite)."""
+    """Leg residuals and Jacobian at ``state``; returns the sum of squares (inf when not finite).
+    ``base``: the fixed proximal points (length-actuated kinds; the actuated kinds read theirs from ``legs``)."""
+    n = platform.shape[0]
     if kind == KIND_PLANAR_3RPR:
         _rpr_residuals_jacobian(state, base, platform, legs, r, J)
+    elif kind == KIND_ACTUATED_PLANAR:
+        rods, points = split_leg_vector(legs, n, 2)
+        _rpr_residuals_jacobian(state, points, platform, rods, r, J)
+    elif kind == KIND_ACTUATED_SPATIAL:
+        rods, points = split_leg_vector(legs, n, 3)
+        _hex_residuals_jacobian(state, points, platform, rods, r, J)
+    elif kind == KIND_ACTUATED_TRANSLATION:
+        rods, points = split_leg_vector(legs, n, 3)
+        _translation_residuals_jacobian(state, points, platform, rods, r, J)
     else:
         _hex_residuals_jacobian(state, base, platform, legs, r, J)
     f = 0.0
@@ -102,8 +143,15 @@ def rotation_from_vector_into(wx, wy, wz, M):
 
 @njit(cache=True, error_model="numpy")
 def retract(kind, state, step, trial, M):
-    """``trial`` = the state moved by ``step`` (3-RPR: added; hexapod: p + dp, exp([w]x) R)."""
-    if kind == KIND_PLANAR_3RPR:
+    """``trial`` = the state moved by ``step`` (3-RPR: added; hexapod: p + dp, exp([w]x) R; translation:
+    p + dp, R kept)."""
+    if is_planar(kind):
+        for k in range(3):
+            trial[k] = state[k] + step[k]
+        return
+    if kind == KIND_ACTUATED_TRANSLATION:
+        for k in range(STATE_SIZE):
+            trial[k] = state[k]
         for k in range(3):
             trial[k] = state[k] + step[k]
         return
@@ -214,9 +262,15 @@ def kabsch_state(platform, x, state, H, V, s):
 @njit(cache=True, error_model="numpy")
 def joint_distance(kind, platform, x1, x2):
     """Largest distance between corresponding platform joints (3-RPR: the first three rows of
-    ``platform``; hexapod: the frame joints, the variables), like ``Manipulator.distance``."""
+    ``platform``; hexapod: the frame joints, the variables; translation: the platform's displacement), like
+    ``Manipulator.distance``."""
     d = 0.0
-    if kind == KIND_PLANAR_3RPR:
+    if kind == KIND_ACTUATED_TRANSLATION:
+        dx = x1[0] - x2[0]
+        dy = x1[1] - x2[1]
+        dz = x1[2] - x2[2]
+        return math.sqrt(dx * dx + dy * dy + dz * dz)
+    if is_planar(kind):
         c1, s1 = math.cos(x1[2]), math.sin(x1[2])
         c2, s2 = math.cos(x2[2]), math.sin(x2[2])
         for i in range(3):

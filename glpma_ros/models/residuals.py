@@ -4,7 +4,13 @@ Each function fills ``out`` with the residuals of solver variables ``x`` for leg
 lengths ``legs``; ``data`` is the model's uniform tuple (see
 :meth:`~glpma_ros.models.base.Manipulator._make_data`).  The kinds are numbered
 here, once; a model class names its number as ``kind_id``.
-The formulas are documented with the models (:mod:`.planar_3rpr`, :mod:`.hexapod_66`).
+The formulas are documented with the models (:mod:`.planar_3rpr`, :mod:`.hexapod_66`, :mod:`.actuated`).
+
+Every kind is the one leg model of :mod:`.legs`: leg ``i`` is a rod of length ``rod_i`` between a proximal
+point ``P_i`` and the platform joint ``p + R B_i``.  The length-actuated kinds (3-RPR, hexapod) have fixed
+proximal points (the model's ``base``, ``data[0]``) and the rods are the measured legs; the actuated kinds
+(``KIND_ACTUATED_*``) read both from the per-solve *leg vector* ``legs = (rod_1..rod_n, P_1, .., P_n)``
+(:func:`split_leg_vector`), computed from the actuator positions once per input by :mod:`.legs`.
 """
 from __future__ import annotations
 
@@ -14,11 +20,21 @@ from numba import njit
 
 KIND_PLANAR_3RPR = 0
 KIND_HEXAPOD_66 = 1
+#: the actuated families: planar full pose (3-RRR, 3-PRR), spatial full pose (6-RUS, 6-PUS), translation (deltas)
+KIND_ACTUATED_PLANAR = 2
+KIND_ACTUATED_SPATIAL = 3
+KIND_ACTUATED_TRANSLATION = 4
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def planar_3rpr_residuals(x, data, legs, out):
-    base, platform = data[0], data[1]
+def split_leg_vector(legs, n, dim):
+    """The rods (``n``) and the proximal points (``n x dim``) of an actuated kind's leg vector."""
+    return legs[:n], legs[n:n + n * dim].reshape((n, dim))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def planar_rods_residuals(x, base, platform, legs, out):
+    """``|C + R(theta) CB_i - A_i| - l_i`` for the planar pose ``x = (x, y, theta)``."""
     c = math.cos(x[2])
     s = math.sin(x[2])
     for i in range(base.shape[0]):
@@ -28,8 +44,13 @@ def planar_3rpr_residuals(x, data, legs, out):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def hexapod_66_residuals(x, data, legs, out):
-    base, abc, d0sq = data[0], data[1], data[2]
+def planar_3rpr_residuals(x, data, legs, out):
+    planar_rods_residuals(x, data[0], data[1], legs, out)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def spatial_rods_residuals(x, base, abc, d0sq, legs, out):
+    """The nine-variable residuals (leg errors, then the three rigidity terms) of :mod:`.hexapod_66`."""
     e1x = x[3] - x[0]
     e1y = x[4] - x[1]
     e1z = x[5] - x[2]
@@ -58,3 +79,35 @@ def hexapod_66_residuals(x, data, legs, out):
     out[n] = d0sq[0] - n1sq
     out[n + 1] = d0sq[1] - n2sq
     out[n + 2] = d0sq[2] - (e3x * e3x + e3y * e3y + e3z * e3z)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def hexapod_66_residuals(x, data, legs, out):
+    spatial_rods_residuals(x, data[0], data[1], data[2], legs, out)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def translation_rods_residuals(x, base, platform, legs, out):
+    """``|p + B_i - P_i| - rod_i`` for a platform that only translates, ``x = p``."""
+    for i in range(base.shape[0]):
+        bx = x[0] + platform[i, 0] - base[i, 0]
+        by = x[1] + platform[i, 1] - base[i, 1]
+        bz = x[2] + platform[i, 2] - base[i, 2]
+        out[i] = math.sqrt(bx * bx + by * by + bz * bz) - legs[i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def actuated_residuals(x, kind, data, legs, out):
+    """The actuated kinds: the same distance residuals with the proximal points of the leg vector.
+    ``data`` = (platform joints or frame coefficients, platform joints, rigidity d0^2, counter)."""
+    platform = data[1]
+    n = platform.shape[0]
+    if kind == KIND_ACTUATED_PLANAR:
+        rods, base = split_leg_vector(legs, n, 2)
+        planar_rods_residuals(x, base, platform, rods, out)
+    elif kind == KIND_ACTUATED_SPATIAL:
+        rods, base = split_leg_vector(legs, n, 3)
+        spatial_rods_residuals(x, base, data[0], data[2], rods, out)
+    else:
+        rods, base = split_leg_vector(legs, n, 3)
+        translation_rods_residuals(x, base, platform, rods, out)

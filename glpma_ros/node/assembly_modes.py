@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from . import params as P
+from .input_topic import input_topic, model_is_actuated
 
 #: ``last_input`` argument: the last input received so far
 CURRENT = object()
@@ -69,7 +69,7 @@ class AssemblyModes:
         last_input = self._last_input if last_input is CURRENT else last_input
         params = self._params()
         if last_input is None:
-            source = "joint_states" if params["input_type"] == P.INPUT_JOINT_STATE else "leg_lengths"
+            source = input_topic(params["input_type"], model_is_actuated(self.model))
             raise InputError(f"no input received yet on {source}")
         raw, stamp_ns = last_input
         try:

@@ -71,7 +71,7 @@ class Diagnostics:
         pause()
         values = [
             ("input", "joint_states (" + ", ".join(svc.joint_names) + ")"
-             if svc.input_type == P.INPUT_JOINT_STATE else "leg_lengths"),
+             if svc.input_type == P.INPUT_JOINT_STATE else svc.input_topic),
             ("inputs received", st.received),
             ("inputs solved", st.published),
             ("inputs rejected", st.rejected),
@@ -143,8 +143,7 @@ class Diagnostics:
         if problems:
             level, message = WARN, "; ".join(problems)
         elif st.received == 0:
-            level, message = OK, ("waiting for joint_states" if svc.input_type == P.INPUT_JOINT_STATE
-                                  else "waiting for leg_lengths")
+            level, message = OK, f"waiting for {svc.input_topic}"
         else:
             level, message = OK, "tracking"
         return DiagnosticReport(level, f"{svc.node_name}: forward kinematics", message,

@@ -111,6 +111,8 @@ class OutputBuilder:
         self.model = model
         self.metres_per_unit = float(model.metres_per_unit)
         self.jacobian = PoseJacobian(model)
+        #: an actuated family (:mod:`glpma_ros.models.actuated`): legs drawn as crank + rod, no covariance
+        self.actuated = bool(getattr(model, "actuated", False))
         self._without: dict = {}         # redundant legs: leg left out -> the Jacobian of the others
         self.size_m = float(model.scale) * self.metres_per_unit
         self.base_m = _as_3d(model.base) * self.metres_per_unit
@@ -140,13 +142,14 @@ class OutputBuilder:
         """The outputs for ``outcome`` (a published pose) under ``params``."""
         pose, estimate = outcome.pose, outcome.estimate
         stamp_ns = pose.stamp_ns
-        rates = outcome.leg_rates_m if params["publish_twist"] else None
+        rates = outcome.leg_rates_m if params["publish_twist"] and not self.actuated else None
         covariance = capped = None
         left_out = getattr(estimate, "excluded_leg", None)
         jacobian = self._jacobian_without(left_out)
         if rates is not None and left_out is not None:
             rates = np.delete(rates, left_out)
-        if params["publish_covariance"] or rates is not None:
+        # an actuated family's covariance needs the actuators' Jacobian (not done): none is published
+        if (params["publish_covariance"] and not self.actuated) or rates is not None:
             capped = jacobian.solve(estimate.pose.position, estimate.pose.orientation,
                                     params["leg_noise_std"], rates, self.metres_per_unit)
             if params["publish_covariance"]:
@@ -193,13 +196,21 @@ class OutputBuilder:
         R = matrix_from_quaternion(orientation)
         joints = np.asarray(position_m, dtype=float) + self.platform_m @ R.T          # B_i
         platform_points = tuple(tuple(float(v) for v in b) for b in joints)
-        lo, hi = self._leg_range if self._leg_range is not None else self._seen_range(legs_m)
         leg_points, leg_colours = [], []
-        for a, b, length in zip(self._base_points, platform_points, legs_m):
-            t = min(max((float(length) - lo) / (hi - lo), 0.0), 1.0) if hi > lo else 0.5
-            colour = _blend(SHORT_LEG_COLOUR, LONG_LEG_COLOUR, t)
-            leg_points += (a, b)
-            leg_colours += (colour, colour)
+        if self.actuated:        # each leg: the crank (actuated joint to proximal point), then the rod
+            n = self.model.n_legs
+            proximal = _as_3d(np.asarray(legs_m[n:], dtype=float).reshape(n, -1))
+            for a, p, b in zip(self._base_points, proximal, platform_points):
+                p = tuple(float(v) for v in p)
+                leg_points += (a, p, p, b)
+                leg_colours += (BASE_COLOUR, BASE_COLOUR, LONG_LEG_COLOUR, LONG_LEG_COLOUR)
+        else:
+            lo, hi = self._leg_range if self._leg_range is not None else self._seen_range(legs_m)
+            for a, b, length in zip(self._base_points, platform_points, legs_m):
+                t = min(max((float(length) - lo) / (hi - lo), 0.0), 1.0) if hi > lo else 0.5
+                colour = _blend(SHORT_LEG_COLOUR, LONG_LEG_COLOUR, t)
+                leg_points += (a, b)
+                leg_colours += (colour, colour)
         joint = (JOINT_SIZE * self.size_m,) * 3
         line = (LINE_WIDTH * self.size_m, 0.0, 0.0)
         return (

@@ -53,6 +53,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from ..errors import GlpmaError
+from . import input_topic as inputs
 from . import params as P
 from . import qos
 from .dds import cdr
@@ -127,7 +128,7 @@ class FkEndpoints:
         self.get_logger().info(f"{service.describe()}; warming up the solvers")
         self.get_logger().info(f"warm-up done in {service.warm_up():.2f} s")
         self.service, self._stopped = service, False
-        input_topic = "joint_states" if values["input_type"] == P.INPUT_JOINT_STATE else "leg_lengths"
+        input_topic = service.input_topic
         profiles = qos.node_endpoints(values["qos_depth"], input_topic)
 
         def pub(msg_type, topic):
@@ -160,7 +161,7 @@ class FkEndpoints:
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
             self.input_sub = sub(JointState, "joint_states", self._on_joint_state, raw=True)
         else:
-            self.input_sub = sub(Float64MultiArray, "leg_lengths", self._on_legs, raw=True)
+            self.input_sub = sub(Float64MultiArray, input_topic, self._on_legs, raw=True)
         self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
         # /diagnostics from a thread of its own, off the executor's (ReportLoop)
         self.reports = ReportLoop(service, self._publish_diagnostics, values["diagnostics_period_s"]).start()
@@ -386,7 +387,7 @@ def check_arguments(argv) -> None:
         values, _, ros = node_values(argv)
     except GlpmaError:
         return
-    input_topic = "joint_states" if values["input_type"] == P.INPUT_JOINT_STATE else "leg_lengths"
+    input_topic = inputs.input_topic(values["input_type"], inputs.config_is_actuated(values["manipulator_config"]))
     qos.resolve(ros.overrides, values["qos_depth"], input_topic, ros.node_name,
                 topic_of=lambda name: remapped(name, ros.remaps))
 

@@ -38,10 +38,11 @@ from ..compat import check_numba
 from ..config import check_units, load_manipulator, plausible_band, resolve_config
 from ..errors import InputError
 from ..estimator import Estimator
-from ..precompile import cache_counts, describe_cache_use
+from ..precompile import cache_counts, describe_cache_use, warm_up_pose
 from . import params as P
 from .assembly_modes import AssemblyModes
 from .diagnostics import DiagnosticReport, Diagnostics
+from .input_topic import input_topic, model_is_actuated
 from .leg_health import LegHealth
 from .outputs import OUTPUT_PARAMS, OutputBuilder
 from .stats import LogThrottle, Statistics
@@ -176,6 +177,12 @@ class FkService:
         return self.params["input_type"]
 
     @property
+    def input_topic(self) -> str:
+        """The input topic's name (:mod:`glpma_ros.node.input_topic`): ``joint_states``, ``leg_lengths``, or
+        ``actuator_positions`` for an actuated family."""
+        return input_topic(self.input_type, model_is_actuated(self.model))
+
+    @property
     def joint_names(self) -> list:
         """The legs' joint names in leg order (``joint_names``, or ``leg_1`` .. ``leg_n``)."""
         return list(self.params["joint_names"]) or default_joint_names(self.model.n_legs)
@@ -185,7 +192,7 @@ class FkService:
         if self.input_type == P.INPUT_JOINT_STATE:
             source = f"input joint_states ({', '.join(self.joint_names)})"
         else:
-            source = "input leg_lengths"
+            source = f"input {self.input_topic}"
         offsets = "" if m.leg_offsets is None else \
             f", leg_offsets [{', '.join(f'{v:g}' for v in m.leg_offsets)}] {m.unit} added to the legs"
         name = Path(str(getattr(m, "source", ""))).name
@@ -197,8 +204,7 @@ class FkService:
         """A pose to warm up with: ``initial_pose``, or any pose clear of the base joints."""
         if self._initial_x is not None:
             return self._initial_x
-        s = self.model.scale
-        return self.model.variables_from_pose([0.25 * s, 0.25 * s, s], [0.0, 0.0, 0.0, 1.0])
+        return warm_up_pose(self.model)
 
     def warm_up(self, solvers=None, budget_ms: float = 50.0, max_tries: int = 5) -> float:
         """Run every path of each solver -- cold and warm start, with and without the
@@ -306,6 +312,8 @@ class FkService:
     def to_config_unit(self, raw) -> np.ndarray:
         """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit, with the
         config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for."""
+        if model_is_actuated(self.model):       # actuator positions: radians, or metres for prismatic ones
+            return self.model.legs_from_sensors(self.model.readings_from_si(self._legs_m(raw)))
         try:
             legs_m = np.asarray(self._legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):

@@ -35,6 +35,12 @@ PAPER_SETTINGS = {
 }
 
 
+def paper_kind(model) -> str:
+    """The manipulator whose papers' settings ``model`` takes: its own, or for an actuated family
+    (:mod:`glpma_ros.models.actuated`) the one with as many solver variables (``settings_like``)."""
+    return getattr(model, "settings_like", model.kind)
+
+
 def solve(name, model, legs, **kwargs):
     """Run solver ``name`` with the paper's settings for ``model`` overridden by ``kwargs``
     (options of :data:`OPTIONS`; ``None`` keeps the default)."""
@@ -44,7 +50,7 @@ def solve(name, model, legs, **kwargs):
     if unknown:
         raise ValueError(f"solver {name!r} takes no option {', '.join(unknown)}")
     # the papers' settings the solver has (GLPMA's local search ones go to GLPMA alone)
-    settings = {k: v for k, v in PAPER_SETTINGS[model.kind].items() if k in OPTIONS[name]}
+    settings = {k: v for k, v in PAPER_SETTINGS[paper_kind(model)].items() if k in OPTIONS[name]}
     if name in DEFAULT_POPULATION:
         settings["population"] = DEFAULT_POPULATION[name](model)
     settings.update({k: v for k, v in kwargs.items() if v is not None})

@@ -67,9 +67,10 @@ import numpy as np
 from numba import njit
 
 from ..linalg import damped_solve, jacobi_svd, normal_equations
-from ..models.kernels import KIND_PLANAR_3RPR, residuals_into
+from ..models.kernels import residuals_into
 from ..models.pose_kernels import (
     STATE_SIZE,
+    is_planar,
     joint_distance,
     kabsch_state,
     quaternion_from_rows,
@@ -77,6 +78,7 @@ from ..models.pose_kernels import (
     retract,
     rows_from_quaternion,
 )
+from ..models.residuals import KIND_ACTUATED_TRANSLATION
 
 #: convergence: largest leg residual relative to the reference length L (about 450 units in the last
 #: place of L; a converged pose is then polished to round-off by the next step)
@@ -141,15 +143,20 @@ def workspace_size(n_legs: int, n_pose: int, n_res: int) -> int:
 
 # -- the kernel -------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def _reference_length(legs, settings):
-    """``max(scale, max leg)``, or -1.0 when a leg is not finite, not positive or outside the limits."""
+def _reference_length(legs, n_legs, settings):
+    """``max(scale, max leg)``, or -1.0 when a leg is not finite, not positive or outside the limits.
+    ``legs``' first ``n_legs`` entries are the legs (rods); an actuated kind's proximal points follow,
+    which need only be finite."""
     ref = settings[S_SCALE]
     lo, hi = settings[S_LO], settings[S_HI]
-    for i in range(legs.shape[0]):
+    for i in range(n_legs):
         li = legs[i]
         if not (math.isfinite(li) and li > 0.0 and li >= lo and li <= hi):
             return -1.0
         ref = max(ref, li)
+    for i in range(n_legs, legs.shape[0]):
+        if not math.isfinite(legs[i]):
+            return -1.0
     return ref
 
 
@@ -179,7 +186,7 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
     ``legs_ref``: the legs the movement is measured from (empty: none).  Fills ``out`` = [solver variables (n_vars), position (3), quaternion [qx, qy, qz,
     qw], info (``N_INFO``, layout: the ``I_*`` constants)]; ``work``: :func:`workspace_size` floats.
     Nothing is allocated."""
-    ref = _reference_length(legs, settings)
+    ref = _reference_length(legs, platform.shape[0], settings)
     if ref < 0.0:
         out[:] = 0.0                          # I_INPUT_OK = 0: nothing solved
         return
@@ -199,7 +206,7 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
     fitness; its ``I_NFEV`` / ``I_NIT`` count every start tried.  ``work``: :func:`workspace_size`
     plus ``len(out)`` floats.  Returns the index of the start reported (-1 when the legs fail the
     check)."""
-    ref = _reference_length(legs, settings)
+    ref = _reference_length(legs, platform.shape[0], settings)
     out[:] = 0.0
     if ref < 0.0:
         return -1
@@ -231,7 +238,7 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
     ``figures=False`` leaves out what only a decision on the pose needs -- the papers' fitness,
     stationarity, conditioning and distance (left 0) -- for callers that keep the leg fitness alone
     (solve_all's multistart)."""
-    n_legs = legs.shape[0]
+    n_legs = platform.shape[0]
     n_vars = x0.shape[0]
     n_pose = settings.shape[0] - S_COL_SCALE
     col_scale = settings[S_COL_SCALE:]
@@ -277,9 +284,16 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
     M = L[:3, :3]                            # scratch for the rotation of a step (L is free then)
 
     # start state
-    if kind == KIND_PLANAR_3RPR:
+    if is_planar(kind):
         for k in range(3):
             state[k] = x0[k]
+        ok = True
+    elif kind == KIND_ACTUATED_TRANSLATION:
+        for k in range(STATE_SIZE):
+            state[k] = 0.0
+        for k in range(3):
+            state[k] = x0[k]
+            state[3 + 4 * k] = 1.0           # R = I: the platform only translates
         ok = True
     else:
         ok = kabsch_state(frame, x0, state, L[:3, :3], V[:3, :3], sv[:3])
@@ -362,7 +376,7 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
         info[I_PROGRESS] = 1.0
         info[I_DISTANCE] = joint_distance(kind, frame, x_out, x_ref)
         return
-    if kind == KIND_PLANAR_3RPR:
+    if is_planar(kind):
         t = np.fmod(state[2], 2.0 * math.pi)     # exact; with one exact correction = math.remainder
         if t > math.pi:
             t -= 2.0 * math.pi
@@ -379,6 +393,13 @@ def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out,
         pose_out[4] = 0.0
         pose_out[5] = math.sin(0.5 * t)
         pose_out[6] = math.cos(0.5 * t)
+    elif kind == KIND_ACTUATED_TRANSLATION:
+        for k in range(3):
+            x_out[k] = state[k]
+            pose_out[k] = state[k]
+        for k in range(3):
+            pose_out[3 + k] = 0.0
+        pose_out[6] = 1.0
     else:
         q = pose_out[3:7]
         quaternion_from_rows(state[3:12], q)

@@ -92,7 +92,7 @@ class LocalSolver:
     def prepare(self):
         """Load (or compile) both kernels for this model's types, with a call that does no iteration."""
         x0 = np.zeros((1, self.n_vars))
-        legs = np.ones(self.model.n_legs)
+        legs = np.ones(self.model.leg_vector_size)
         settings = make_settings(self.model, max_iter=0)
         settings[S_LO], settings[S_HI] = 0.0, math.inf
         out = np.empty(self.n_out)
@@ -157,8 +157,8 @@ def local_solve(model, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.
     Thread-safe (its own buffers); for many calls keep a :class:`LocalSolver` per thread."""
     x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
     legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
-    if x0.size != model.n_vars or legs.size != model.n_legs:
-        raise ValueError(f"expected {model.n_vars} variables and {model.n_legs} legs")
+    if x0.size != model.n_vars or legs.size != model.leg_vector_size:
+        raise ValueError(f"expected {model.n_vars} variables and {model.leg_vector_size} legs")
     result = LocalSolver(model).solve(x0, legs, max_iter=max_iter, rtol=rtol, ftol=ftol)
     if result is None:
         raise ValueError("leg lengths must be finite, positive and within the leg limits")

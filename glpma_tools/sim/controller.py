@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glpma_ros.node.input_topic import input_topic, model_is_actuated
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
 from glpma_ros.node.service import default_joint_names
 
@@ -170,8 +171,9 @@ class Controller:
         self.participant = endpoints.Participant(domain_id)
         if self.joint_state:
             self.writer = self.participant.writer(endpoints.JOINT_STATES, JointState, depth)
-        else:
-            self.writer = self.participant.writer(endpoints.LEG_LENGTHS, Float64MultiArray, depth)
+        else:       # leg_lengths, or actuator_positions for an actuated family (the node's input_topic)
+            self.writer = self.participant.writer(input_topic(INPUT_FLOAT64_MULTI_ARRAY, model_is_actuated(model)),
+                                                  Float64MultiArray, depth)
         self.raw_writer = cdr.RawWriter(self.writer)
         self.listener = PoseListener(self.participant, listen_depth)
         self.modes = ModesClient(self.participant) if modes else None
@@ -196,7 +198,10 @@ class Controller:
     def message(self, legs):
         """(the message carrying ``legs`` (config unit) in metres, its stamp in ns or None)."""
         from glpma_ros.node.dds.messages import Float64MultiArray, Header, JointState, Time
-        legs_m = (np.asarray(legs, dtype=float) * self.mpu).tolist()
+        if model_is_actuated(self.model):     # actuator positions: radians (metres for prismatic ones)
+            legs_m = self.model.readings_to_si(legs).tolist()
+        else:
+            legs_m = (np.asarray(legs, dtype=float) * self.mpu).tolist()
         if not self.joint_state:
             return Float64MultiArray(layout=self._layout, data=legs_m), None
         joints = list(zip(self.names, legs_m)) + list(EXTRA_JOINTS)

@@ -8,6 +8,7 @@ tracking runs and the tests.
 * hexapod: the platform origin goes round a circle in x-y (:data:`SPATIAL_RADIUS`), rising and
   falling twice per loop (:data:`SPATIAL_RISE`), while the platform turns about the vertical
   (:data:`SPATIAL_TWIST_RAD`) and tilts (:data:`SPATIAL_TILT` of the twist).
+* a platform that only translates (deltas): the hexapod's circle and rise, without turning.
 
 The position on the circle tells the time within a loop, so the pose (and, this close to one
 assembly mode, the legs) repeats only a whole period later: :mod:`glpma_ros.testing.matching` relies on it to pair
@@ -44,14 +45,15 @@ def _rot_z(angle: float) -> np.ndarray:
 
 
 def known_solutions(doc: dict) -> list:
-    """The config's known solutions (``real_solutions`` of a 3-RPR, ``published_solutions`` of a hexapod)."""
-    return list(doc.get("real_solutions") or doc.get("published_solutions") or [])
+    """The config's known solutions (``real_solutions`` of a 3-RPR, ``published_solutions`` of a hexapod,
+    ``known_solutions`` of an actuated family)."""
+    return list(doc.get("real_solutions") or doc.get("published_solutions") or doc.get("known_solutions") or [])
 
 
 def default_solution(model, doc: dict) -> int:
     """:data:`DEFAULT_SOLUTION` of the kind, or 0 for a config listing fewer known solutions (the
     papers' configs list many modes and the default picks one; a config of one's own, one)."""
-    index = DEFAULT_SOLUTION[model.kind]
+    index = DEFAULT_SOLUTION.get(model.kind, 0)       # an actuated family: its working mode, listed first
     return index if index < len(known_solutions(doc)) else 0
 
 
@@ -89,7 +91,11 @@ def trajectory(model, p0: np.ndarray, R0: np.ndarray, amplitude: float = 1.0, pe
     """``t -> (position, rotation matrix)``, at ``(p0, R0)`` when ``t`` is a multiple of ``period_s``."""
     w = 2.0 * math.pi / period_s
     s = model.scale * amplitude
-    if model.kind == "planar_3rpr":
+    if model.variable_names == ("x", "y", "z"):      # a platform that only translates (deltas)
+        def pose_at(t):
+            r, rise = SPATIAL_RADIUS * s, SPATIAL_RISE * s
+            return p0 + np.array([r * (math.cos(w * t) - 1.0), r * math.sin(w * t), rise * math.sin(2 * w * t)]), R0
+    elif model.kind == "planar_3rpr":
         def pose_at(t):
             r = PLANAR_RADIUS * s
             p = p0 + np.array([r * (math.cos(w * t) - 1.0), r * math.sin(w * t), 0.0])

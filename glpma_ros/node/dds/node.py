@@ -93,7 +93,7 @@ class DdsNode:
             return endpoints.expand_topic_name(remapped(name, remaps), service.node_name)
 
         self.joint_state = service.input_type == P.INPUT_JOINT_STATE
-        self.input_name = endpoints.JOINT_STATES if self.joint_state else endpoints.LEG_LENGTHS
+        self.input_name = service.input_topic
         self.qos, qos_warnings = node_qos(service, remaps, qos_overrides or {})
         for warning in qos_warnings:
             service.log.warning(warning)
@@ -254,7 +254,7 @@ class DdsNode:
 def node_qos(service: FkService, remaps: dict, qos_overrides: dict) -> tuple[dict, list]:
     """Every endpoint's QoS (:func:`glpma_ros.node.qos.resolve`) for the service's ``qos_depth``,
     input topic and node name, the topics remapped by ``remaps``; :class:`InputError` for a bad value."""
-    input_name = endpoints.JOINT_STATES if service.input_type == P.INPUT_JOINT_STATE else endpoints.LEG_LENGTHS
+    input_name = service.input_topic
     return qos.resolve(qos_overrides, service.params["qos_depth"], input_name, service.node_name,
                        topic_of=lambda name: remapped(name, remaps))
 
