@@ -30,9 +30,10 @@ from glpma_tools.tables import fmt, spread, table
 MANIPULATORS = {
     "3rpr": {"config": "planar_3rpr_seed", "params": "params_3rpr.yaml", "rate": 200.0},
     "hexapod": {"config": "hexapod_66_rolland", "params": "params_hexapod.yaml", "rate": 100.0},
+    "delta": {"config": "delta_irb360", "params": "params_delta.yaml", "rate": 100.0},
 }
 #: a manipulator config given by path (or shipped name) runs with the params file of its kind
-KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod"}
+KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod", "delta": "delta"}
 
 
 def manipulator_spec(name: str) -> tuple[str, dict]:
@@ -59,10 +60,10 @@ def _parser() -> OneLineParser:
     what = __doc__.split("\n\n")[0].split(": ", 1)[1]
     p = OneLineParser(prog="glpma-fk demo", description=what[0].upper() + what[1:])
     p.add_argument("--manipulator", default="3rpr",
-                   help="which manipulator to drive: 3rpr (default) or hexapod (the shipped seed 3-RPR and "
-                        "Rolland's 6-6), or a manipulator config (a path, or a shipped config's name such as "
+                   help="which manipulator to drive: 3rpr (default), hexapod or delta (the shipped seed 3-RPR, "
+                        "Rolland's 6-6 and the IRB 360-size rotary Delta), or a manipulator config (a path, or a shipped config's name such as "
                         "hexapod_7legs)")
-    p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod 100)")
+    p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod and delta 100)")
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, default="glpma", help="the node's solver parameter")
     p.add_argument("--budget-ms", type=float, default=None, help="the node's time_budget_ms")

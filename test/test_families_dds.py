@@ -43,3 +43,19 @@ def test_delta_node_answers_three_angles(start_node):
     p = got[0].pose.position
     # metres; the known solution is written to 1e-9 mm
     assert np.max(np.abs(np.array([p.x, p.y, p.z]) - model.known_solutions[0] * 1e-3)) < 1e-9
+
+
+@pytest.mark.timing
+def test_demo_drives_the_delta(tmp_path, dds_env, dds_domain):
+    import json
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+    p = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--duration", "2", "--out", str(tmp_path),
+                        "--manipulator", "delta", "--domain-id", str(dds_domain)],
+                       cwd=ROOT, env=dds_env, capture_output=True, text=True, timeout=400)
+    assert p.returncode == 0, p.stdout + p.stderr
+    s = json.loads((tmp_path / "demo_delta.json").read_text())
+    assert s["ok"] and s["poses_wrong"] == 0 and s["poses_received"] >= 1
+    assert s["tracking_error"]["position_m"]["max"] <= 1e-6
