@@ -2,6 +2,7 @@
 
     ros2 launch glpma_ros fk.launch.py                      # 3-RPR, config/params_3rpr.yaml
     ros2 launch glpma_ros fk.launch.py manipulator:=hexapod # 6-6 hexapod, config/params_hexapod.yaml
+    ros2 launch glpma_ros fk.launch.py manipulator:=delta   # rotary Delta, config/params_delta.yaml
     ros2 launch glpma_ros fk.launch.py params_file:=/path/to/my_params.yaml
     ros2 launch glpma_ros fk.launch.py rviz:=true           # + rviz2 with config/glpma_fk.rviz (markers on)
     ros2 launch glpma_ros fk.launch.py managed:=true        # fk_lifecycle_node, driven by ros2 lifecycle set
@@ -85,10 +86,10 @@ def generate_launch_description():
     manipulator = LaunchConfiguration("manipulator")
     default_params = PathJoinSubstitution([
         FindPackageShare("glpma_ros"), "config",
-        PythonExpression(["'params_' + ('hexapod' if '", manipulator, "' == 'hexapod' else '3rpr') + '.yaml'"]),
+        PythonExpression(["'params_' + '", manipulator, "' + '.yaml'"]),
     ])
     return LaunchDescription([
-        DeclareLaunchArgument("manipulator", default_value="3rpr", choices=["3rpr", "hexapod"],
+        DeclareLaunchArgument("manipulator", default_value="3rpr", choices=["3rpr", "hexapod", "delta"],
                               description="which shipped params file to use"),
         DeclareLaunchArgument("params_file", default_value=default_params,
                               description="ROS 2 params file of the glpma_fk node"),

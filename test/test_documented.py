@@ -133,6 +133,9 @@ def test_readme_synopses_name_only_real_options():
 README_CHECKS = {
     "glpma-fk --version": (0, ["glpma-fk"]),
     "glpma-fk solve planar_3rpr_seed --legs 100 120 150": (0, ["converged", "position", "orientation"]),
+    "glpma-fk solve-all delta_irb360 --legs 0.044691 0.031328 0.227435": (0, ["2 distinct real assembly modes",
+                                                                             "closed form"]),
+    "glpma-fk solve delta_irb360 --legs 0.044691 0.031328 0.227435": (0, ["converged", "position"]),
 }
 #: README commands that need a running node: checked by test_readme_node_and_modes
 NODE_COMMANDS = ("glpma-fk node ", "glpma-fk modes")

@@ -129,6 +129,9 @@ def run(args) -> dict:
     config_path = resolve_config(args.config)
     doc = load_document(config_path)
     model = model_from_dict(doc, str(config_path))
+    if getattr(model, "actuated", False):
+        raise InputError(f"an actuated family ({model.kind}) is not identified yet: "
+                         "only length-actuated legs (planar_3rpr, hexapod_66)")
     out = Path(args.out)
     for what, other in (("CONFIG", config_path), ("DATA", Path(args.data))):
         if _same_file(out, other) or out.resolve() == other.resolve():

@@ -44,6 +44,9 @@ def default_limits(model, name: str) -> tuple:
 
 
 def make_spec(model, args) -> MapSpec:
+    if model.kind not in COORDINATES:       # an actuated family (delta): not mapped yet
+        raise InputError(f"the actuated family {model.kind} is not mapped yet "
+                         f"(maps: {', '.join(COORDINATES)})")
     names = COORDINATES[model.kind]
     axes = tuple(args.axes)
     for a in axes:
