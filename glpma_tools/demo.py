@@ -33,7 +33,7 @@ MANIPULATORS = {
     "delta": {"config": "delta_irb360", "params": "params_delta.yaml", "rate": 100.0},
 }
 #: a manipulator config given by path (or shipped name) runs with the params file of its kind
-KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod", "delta": "delta"}
+KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod", "delta": "delta", "rus_6": "hexapod"}
 
 
 def manipulator_spec(name: str) -> tuple[str, dict]:

@@ -225,3 +225,87 @@ def test_config_errors_name_the_problem(change, message):
             doc[key] = value
     with pytest.raises(ConfigError, match=message):
         model_from_dict(doc)
+
+
+# -- 6-RUS: full pose, the hexapod's model with the crank tips as base joints ------------------------------------
+
+RUS_YAML = CONFIG / "rus6_simulator.yaml"
+
+
+@pytest.fixture(scope="module")
+def rus():
+    return load_manipulator(RUS_YAML)
+
+
+def _match(found, expected, tol):
+    """Every expected mode has a found one within ``tol`` (solver variables) and the counts agree."""
+    assert len(found) == len(expected)
+    for x in expected:
+        assert min(np.max(np.abs(np.asarray(f) - x)) for f in found) <= tol
+
+
+def test_rus_known_solutions_satisfy_the_legs(rus):
+    legs = rus.legs_from_sensors(rus.example_actuator_positions)
+    for x in rus.known_solutions:
+        # written to 1e-9 mm: residuals (mm) and rigidity terms (mm^2) far below 1e-5
+        assert np.max(np.abs(rus.residuals(x, legs))) < 1e-5
+
+
+def test_rus_solve_all_matches_the_crank_tip_6_6(rus):
+    """The independent check: with the actuators' positions known, each crank tip is known, and the problem is the
+    6-6 hexapod whose base joints are the crank tips and whose leg lengths are the rods (today's model, its own
+    kernels); both find the config's eight modes."""
+    from glpma_ros.models import Hexapod66
+    legs = rus.legs_from_sensors(rus.example_actuator_positions)
+    six_six = Hexapod66(rus.proximal_points(legs), rus.platform, unit="mm")
+    tol = ROUND_OFF_REL * rus.scale * 10      # both polished to round-off; the YAML's modes are written to 1e-9 mm
+    ours = solve_all(rus, legs, seed=1)
+    theirs = solve_all(six_six, rus.rods_of(legs), seed=2)
+    _match([s.x for s in ours.solutions], rus.known_solutions, tol)
+    _match([s.x for s in theirs.solutions], rus.known_solutions, tol)
+
+
+def test_rus_warm_tracking_reproduces_the_trajectory(rus):
+    from glpma_tools.sim.trajectories import variables_along
+    truth = variables_along(rus, rus.known_solutions[0], 400)
+    est = Estimator(rus, time_budget_s=GENEROUS_BUDGET_S, initial_pose=truth[0])
+    for x in truth:
+        e = est.estimate(rus.actuator_positions(x))
+        assert e.converged and e.start == "warm", e.message
+        assert rus.distance(e.x, x) <= ROUND_OFF_REL * rus.scale
+
+
+def test_rus_cold_estimates_converge_from_random_poses(rus):
+    """Cold (no previous pose), evaluation-capped: every estimate converges to an assembly mode of its reading
+    (leg residuals at round-off); which mode a cold start reports is not determined."""
+    from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+    rng = np.random.default_rng(8)
+    home = rus.pose(rus.known_solutions[0])
+    poses = []
+    while len(poses) < 10:      # random poses within 80 mm and 0.15 rad of the working mode, where the cranks reach
+        R = rotation_from_vector(rng.uniform(-0.15, 0.15, 3)) @ matrix_from_quaternion(home.orientation)
+        x = rus.variables_from_pose(home.position + rng.uniform(-80.0, 80.0, 3), quaternion_from_matrix(R))
+        try:
+            rus.actuator_positions(x)
+        except ValueError:
+            continue
+        poses.append(x)
+    for k, x in enumerate(poses):
+        legs = rus.legs_from_sensors(rus.actuator_positions(x))
+        e = Estimator(rus, time_budget_s=GENEROUS_BUDGET_S, seed=k, max_evals=500_000).estimate(legs)
+        assert e.converged, e.message
+        assert e.max_residual <= ROUND_OFF_REL * rus.scale
+
+
+def test_rus_bad_readings_are_rejected(rus):
+    with pytest.raises(InputError, match="expected 6 actuator positions for rus_6, got 3"):
+        rus.check_legs([0.0, 0.0, 0.0])
+    with pytest.raises(InputError, match=r"actuator 4 at 1.5 rad is outside its limits \[-1.309, 1.309\] rad"):
+        rus.check_legs([0.0, 0.0, 0.0, 1.5, 0.0, 0.0])
+
+
+def test_bad_commands_refuse_actuated_families_in_one_line():
+    for argv in (["map", "delta_irb360", "--out", "unused"], ["calibrate", "rus6_simulator", "unused.csv", "--out", "x.yaml"]):
+        r = subprocess.run([sys.executable, "-m", "glpma_ros", *argv], capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert "actuated family" in r.stderr

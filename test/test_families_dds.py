@@ -59,3 +59,15 @@ def test_demo_drives_the_delta(tmp_path, dds_env, dds_domain):
     s = json.loads((tmp_path / "demo_delta.json").read_text())
     assert s["ok"] and s["poses_wrong"] == 0 and s["poses_received"] >= 1
     assert s["tracking_error"]["position_m"]["max"] <= 1e-6
+
+
+@pytest.mark.timing
+def test_rus6_node_tracks_the_mock_controller(start_node, dds_env, capsys):
+    """A 6-RUS started warm at its working mode (``initial_pose``) tracks the controller's cranks."""
+    rus = CONFIG / "rus6_simulator.yaml"
+    x0 = load_manipulator(rus).known_solutions[0]
+    node = start_node("-p", f"manipulator_config:={rus}", "-p", "diagnostics_period_s:=0.2",
+                      "-p", "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]")
+    summary = run_mock(dds_env, str(rus), 100, 3)
+    check_tracking(summary, capsys, "6-RUS 100 Hz")
+    assert node.proc.poll() is None
