@@ -8,22 +8,21 @@ import pytest
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
 from conftest import CONFIG  # noqa: E402
-from test_dds_integration import check_tracking, run_mock, start_node  # noqa: E402, F401 - start_node: a fixture
-
 from glpma_ros.config import load_manipulator  # noqa: E402
+from test_dds_integration import check_tracking, run_mock, start_node  # noqa: E402, F401 - start_node: a fixture
 
 DELTA = CONFIG / "delta_irb360.yaml"
 
 
 @pytest.mark.timing
-def test_delta_node_tracks_the_mock_controller(start_node, dds_env, capsys):
+def test_delta_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # noqa: F811 - the fixture
     node = start_node("-p", f"manipulator_config:={DELTA}", "-p", "diagnostics_period_s:=0.2")
     summary = run_mock(dds_env, str(DELTA), 100, 3)
     check_tracking(summary, capsys, "delta 100 Hz")
     assert node.proc.poll() is None
 
 
-def test_delta_node_answers_three_angles(start_node):
+def test_delta_node_answers_three_angles(start_node):  # noqa: F811 - the fixture
     """Three angles (radians) on actuator_positions -> the pose of the config's known solution (metres)."""
     from glpma_ros.node.dds import endpoints
     from glpma_ros.node.dds.messages import Float64MultiArray, PoseStamped
@@ -62,7 +61,7 @@ def test_demo_drives_the_delta(tmp_path, dds_env, dds_domain):
 
 
 @pytest.mark.timing
-def test_rus6_node_tracks_the_mock_controller(start_node, dds_env, capsys):
+def test_rus6_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # noqa: F811 - the fixture
     """A 6-RUS started warm at its working mode (``initial_pose``) tracks the controller's cranks."""
     rus = CONFIG / "rus6_simulator.yaml"
     x0 = load_manipulator(rus).known_solutions[0]
