@@ -12,9 +12,9 @@ from conftest import CONFIG, GENEROUS_BUDGET_S, ROOT
 from glpma_ros import solvers
 from glpma_ros.config import load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError, InputError
-from glpma_ros.estimator import Estimator, cold_range
+from glpma_ros.estimation.estimator import Estimator, cold_range
 from glpma_ros.models.legs import REVOLUTE, actuator_roots, leg_vector_into
-from glpma_ros.solve_all import solve_all
+from glpma_ros.modes.multistart import solve_all
 from glpma_ros.solvers.local import LocalSolver
 
 DELTA_YAML = CONFIG / "delta_irb360.yaml"
@@ -149,7 +149,7 @@ def test_cold_iterative_solves_succeed_from_random_starts(delta, solver):
 def test_local_solver_from_random_starts_in_reach(delta):
     """The compiled Levenberg-Marquardt from starts drawn in the legs' reach (solve-all's multistart starts)
     converges to a mode from every start within its iteration cap."""
-    from glpma_ros.solve_all import StartSampler
+    from glpma_ros.modes.multistart import StartSampler
     rng = np.random.default_rng(7)
     solver = LocalSolver(delta)
     for p in random_poses(delta, rng, 5):

@@ -183,7 +183,7 @@ class ActuatedLegs:
         xs = closed(legs) if closed is not None else None
         if xs:
             return self.preferred_order(xs)[0]
-        from ..estimator import Estimator  # the estimator imports the models
+        from ..estimation.estimator import Estimator  # the estimator imports the models
         e = Estimator(self, seed=0).estimate(legs)
         if e.x is None:
             raise ValueError(f"{self.kind}: no assembly at the actuators' mid-range; give known_solutions")

@@ -20,7 +20,7 @@ import math
 
 from numba import njit
 
-from ..linalg import jacobi_svd
+from .linalg import jacobi_svd
 from .residuals import (
     KIND_ACTUATED_PLANAR,
     KIND_ACTUATED_SPATIAL,

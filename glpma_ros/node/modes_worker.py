@@ -54,7 +54,7 @@ def modes_of(result) -> Modes:
 def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
     """What a request computes: the multistart, at most ``runs`` starts; ``leg_noise_std`` (config
     unit): redundant legs, the noise a mode's leg residuals are tested against (the node's parameter)."""
-    from ..solve_all import has_closed_form, solve_all
+    from ..modes.multistart import has_closed_form, solve_all
     if has_closed_form(model):          # the Delta: its two modes in closed form
         return modes_of(solve_all(model, legs, method="closed_form", seed=int(seed)))
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
