@@ -4,8 +4,8 @@ It moves the platform along the loop of :mod:`glpma_tools.sim.trajectories` arou
 config's known solutions (the loop the DDS mock controller, the demo and the benchmark use) and,
 every ``1 / rate_hz`` seconds, publishes
 
-* the legs of that pose in metres: ``leg_lengths`` (``std_msgs/msg/Float64MultiArray``, leg order)
-  or, with ``input_type:=joint_state``, ``joint_states`` (``sensor_msgs/msg/JointState``: the legs
+* the legs of that pose in metres: ``leg_lengths`` (``std_msgs/msg/Float64MultiArray``, leg order;
+  an actuated family's actuator positions, radians, on ``actuator_positions``) or, with ``input_type:=joint_state``, ``joint_states`` (``sensor_msgs/msg/JointState``: the legs
   under ``joint_names``, ``header.stamp`` = the time of publishing);
 * beside them the true pose, ``~/true_pose`` (``geometry_msgs/msg/PoseStamped``, metres, unit
   quaternion, ``frame_id``, stamped with the same time as the JointState).
@@ -61,6 +61,7 @@ def main(args=None) -> int:
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
+    from glpma_ros.node.input_topic import input_topic, model_is_actuated, readings_in_si
     from glpma_ros.node.params import INPUT_JOINT_STATE, INPUT_TYPES
     from glpma_ros.node.service import default_joint_names
     from glpma_tools.sim.trajectories import Plan
@@ -89,8 +90,10 @@ def main(args=None) -> int:
             self.joint_state = p["input_type"] == INPUT_JOINT_STATE
             self.rate, self.wait, self.wait_monitor = p["rate_hz"], p["wait_for_subscriber"], p["wait_for_monitor"]
             self.total = round(p["duration_s"] * self.rate) if p["duration_s"] > 0 else None
-            self.legs_pub = (self.create_publisher(JointState, "joint_states", 10) if self.joint_state
-                             else self.create_publisher(Float64MultiArray, "leg_lengths", 10))
+            # leg_lengths, or actuator_positions for an actuated family (the node's input topic)
+            topic = input_topic(p["input_type"], model_is_actuated(self.plan.model))
+            self.legs_pub = (self.create_publisher(JointState, topic, 10) if self.joint_state
+                             else self.create_publisher(Float64MultiArray, topic, 10))
             self.true_pub = self.create_publisher(PoseStamped, "~/true_pose", 10)
             self.layout_dim = MultiArrayDimension(label="legs", size=n_legs, stride=n_legs)
             self.k = 0
@@ -116,7 +119,7 @@ def main(args=None) -> int:
             if self.done or self._waiting():
                 return
             legs, position_m, q = self.plan.sample(self.k / self.rate)
-            legs_m = [float(v) * self.plan.mpu for v in legs]
+            legs_m = readings_in_si(self.plan.model, legs)     # metres; an actuated family's radians
             stamp = self.get_clock().now().to_msg()
             if self.joint_state:
                 msg = JointState(name=list(self.names), position=legs_m)

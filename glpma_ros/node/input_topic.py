@@ -27,6 +27,14 @@ def model_is_actuated(model) -> bool:
     return bool(getattr(model, "actuated", False))
 
 
+def readings_in_si(model, values) -> list:
+    """What goes on the input topic for ``values`` in the config's units: leg lengths in metres; an actuated
+    family's actuator positions in radians (metres for prismatic ones)."""
+    if model_is_actuated(model):
+        return model.readings_to_si(values).tolist()
+    return [float(v) * float(model.metres_per_unit) for v in values]
+
+
 def config_is_actuated(config_name: str) -> bool:
     """The manipulator config ``config_name`` (a path or a shipped name) is an actuated family's; False
     when it cannot be read (the node's start reports that)."""

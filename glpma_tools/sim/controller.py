@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glpma_ros.node.input_topic import input_topic, model_is_actuated
+from glpma_ros.node.input_topic import input_topic, model_is_actuated, readings_in_si
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
 from glpma_ros.node.service import default_joint_names
 
@@ -198,10 +198,7 @@ class Controller:
     def message(self, legs):
         """(the message carrying ``legs`` (config unit) in metres, its stamp in ns or None)."""
         from glpma_ros.node.dds.messages import Float64MultiArray, Header, JointState, Time
-        if model_is_actuated(self.model):     # actuator positions: radians (metres for prismatic ones)
-            legs_m = self.model.readings_to_si(legs).tolist()
-        else:
-            legs_m = (np.asarray(legs, dtype=float) * self.mpu).tolist()
+        legs_m = readings_in_si(self.model, legs)     # metres; an actuated family's radians
         if not self.joint_state:
             return Float64MultiArray(layout=self._layout, data=legs_m), None
         joints = list(zip(self.names, legs_m)) + list(EXTRA_JOINTS)
