@@ -26,7 +26,16 @@ import numpy as np
 from ..errors import InputError
 from .base import Manipulator, Pose
 from .hexapod_66 import Hexapod66
-from .legs import LENGTH, PRISMATIC, REVOLUTE, actuator_from_point, actuator_roots, choose_root, leg_vector_into
+from .legs import (
+    LENGTH,
+    PRISMATIC,
+    REVOLUTE,
+    actuator_from_point,
+    actuator_roots,
+    choose_root,
+    leg_vector_into,
+    readings_into,
+)
 from .planar_3rpr import Planar3RPR
 from .residuals import KIND_ACTUATED_PLANAR, KIND_ACTUATED_SPATIAL, KIND_ACTUATED_TRANSLATION
 
@@ -55,6 +64,11 @@ class ActuatedLegs:
         self.rods = np.ascontiguousarray(rods, dtype=float)
         self.actuator_limits = None if actuator_limits is None else np.asarray(actuator_limits, dtype=float)
         self.dim = self.origin.shape[1]
+        n = self.origin.shape[0]
+        # the limits as the compiled check takes them (none: the whole real line)
+        self._lo = np.full(n, -np.inf) if actuator_limits is None else np.ascontiguousarray(self.actuator_limits[:, 0])
+        self._hi = np.full(n, np.inf) if actuator_limits is None else np.ascontiguousarray(self.actuator_limits[:, 1])
+        self._no_offsets = np.zeros(n)
 
     # -- the leg vector --------------------------------------------------------------------------
     @property
@@ -100,8 +114,18 @@ class ActuatedLegs:
     def legs_from_sensors(self, measured) -> np.ndarray:
         """The leg vector of the actuators' readings ``measured`` (validated: count, finite, limits; the
         config's ``actuator_offsets`` added)."""
-        q = self.check_actuators(measured)
-        return self.leg_vector(q if self.actuator_offsets is None else q + self.actuator_offsets)
+        try:
+            q = np.asarray(measured, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            q = None
+        if q is not None and q.size == self.n_legs:     # the usual input: checked and converted compiled
+            out = np.empty(self.leg_vector_size)
+            offsets = self._no_offsets if self.actuator_offsets is None else self.actuator_offsets
+            if readings_into(self.actuators, self.origin, self.axis, self.crank, self.rods, self._lo, self._hi,
+                             offsets, np.ascontiguousarray(q), np.empty(self.n_legs), out) == -1:
+                return out
+        self.check_actuators(measured)                    # raises with the reason
+        raise InputError("actuator positions rejected")   # not reached: the check above names the problem
 
     def sensors_from_legs(self, legs) -> np.ndarray:
         """What the actuators read for leg vector ``legs``: the inverse of :meth:`legs_from_sensors`."""

@@ -64,6 +64,24 @@ def leg_vector_into(kinds, origin, axis, crank, rod, q, out):
                 out[at + 2] = origin[i, 2] + cz * c + (ax * cy - ay * cx) * s + az * dot
 
 
+@njit(cache=True, error_model="numpy")
+def readings_into(kinds, origin, axis, crank, rod, lo, hi, offsets, q, scratch, out):
+    """The leg vector of actuator readings ``q`` (``offsets`` added) into ``out`` when every reading is finite
+    and within ``[lo, hi]``: returns -1; else nothing written and returns -2 (a reading not finite) or the
+    index of the first reading outside its limits.  ``scratch``: ``len(q)`` floats."""
+    n = q.shape[0]
+    for i in range(n):
+        if not math.isfinite(q[i]):
+            return -2
+    for i in range(n):
+        if q[i] < lo[i] or q[i] > hi[i]:
+            return i
+    for i in range(n):
+        scratch[i] = q[i] + offsets[i]
+    leg_vector_into(kinds, origin, axis, crank, rod, scratch, out)
+    return -1
+
+
 def _perpendicular_frame(axis, crank):
     """``(c_perp, a x c)``: the crank's component perpendicular to the axis and its quarter turn (planar: about +z)."""
     if crank.size == 2:
