@@ -309,3 +309,59 @@ def test_bad_commands_refuse_actuated_families_in_one_line():
         r = subprocess.run([sys.executable, "-m", "glpma_ros", *argv], capture_output=True, text=True, cwd=ROOT)
         assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert "actuated family" in r.stderr
+
+
+# -- planar 3-RRR: the 3-RPR's model with the crank tips as base joints ------------------------------------------
+
+RRR_YAML = CONFIG / "planar_3rrr_symmetric.yaml"
+
+
+@pytest.fixture(scope="module")
+def rrr():
+    return load_manipulator(RRR_YAML)
+
+
+def test_rrr_solve_all_matches_the_crank_tip_3rpr(rrr):
+    """With the cranks' angles known each crank tip is known: the 3-RPR whose base joints are the crank tips and
+    whose legs are the rods (today's model, its own kernels) has the same modes, the config's two."""
+    from glpma_ros.models import Planar3RPR
+    legs = rrr.legs_from_sensors(rrr.example_actuator_positions)
+    for x in rrr.known_solutions:
+        assert np.max(np.abs(rrr.residuals(x, legs))) < 1e-6     # written to 1e-9
+    rpr = Planar3RPR(rrr.proximal_points(legs), rrr.platform, unit="mm")
+    tol = ROUND_OFF_REL * rrr.scale * 10
+    _match([s.x for s in solve_all(rrr, legs, seed=1).solutions], rrr.known_solutions, tol)
+    _match([s.x for s in solve_all(rpr, rrr.rods_of(legs), seed=2).solutions], rrr.known_solutions, tol)
+
+
+def test_rrr_warm_tracking_reproduces_the_trajectory(rrr):
+    from glpma_tools.sim.trajectories import variables_along
+    truth = variables_along(rrr, rrr.known_solutions[0], 400)
+    est = Estimator(rrr, time_budget_s=GENEROUS_BUDGET_S, initial_pose=truth[0])
+    for x in truth:
+        e = est.estimate(rrr.actuator_positions(x))
+        assert e.converged and e.start == "warm", e.message
+        assert rrr.distance(e.x, x) <= ROUND_OFF_REL * rrr.scale
+
+
+def test_rrr_cold_estimates_converge_from_random_poses(rrr):
+    rng = np.random.default_rng(9)
+    done = 0
+    while done < 10:            # random poses within 60 mm and 0.3 rad of the working mode, where the cranks reach
+        x = rrr.known_solutions[0] + np.concatenate((rng.uniform(-60.0, 60.0, 2), rng.uniform(-0.3, 0.3, 1)))
+        try:
+            q = rrr.actuator_positions(x)
+        except ValueError:
+            continue
+        e = Estimator(rrr, time_budget_s=GENEROUS_BUDGET_S, seed=done, max_evals=100_000).estimate(q)
+        assert e.converged, e.message
+        assert e.max_residual <= ROUND_OFF_REL * rrr.scale
+        done += 1
+
+
+def test_rrr_cli_solve_all_table(rrr):
+    q = [str(v) for v in rrr.example_actuator_positions]
+    r = subprocess.run([sys.executable, "-m", "glpma_ros", "solve-all", "planar_3rrr_symmetric", "--legs", *q],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    assert "2 distinct real assembly modes" in r.stdout and "theta [rad]" in r.stdout

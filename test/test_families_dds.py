@@ -70,3 +70,14 @@ def test_rus6_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # n
     summary = run_mock(dds_env, str(rus), 100, 3)
     check_tracking(summary, capsys, "6-RUS 100 Hz")
     assert node.proc.poll() is None
+
+
+@pytest.mark.timing
+def test_3rrr_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # noqa: F811 - the fixture
+    rrr = CONFIG / "planar_3rrr_symmetric.yaml"
+    x0 = load_manipulator(rrr).known_solutions[0]
+    node = start_node("-p", f"manipulator_config:={rrr}", "-p", "diagnostics_period_s:=0.2",
+                      "-p", "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]")
+    summary = run_mock(dds_env, str(rrr), 100, 3)
+    check_tracking(summary, capsys, "3-RRR 100 Hz")
+    assert node.proc.poll() is None

@@ -282,7 +282,7 @@ def mode_columns(model) -> list:
     unit = model.unit
     if model.variable_names == ("x", "y", "z"):      # a platform that only translates (deltas)
         return [f"px [{unit}]", f"py [{unit}]", f"pz [{unit}]", "fitness"]
-    if model.kind == "planar_3rpr":
+    if model.variable_names == ("x", "y", "theta"):      # planar: 3-RPR, 3-RRR
         pose = [f"x [{unit}]", f"y [{unit}]", "theta [rad]"]
         return pose + ["fitness"]
     pose = [f"px [{unit}]", f"py [{unit}]", f"pz [{unit}]", "qx", "qy", "qz", "qw"]
@@ -294,7 +294,7 @@ def mode_table(model, solutions) -> list:
     names = mode_columns(model)
     lines = ["   #" + "".join(n.rjust(MODE_COLUMN) for n in names)]
     for k, s in enumerate(solutions, 1):
-        if model.kind == "planar_3rpr" or model.variable_names == ("x", "y", "z"):
+        if model.variable_names in (("x", "y", "theta"), ("x", "y", "z")):
             values = list(s.x)
         else:
             p = model.pose(s.x)

@@ -2,9 +2,10 @@
 
 Schema (see ``config/delta_*.yaml``, ``config/rus6_*.yaml`` and the README's "Your robot")::
 
-    manipulator: delta | rus_6         # the family (FAMILIES)
+    manipulator: delta | rus_6 | planar_3rrr   # the family (FAMILIES)
     unit: mm | cm | m                  # every length in the file; prismatic actuators move in it too
-    platform_motion: translation       # optional; the family's (delta: translation, rus_6: full)
+    platform_motion: translation       # optional; the family's (delta: translation, rus_6: full,
+                                       # planar_3rrr: planar, its points 2-D and no axis)
     legs:                              # leg order = actuator order
       - actuator: revolute             # revolute: q in radians | prismatic: q in the config unit
         origin: [x, y, z]              # the actuated joint, base frame
@@ -26,14 +27,17 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
-from .actuated import ActuatedSpatial, DeltaTranslation
+from .actuated import ActuatedPlanar, ActuatedSpatial, DeltaTranslation
 from .legs import ACTUATOR_KINDS, PRISMATIC, REVOLUTE
 
 #: the shipped families: model class, legs, the actuator every leg has, the platform's motion
 FAMILIES = {
     "delta": (DeltaTranslation, 3, "revolute", "translation"),
     "rus_6": (ActuatedSpatial, 6, "revolute", "full"),
+    "planar_3rrr": (ActuatedPlanar, 3, "revolute", "planar"),
 }
+#: a planar family's legs: 2-D points, the cranks turn about +z (no axis)
+PLANAR_MOTION = "planar"
 REQUIRED_KEYS = ("manipulator", "unit", "legs")
 OPTIONAL_KEYS = ("platform_motion", "actuator_limits", "actuator_offsets", "example_actuator_positions",
                  "known_solutions", "name", "description")
@@ -60,24 +64,30 @@ def _vector(value, dim, what, problems) -> np.ndarray | None:
 
 
 def _leg(i, leg, dim, actuator, problems):
-    """One leg's (kind, origin, axis, crank, rod, platform), problems noted."""
+    """One leg's (kind, origin, axis, crank, rod, platform), problems noted.  A planar leg (``dim`` 2) has no
+    axis: its crank turns about +z."""
     where = f"legs[{i + 1}]"
+    keys = LEG_KEYS if dim == 3 else tuple(k for k in LEG_KEYS if k != "axis")
     if not isinstance(leg, dict):
-        problems.append(f"{where} must be a mapping with keys {', '.join(LEG_KEYS)}")
+        problems.append(f"{where} must be a mapping with keys {', '.join(keys)}")
         return None
     for key in leg:
-        if key not in LEG_KEYS:
-            close = difflib.get_close_matches(str(key), LEG_KEYS, n=1)
-            problems.append(f"{where}: unknown key {str(key)!r}" + (f" (did you mean '{close[0]}'?)" if close else ""))
-    missing = [k for k in LEG_KEYS if k not in leg]
+        if key not in keys:
+            close = difflib.get_close_matches(str(key), keys, n=1)
+            why = " (a planar crank turns about +z)" if key == "axis" else \
+                (f" (did you mean '{close[0]}'?)" if close else "")
+            problems.append(f"{where}: unknown key {str(key)!r}{why}")
+    missing = [k for k in keys if k not in leg]
     if missing:
         problems.append(f"{where}: missing {', '.join(missing)}")
         return None
     if leg["actuator"] != actuator:
         problems.append(f"{where}: actuator must be {actuator!r} in this family, got {leg['actuator']!r}")
         return None
-    origin, axis, crank, platform = (_vector(leg[k], dim, f"{where}.{k}", problems)
-                                     for k in ("origin", "axis", "crank", "platform"))
+    axis_value = leg["axis"] if dim == 3 else [1.0, 0.0]      # unused by a planar crank
+    origin, axis, crank, platform = (_vector(v, dim, f"{where}.{k}", problems) for k, v in
+                                     (("origin", leg["origin"]), ("axis", axis_value), ("crank", leg["crank"]),
+                                      ("platform", leg["platform"])))
     try:
         rod = float(leg["rod"])
     except (TypeError, ValueError):
@@ -91,7 +101,10 @@ def _leg(i, leg, dim, actuator, problems):
         problems.append(f"{where}.axis must not be zero")
         return None
     kind = ACTUATOR_KINDS[actuator]
-    if kind == REVOLUTE and float(np.linalg.norm(np.cross(axis / norm, crank))) < DEGENERATE * max(1.0, rod):
+    if dim == 2 and kind == REVOLUTE and float(np.linalg.norm(crank)) < DEGENERATE * max(1.0, rod):
+        problems.append(f"{where}.crank must not be zero (it would not move)")
+        return None
+    if dim == 3 and kind == REVOLUTE and float(np.linalg.norm(np.cross(axis / norm, crank))) < DEGENERATE * max(1.0, rod):
         problems.append(f"{where}.crank must not be along the axis (it would not move)")
         return None
     return kind, origin, axis, crank, rod, platform
@@ -135,7 +148,8 @@ def model_from_family(doc: dict, path: str):
     if not isinstance(legs, list) or len(legs) != n:
         problems.append(f"'legs' must list the {n} legs of {family}")
     else:
-        parsed = [_leg(i, leg, 3, actuator, problems) for i, leg in enumerate(legs)]
+        dim = 2 if motion == PLANAR_MOTION else 3
+        parsed = [_leg(i, leg, dim, actuator, problems) for i, leg in enumerate(legs)]
     limits = _per_leg(doc, "actuator_limits", n, problems, pairs=True)
     offsets = _per_leg(doc, "actuator_offsets", n, problems)
     if offsets is not None and ACTUATOR_KINDS[actuator] == REVOLUTE and np.abs(offsets).max() > MAX_OFFSET_SHARE * math.pi:

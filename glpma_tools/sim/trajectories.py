@@ -67,6 +67,9 @@ def start_pose(model, doc: dict, solution: int | None = None) -> tuple[np.ndarra
         key = "real_solutions" if model.kind == "planar_3rpr" else "published_solutions"
         raise GlpmaError(f"the config has {len(sols)} {key}; cannot use solution {index}")
     s = sols[index]
+    if getattr(model, "actuated", False):     # an actuated family's known_solutions: solver variables
+        pose = model.pose(np.asarray(s, dtype=float))
+        return np.asarray(pose.position, dtype=float), matrix_from_quaternion(pose.orientation)
     if model.kind == "planar_3rpr":
         return np.array([s["x"], s["y"], 0.0], dtype=float), _rot_z(math.radians(s["theta_deg"]))
     R, p = model.pose_state(np.asarray(s, dtype=float))   # rigid fit of the published joints
@@ -95,7 +98,7 @@ def trajectory(model, p0: np.ndarray, R0: np.ndarray, amplitude: float = 1.0, pe
         def pose_at(t):
             r, rise = SPATIAL_RADIUS * s, SPATIAL_RISE * s
             return p0 + np.array([r * (math.cos(w * t) - 1.0), r * math.sin(w * t), rise * math.sin(2 * w * t)]), R0
-    elif model.kind == "planar_3rpr":
+    elif model.variable_names == ("x", "y", "theta"):     # planar: 3-RPR, 3-RRR
         def pose_at(t):
             r = PLANAR_RADIUS * s
             p = p0 + np.array([r * (math.cos(w * t) - 1.0), r * math.sin(w * t), 0.0])
