@@ -173,8 +173,9 @@ def run(args) -> dict:
     identify_s = time.perf_counter() - t0
     if result.unidentifiable and args.strict:
         texts = "; ".join(d.text for d in result.unidentifiable)
-        raise InputError(f"rank-deficient identification: {len(result.unidentifiable)} parameter direction(s) the "
-                         f"data cannot identify (standard error above {result.se_limit:.3g} {model.unit}): {texts}")
+        raise InputError(f"rank-deficient identification (--strict): {len(result.unidentifiable)} parameter "
+                         f"direction(s) the data cannot identify (not seen at all, or standard error above "
+                         f"{result.se_limit:.3g} {model.unit}): {texts}")
     if not result.converged:
         raise InputError(f"the identification did not converge in {result.iterations} Gauss-Newton iterations")
     values = {KEYS[g]: getattr(result.geometry, g) for g in groups}

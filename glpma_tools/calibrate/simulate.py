@@ -158,7 +158,12 @@ def main(argv=None) -> int:
     from glpma_ros.config import load_document, model_from_dict, resolve_config
     from glpma_ros.errors import GlpmaError
     from glpma_tools.sim.trajectories import start_pose
-    p = OneLineParser(prog="python -m glpma_tools.calibrate.simulate",
+    class Parser(OneLineParser):
+        def error(self, message):            # one line, with the usage
+            print(f"error: {self.prog}: {message}; {' '.join(self.format_usage().split())}", file=sys.stderr)
+            raise SystemExit(2)
+
+    p = Parser(prog="python -m glpma_tools.calibrate.simulate",
                       description="Simulated calibration data: CONFIG's geometry with every joint moved by up to "
                                   f"{JOINT_ERROR_M * 1e3:g} mm and sensor offsets up to {OFFSET_ERROR_M * 1e3:g} mm, "
                                   f"{NOISE_M * 1e3:g} mm noise on the legs and the poses.")
@@ -173,7 +178,10 @@ def main(argv=None) -> int:
                         f"+- DEGREES (default: {PLANAR_POSITION_SHARE * 100:.0f} %% of the size and "
                         f"{math.degrees(PLANAR_ANGLE_RAD):.1f} degrees for a 3-RPR, {SPATIAL_POSITION_SHARE * 100:.0f} %% "
                         f"and {math.degrees(SPATIAL_ANGLE_RAD):.1f} for a hexapod)")
-    args = p.parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        args = p.parse_args(list(sys.argv[1:] if argv is None else argv))
+    except SystemExit as exc:               # --help (0) or a usage error (2, already printed)
+        return exc.code if isinstance(exc.code, int) else 0
     try:
         if args.poses < 1:
             raise GlpmaError(f"POSES must be at least 1, got {args.poses}")
