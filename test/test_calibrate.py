@@ -23,6 +23,7 @@ from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
 from glpma_ros.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+from glpma_tools.calibrate import data as D
 from glpma_tools.calibrate import identify as I
 from glpma_tools.calibrate import simulate as S
 from glpma_tools.calibrate.data import nearest_pairs
@@ -553,9 +554,26 @@ def test_text_output_and_the_command(rpr_data, tmp_path):
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "calibrate", str(RPR_YAML), str(data), "--out", str(new)],
                        capture_output=True, text=True, cwd=ROOT, timeout=TIMEOUT_S)
     assert p.returncode == 0, p.stderr
-    for words in ("leg residual RMS (mm)", "held out", "condition number", "leg 3 offset", "+-", f"wrote {new}"):
+    for words in ("leg residual RMS (mm)", "held out", "condition number", "leg 3 offset", "+-", f"wrote {new}",
+                  "held-out forward kinematics", "position error RMS (mm)", "rotation error max (deg)",
+                  "observability", "O1", "O3"):
         assert words in p.stdout
     assert load_manipulator(new).leg_offsets is not None
+
+
+def test_text_output_warns_of_directions_left_at_nominal(tmp_path):
+    """A working-range campaign in text: each direction left at nominal is a warning line with its
+    standard error and the poses that would identify it; the parameters in it say so; exit 0."""
+    model, doc = load("3rpr")
+    sim = S.simulate(model, start_pose(model, doc), np.random.default_rng(0), spread=WORKING_RANGE["3rpr"])
+    data, new = tmp_path / "data.csv", tmp_path / "new.yaml"
+    S.write_csv(data, sim.measured)
+    p = subprocess.run([sys.executable, "-m", "glpma_ros", "calibrate", str(RPR_YAML), str(data), "--out", str(new)],
+                       capture_output=True, text=True, cwd=ROOT, timeout=TIMEOUT_S)
+    assert p.returncode == 0, p.stderr
+    warnings = [ln for ln in p.stdout.splitlines() if ln.startswith("warning: left at nominal (standard error")]
+    assert warnings and all("add poses that move and rotate the platform" in w for w in warnings)
+    assert "in directions left at nominal)" in p.stdout and new.exists()
 
 
 def test_flow_style_config_keeps_its_style_and_comments(tmp_path, capsys):
@@ -717,3 +735,28 @@ def test_simulate_helper_writes_a_csv_the_command_reads(tmp_path, capsys):
     code, report, err = calibrate("planar_3rpr_seed", out, "--out", tmp_path / "n.yaml", capsys=capsys)
     assert code == 0 and report["measurements"] == 120, err
     assert S.main(["planar_3rpr_seed"]) == 2 and "usage" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("key, name, spread", [("3rpr", "planar_3rpr_seed", ("10", "11.5")),
+                                               ("hexapod", "hexapod_66_rolland", ("20", "8"))])
+def test_simulate_spread_sets_the_campaigns_range(key, name, spread, tmp_path, capsys):
+    """``--spread POSITION DEGREES``: every pose within +- POSITION of the known pose on each axis and
+    the angle (rotation-vector components) within +- DEGREES, up to the instrument's noise."""
+    model, doc = load(key)
+    out = tmp_path / "sim.csv"
+    assert S.main([name, str(out), "50", "1", "--spread", *spread]) == 0
+    capsys.readouterr()
+    meas = D.read_csv(out, model.n_legs, model.base.shape[1], model.unit)
+    p0, R0 = start_pose(model, doc)
+    d = model.base.shape[1]
+    noise = 5 * S.NOISE_M / model.metres_per_unit          # the measured poses' noise, 5 sigma
+    assert np.all(np.abs(meas.position - p0[:d]) <= float(spread[0]) + noise)
+    limit = math.radians(float(spread[1]))
+    for R in meas.rotation:
+        dR = R @ R0[:d, :d].T
+        angle = abs(math.atan2(dR[1, 0], dR[0, 0])) if d == 2 else \
+            math.acos(min(1.0, (np.trace(dR) - 1.0) / 2.0))
+        # hexapod: each rotation-vector component within the limit, so the angle within sqrt(3) of it;
+        # the measured orientation's noise is ~2e-5 rad
+        assert angle <= (limit if d == 2 else math.sqrt(3) * limit) + 1e-3
+    assert S.main([name, str(out), "--spread", "-1", "8"]) == 2 and "--spread" in capsys.readouterr().err
