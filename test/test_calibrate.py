@@ -188,9 +188,9 @@ def fk_errors(model, readings, position, rotation, leg_noise_std=None) -> tuple[
     assert e.converged, e.message
     cos = (np.trace(matrix_from_quaternion(e.pose.orientation) @ R3.T) - 1.0) / 2.0
     mm = model.metres_per_unit * 1e3
+    solved = {"position": e.pose.position, "orientation": e.pose.orientation}
     return (float(np.linalg.norm(np.asarray(e.pose.position)[:d] - position)) * mm,
-            math.acos(min(1.0, max(-1.0, cos))), platform_error_mm(model, {"position": e.pose.position, "orientation": e.pose.orientation},
-                                                    position, rotation, model.platform))
+            math.acos(min(1.0, max(-1.0, cos))), platform_error_mm(model, solved, position, rotation, model.platform))
 
 
 @pytest.mark.parametrize("key", ["3rpr", "hexapod", "hexapod_8legs"])

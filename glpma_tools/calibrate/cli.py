@@ -308,6 +308,8 @@ def text(r: dict) -> str:
     if r["weak"]:
         lines.append(f"weakly identified directions (standard error above {r['weak_se_threshold']:.3g} {u}):")
         lines += [f"  +- {d['se']:.3g} {u}: {d['text']}" for d in r["weak"]]
+    elif r["unidentifiable"]:
+        lines.append(f"no estimated direction has a standard error above {r['weak_se_threshold']:.3g} {u}")
     else:
         lines.append("every parameter direction identified (no standard error above "
                      f"{r['weak_se_threshold']:.3g} {u})")

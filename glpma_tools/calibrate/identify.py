@@ -31,61 +31,63 @@ standard error of each parameter) and the errors-in-variables bias, of order sig
 length (1e-7 mm for 0.01 mm on a 1 m hexapod), far below the standard errors.
 
 **Identifiability** (Hollerbach & Wampler 1996).  The SVD of each leg's block, ``J_i = U S V^T`` (S
-and V from the eigen-decomposition of ``J_i^T J_i``), gives the directions in parameter space (columns of V) and how
-well the data see them: the standard error along direction v_k is ``s_i / sigma_k``.  Three kinds:
+and V from the eigen-decomposition of ``J_i^T J_i``), gives the directions in parameter space (columns
+of V) and how well the data see them: the standard error along direction v_k is ``s_i / sigma_k``.
+A direction is
 
-- *rank-deficient*: sigma_k at round-off relative to the largest singular value (a parameter with no
-  effect, poses that never rotate the platform): the data do not see the direction at all;
-- *unidentifiable from these data*: its standard error exceeds :data:`UNIDENTIFIABLE_SE_SHARE` of the
-  geometry's size, the size of the joint and offset errors a calibration corrects;
-- *weak*: its standard error exceeds :data:`WEAK_SE_SHARE` of the size (estimated, reported).
+- *rank-deficient* when sigma_k is at round-off relative to the largest singular value (a parameter
+  with no effect, poses that never turn the platform): the data do not see it at all;
+- *unidentifiable from these data* when its standard error exceeds :data:`UNIDENTIFIABLE_SE_SHARE` of
+  the geometry's size, the size of the joint and offset errors a calibration corrects;
+- *weak* when its standard error exceeds :data:`WEAK_SE_SHARE` of the size (estimated, reported).
 
 Each is named in words from its largest components (e.g. the offset of a leg and the coordinate of its
 base joint along the leg move together when the leg never changes direction), with the kind of pose
 that would separate them.
 
-**What is estimated: truncated SVD** (Hansen 1998, the truncated SVD of a rank-deficient least-squares
-problem; in kinematic calibration Hollerbach & Wampler 1996 identify through the SVD of the
-identification Jacobian and remove the parameter combinations it shows unidentifiable).  The first two kinds are not estimated: every Gauss-Newton step is the
+**What is estimated: the truncated SVD** (Hansen 1998, the truncated SVD of a rank-deficient
+least-squares problem; in kinematic calibration Hollerbach & Wampler 1996 identify through the SVD
+of the identification Jacobian and remove the parameter combinations it shows unidentifiable).
+Rank-deficient and unidentifiable directions are not estimated: every Gauss-Newton step is the
 minimum-norm least-squares step over the other directions, ``d = -sum_{k kept} v_k v_k^T J^T r /
 sigma_k^2``, so the identification moves only along directions the data determine and leaves the
 geometry at nominal along the rest.  The threshold is the bias-variance balance of a truncated
-estimate: a direction estimated from the data carries its standard error ``se_k``, one left at
-nominal carries the geometry's error along it, ``|v_k . (theta_true - theta_nominal)|``, of the order
-of the errors calibrated; estimating is the better choice when ``se_k`` is below that size,
+estimate: a direction estimated from the data carries its standard error ``se_k``, one left at nominal
+carries the geometry's error along it, ``|v_k . (theta_true - theta_nominal)|``, of the order of the
+errors calibrated; estimating is the better choice when ``se_k`` is below that size,
 :data:`UNIDENTIFIABLE_SE_SHARE` of the scale (a millimetre on a metre-sized hexapod).  A direction
-left at nominal costs little inside the range the data cover, by construction: the residual it
-leaves is ``sigma_k`` times the error along it, which is what makes it unidentifiable.  The standard
-errors of the noise ``s_i`` behind ``se_k`` are the current residuals' (from the nominal geometry's
-in the first step: more directions are left out of the first step than of the last), and a
-direction once estimated stays estimated, so every direction reported as left at nominal was left
-out of every step.  The parameters' standard errors are those of their estimated part (the
-covariance over the kept directions), and each parameter's share in the directions left at nominal,
-``sum_{k left} v_kj^2`` (0: fully identified, 1: fully at nominal), says how much of it is nominal.
+left at nominal costs little inside the range the data cover, by construction: the leg residual it
+leaves is sigma_k times the error along it, which is what makes it unidentifiable.  The noise ``s_i``
+behind ``se_k`` is that of the current residuals (the nominal geometry's in the first step, so more
+directions are left out of the first step than of the last), and a direction once estimated stays
+estimated: every direction reported as left at nominal was left out of every step.  The parameters'
+standard errors are those of their estimated part (the covariance over the kept directions); each
+parameter's share in the directions left at nominal, ``sum_{k left} v_kj^2`` (0: fully identified,
+1: fully at nominal), says how much of it is nominal.
 
-**Observability** of the campaign (Sun & Hollerbach 2008 compare the indices): the singular values
-``sigma_k`` of the whole (block-diagonal) identification Jacobian per pose, ``sigma_k / sqrt(m)``
--- the leg residual RMS a unit move along direction k causes over the measurements, dimensionless
-since every parameter is a length (the columns are commensurate: no further column scaling) and
-independent of how many poses were taken.  Reported: O1 = ``(prod sigma_k)^(1/L) / sqrt(m)`` over
-the L parameters (Borm & Menq 1991; 0 when a direction is rank-deficient), O3 = ``min sigma_k /
-sqrt(m)`` (the minimum singular value, Nahvi, Hollerbach & Hayward 1994: the worst direction,
-whose standard error is the noise over ``sqrt(m)`` O3), and the condition number ``max sigma / min
-sigma`` (Driels & Pathre 1990; O2).
+**Observability** of the campaign (the indices compared by Sun & Hollerbach 2008): the singular
+values of the whole (block-diagonal) identification Jacobian per pose, ``sigma_k / sqrt(m)`` -- the
+leg residual RMS a unit move along direction k causes over the m measurements, dimensionless because
+every parameter is a length (the columns are commensurate and need no further scaling) and
+independent of how many poses were taken.  Reported: O1 = ``(prod sigma_k)^(1/L) / sqrt(m)`` over the
+L parameters (Borm & Menq 1991; near 0 when a direction is rank-deficient), O3 = ``min sigma_k /
+sqrt(m)`` (the minimum singular value, Nahvi, Hollerbach & Hayward 1994: the worst direction, whose
+standard error is the noise over ``sqrt(m)`` O3), and the condition number ``max sigma / min sigma``
+(Driels & Pathre 1990; O2).
 
 References: H. Zhuang, J. Yan, O. Masory, *Calibration of Stewart platforms and other parallel
 manipulators by minimizing inverse kinematic residuals*, J. Robotic Systems 15(7), 1998; C. W. Wampler,
 J. M. Hollerbach, T. Arai, *An implicit loop method for kinematic calibration and its application to
-closed-chain mechanisms*, IEEE Trans. Robotics and Automation 11(5), 1995; J. M. Hollerbach,
-C. W. Wampler, *The calibration index and taxonomy for robot kinematic calibration methods*, IJRR 15(6),
-1996; G. A. F. Seber, C. J. Wild, *Nonlinear Regression*, Wiley 1989; A. Bjorck, *Numerical Methods for
-Least Squares Problems*, SIAM 1996; P. C. Hansen, *Rank-Deficient and Discrete Ill-Posed Problems*,
-SIAM 1998; J.-H. Borm, C.-H. Menq, *Determination of optimal measurement configurations for robot calibration
-based on observability measure*, IJRR 10(1), 1991; A. Nahvi, J. M. Hollerbach, V. Hayward, *Calibration of a
-parallel robot using multiple kinematic closed loops*, ICRA 1994; M. R. Driels,
-U. S. Pathre, *Significance of observation strategy on the design of robot calibration experiments*,
-J. Robotic Systems 7(2), 1990; Y. Sun, J. M. Hollerbach, *Observability index selection for robot
-calibration*, ICRA 2008.
+closed-chain mechanisms*, IEEE Trans. Robotics and Automation 11(5), 1995; J. M. Hollerbach, C. W.
+Wampler, *The calibration index and taxonomy for robot kinematic calibration methods*, IJRR 15(6), 1996;
+G. A. F. Seber, C. J. Wild, *Nonlinear Regression*, Wiley 1989; A. Bjorck, *Numerical Methods for Least
+Squares Problems*, SIAM 1996; P. C. Hansen, *Rank-Deficient and Discrete Ill-Posed Problems*, SIAM 1998;
+J.-H. Borm, C.-H. Menq, *Determination of optimal measurement configurations for robot calibration based
+on observability measure*, IJRR 10(1), 1991; A. Nahvi, J. M. Hollerbach, V. Hayward, *Calibration of a
+parallel robot using multiple kinematic closed loops*, ICRA 1994; M. R. Driels, U. S. Pathre,
+*Significance of observation strategy on the design of robot calibration experiments*, J. Robotic
+Systems 7(2), 1990; Y. Sun, J. M. Hollerbach, *Observability index selection for robot calibration*,
+ICRA 2008.
 """
 from __future__ import annotations
 

@@ -176,8 +176,9 @@ def main(argv=None) -> int:
                    help="the campaign's range around the config's known pose: positions within +- POSITION (config "
                         "unit) on each axis, the angle (3-RPR) or each rotation-vector component (hexapod) within "
                         f"+- DEGREES (default: {PLANAR_POSITION_SHARE * 100:.0f} %% of the size and "
-                        f"{math.degrees(PLANAR_ANGLE_RAD):.1f} degrees for a 3-RPR, {SPATIAL_POSITION_SHARE * 100:.0f} %% "
-                        f"and {math.degrees(SPATIAL_ANGLE_RAD):.1f} for a hexapod)")
+                        f"{math.degrees(PLANAR_ANGLE_RAD):.1f} degrees for a 3-RPR, "
+                        f"{SPATIAL_POSITION_SHARE * 100:.0f} %% and {math.degrees(SPATIAL_ANGLE_RAD):.1f} for a "
+                        f"hexapod)")
     try:
         args = p.parse_args(list(sys.argv[1:] if argv is None else argv))
     except SystemExit as exc:               # --help (0) or a usage error (2, already printed)
