@@ -715,14 +715,18 @@ def test_benchmark_section_measures_and_renders():
     its figures, the calibrated forward kinematics beats the nominal one, the table renders."""
     from glpma_tools.bench.offline import calibration, calibration_section
     rows = calibration(sizes=(120,), repeats=1, fk_poses=2)
-    assert [r["config"] for r in rows] == ["planar_3rpr_seed", "hexapod_66_rolland"]
+    assert [(r["config"], r["campaign"]) for r in rows] == [
+        ("planar_3rpr_seed", "workspace"), ("planar_3rpr_seed", "+- 10 mm, 11.5 deg"),
+        ("hexapod_66_rolland", "workspace"), ("hexapod_66_rolland", "+- 20 mm, 8 deg")]
     for r in rows:
-        assert r["measurements"] == 120 and r["fitted"] == 96
+        assert r["measurements"] == 120 and r["fitted"] == 96 and r["O1"] > 0.0
         assert r["FK error calibrated mm (median / max)"][1] < r["FK error nominal mm (median / max)"][0]
-        before, after = r["held-out leg RMS mm (before / after)"]
-        assert after < before
+        for key in ("held-out leg RMS mm (before / after)", "held-out FK position RMS mm (before / after)"):
+            before, after = r[key]
+            assert after < before
+    assert rows[1]["left at nominal"] > 0 and rows[3]["left at nominal"] > 0     # the working range's weak directions
     text = "\n".join(calibration_section(rows))
-    assert "### Calibration" in text and text.count("| hexapod_66_rolland |") == 1
+    assert "### Calibration" in text and text.count("| hexapod_66_rolland |") == 2
 
 
 def test_simulate_helper_writes_a_csv_the_command_reads(tmp_path, capsys):
