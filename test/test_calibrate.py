@@ -574,6 +574,7 @@ def test_text_output_warns_of_directions_left_at_nominal(tmp_path):
     warnings = [ln for ln in p.stdout.splitlines() if ln.startswith("warning: left at nominal (standard error")]
     assert warnings and all("add poses that move and rotate the platform" in w for w in warnings)
     assert "in directions left at nominal)" in p.stdout and new.exists()
+    assert f"# {len(warnings)} parameter direction(s) the data did not identify stay as in" in new.read_text()
 
 
 def test_flow_style_config_keeps_its_style_and_comments(tmp_path, capsys):

@@ -183,6 +183,9 @@ def run(args) -> dict:
               f"fitted, {held} held out): {', '.join(KEYS[g] for g in groups)} identified; leg residual RMS "
               f"{rms_before:.4g} -> {_rms(leg_residuals(result.geometry, fit)):.4g} {model.unit}.",
               f"# Everything else as in {config_path.name}, whose comments describe the nominal geometry.", "#"]
+    if result.unidentifiable:
+        header[-1:-1] = [f"# {len(result.unidentifiable)} parameter direction(s) the data did not identify stay as in "
+                         f"{config_path.name} (the command's warnings name them)."]
     offsets_comment = [f"# Zero offsets of the leg sensors ({model.unit}), identified by glpma-fk calibrate: added to "
                        f"every", "# measured leg length before the forward kinematics."]
     new_text = edit_config(config_path.read_text(), values, header, offsets_comment)
