@@ -8,7 +8,7 @@ import yaml
 
 from conftest import CONFIG, GENEROUS_BUDGET_S
 from glpma_ros.config import load_manipulator
-from glpma_ros.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
+from glpma_ros.estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
 
 #: evaluation cap of each search stage
 MAX_EVALS = 20_000

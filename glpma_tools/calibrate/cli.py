@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.cli import OneLineParser, command_main, seed_type
+from glpma_ros.cli.main import OneLineParser, command_main, seed_type
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
-from glpma_ros.estimator import STATIONARY
+from glpma_ros.estimation.estimator import STATIONARY
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from glpma_ros.solvers.local import LocalSolver
 

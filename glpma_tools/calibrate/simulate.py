@@ -154,7 +154,7 @@ def main(argv=None) -> int:
     DEGREES]``: simulated data for the README's example (the true geometry printed on stderr)."""
     import sys
 
-    from glpma_ros.cli import OneLineParser
+    from glpma_ros.cli.main import OneLineParser
     from glpma_ros.config import load_document, model_from_dict, resolve_config
     from glpma_ros.errors import GlpmaError
     from glpma_tools.sim.trajectories import start_pose
