@@ -26,9 +26,9 @@ from glpma_tools.calibrate import main as calibrate_main
 from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
 from glpma_tools.sim.trajectories import start_pose
 
-from .dds import params_file
-from .report import dict_table, key_values, md_blocks, prose
+from .markdown import dict_table, key_values, md_blocks, prose
 from .scenarios import load
+from .transport import params_file
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
@@ -63,7 +63,7 @@ def _recorded_legs(n: int) -> np.ndarray:
 
 def _write_bag(path: Path, records, typestore) -> None:
     """An MCAP rosbag2 of ``(topic, log time ns, CDR bytes)`` records, each topic a Float64MultiArray."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer  # the bag extra: optional, imported where used
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
         conns = {}
         for topic, t, raw in records:
@@ -83,14 +83,14 @@ def _write_legs_bag(path: Path, legs_m, typestore) -> None:
 
 def _read_bag(path: Path, topic: str | None = None) -> list:
     """``(log time ns, CDR bytes)`` of the messages of the bag at ``path`` (on ``topic``; None: all)."""
-    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2 import Reader  # the bag extra: optional, imported where used
     with Reader(path) as reader:
         return [(t, bytes(raw)) for c, t, raw in reader.messages() if topic in (None, c.topic)]
 
 
 def _typestore():
     """The ROS 2 Jazzy message types of ``rosbags``."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # the bag extra: optional, imported where used
     return get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -160,7 +160,7 @@ def _engines(workers=MAP_WORKERS):
     ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
     engines = [(f"{n} process(es)", ["--workers", str(n)]) for n in workers]
     try:
-        import distributed
+        import distributed  # the map extra: optional, imported where used
     except ImportError:
         yield engines
         return

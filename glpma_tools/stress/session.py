@@ -8,6 +8,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from glpma_ros.node.ros_args import node_values
 from glpma_tools.sim.controller import Controller, counters, diff, starts
 from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.matching import compare
@@ -72,7 +73,6 @@ class Session:
 
     def __init__(self, params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None,
                  log_dir: Path | None = None, say=None):
-        from glpma_ros.node.ros_args import node_values
         # a domain of its own unless one is given (held while this process runs)
         self._claim = None if domain_id is not None else claim_domain()
         self.domain_id = int(domain_id) if self._claim is None else self._claim.domain_id
