@@ -2,8 +2,9 @@
 (the command line of record: doc/interface.md).
 
 The tools (:mod:`glpma_tools`: bench, demo, stress, bag, map, ...) plug their subcommands in through
-the entry-point group :data:`COMMANDS` (as ros2cli's verbs do): one line in setup.py,
-``"NAME = module:main [extra]"``, where ``main(argv) -> exit status`` parses its own arguments,
+the entry-point group :data:`~.api.COMMANDS` (as ros2cli's verbs do): one line in setup.py,
+``"NAME = module:main [extra]"``, where ``main(argv) -> exit status`` parses its own arguments (with
+what :mod:`glpma_ros.cli.api` gives),
 the first line of ``module``'s docstring (``glpma-fk NAME: what it does``) is its line in
 ``glpma-fk --help``, and ``extra`` is the setup.py extra it needs.  This module imports none of
 them: ``--help`` reads the docstrings without importing the modules, and an installation
@@ -12,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import ast
-import functools
 import importlib.machinery
 import importlib.metadata
 import importlib.util
@@ -26,48 +26,20 @@ import numpy as np
 
 from .. import __version__
 from ..errors import GlpmaError
+from .api import (
+    COMMANDS,
+    DISTRIBUTION,
+    EXIT_BROKEN_PIPE,
+    OneLineParser,
+    command_main,
+    count_type,
+    fail,
+    positive_float,
+    seed_type,
+)
 
-EXIT_BAD_INPUT = 2
-#: exit status when stdout was closed early (``glpma-fk ... | head -1``): 128 + SIGPIPE, as a shell tool
-EXIT_BROKEN_PIPE = 141
 #: ``solve`` without ``--budget-ms``: the evaluation cap ends the search; an hour stands for "no clock"
 NO_BUDGET_S = 3600.0
-
-
-#: the entry-point group of glpma-fk's plug-in subcommands (see the module's docstring)
-COMMANDS = "glpma_fk.commands"
-#: the distribution whose extras the plug-ins name
-DISTRIBUTION = "glpma_ros"
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line on stderr and exit status 2."""
-
-    def error(self, message):
-        raise SystemExit(_fail(f"{self.prog}: {message}"))
-
-
-def _fail(message: str) -> int:
-    print(f"error: {message}", file=sys.stderr)
-    return EXIT_BAD_INPUT
-
-
-def command_main(main):
-    """Decorator of a command's ``main(argv) -> exit status``, the one place where its outcomes
-    become exit statuses: argparse's exit (``--help``: 0; a :class:`OneLineParser` usage error,
-    already printed: 2), a :class:`~glpma_ros.errors.GlpmaError` (one line on stderr, 2) and
-    Ctrl-C (130)."""
-    @functools.wraps(main)
-    def run(argv=None) -> int:
-        try:
-            return int(main(argv) or 0)
-        except SystemExit as exc:
-            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else _fail(str(exc.code)))
-        except GlpmaError as exc:
-            return _fail(str(exc))
-        except KeyboardInterrupt:
-            return 130
-    return run
 
 
 # -- plug-in subcommands ------------------------------------------------------------------------
@@ -122,28 +94,9 @@ def _run_plugin(ep, argv) -> int:
     missing = _missing_extra(ep)
     if missing is not None:
         extra, names = missing
-        return _fail(f"glpma-fk {ep.name} needs {', '.join(names)}: pip install '{DISTRIBUTION}[{extra}]' "
+        return fail(f"glpma-fk {ep.name} needs {', '.join(names)}: pip install '{DISTRIBUTION}[{extra}]' "
                      f"(in a checkout: pip install -e '.[{extra}]')")
     return int(ep.load()(argv) or 0)
-
-
-def _number(kind, test, what):
-    """An argparse type: ``kind`` (int or float) that passes ``test``, else a one-line usage error."""
-    def parse(text):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if kind is int else 'a number'}") from None
-        if not test(value):
-            raise argparse.ArgumentTypeError(f"{text!r} must be {what}")
-        return value
-    parse.__name__ = kind.__name__      # argparse names the type in "invalid ... value"
-    return parse
-
-
-seed_type = _number(int, lambda v: 0 <= v < 2**63, "a non-negative integer")
-count_type = _number(int, lambda v: v >= 1, "at least 1")
-positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "a positive number")
 
 
 def _load(config):
@@ -302,7 +255,8 @@ def _no_mode_reason(res) -> str:
         return f"certified: none of the {res.complex_solutions} complex solutions is real"
     if res.stop_reason == "unreachable":
         return "the legs cannot reach a common platform position"
-    return f"none of {res.runs} {'runs' if res.method == 'g3pcx' else 'starts'} converged; the legs may have no assembly"
+    what = "runs" if res.method == "g3pcx" else "starts"
+    return f"none of {res.runs} {what} converged; the legs may have no assembly"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -337,7 +291,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="redundant legs: standard deviation of the leg measurements in the config's unit; a mode "
                         "is a least-squares pose whose residuals pass the chi-square test against it (default: "
                         "1e-5 m, the node's leg_noise_std)")
-    a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
+    a.add_argument("--seed", type=seed_type, default=0,
+                   help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
     a.set_defaults(func=cmd_solve_all)
     _add_precompile(sub)
