@@ -48,8 +48,8 @@ def _round_off(model, e, legs):
                                                          ((0, 0, 1, 1, 2, 2), (0, 1, 2, 3, 4, 5)),    # 3-6
                                                          ((0, 1, 1, 2, 2, 0), (0, 0, 1, 1, 2, 2))])   # 3-3
 def test_coincident_joints_are_accepted(base_pairs, platform_pairs):
-    ring = lambda r, phase: [[r * math.cos(phase + k * math.pi / 3), r * math.sin(phase + k * math.pi / 3), 0.0]
-                             for k in range(6)]
+    def ring(r, phase):
+        return [[r * math.cos(phase + k * math.pi / 3), r * math.sin(phase + k * math.pi / 3), 0.0] for k in range(6)]
     base, platform = ring(200.0, 0.1), ring(100.0, 0.4)
     doc = {"manipulator": "hexapod_66", "unit": "mm", "base": [base[i] for i in base_pairs],
            "platform": [platform[i] for i in platform_pairs]}

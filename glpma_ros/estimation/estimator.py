@@ -165,7 +165,8 @@ class Estimator:
 
     Redundant legs (more than the degrees of freedom): the pose is the least-squares one, converged
     when its residuals pass the chi-square test against ``leg_noise_std`` (config unit; default
-    :data:`~glpma_ros.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is ``inconsistent_legs``
+    :data:`~glpma_ros.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is
+    ``inconsistent_legs``
     with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other legs determine
     the pose consistently, the pose without it (:mod:`glpma_ros.redundancy`)."""
 

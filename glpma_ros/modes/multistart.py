@@ -288,7 +288,8 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
     nearest one found so far when their platform joints are within ``dedup``
     (``Manipulator.distance``), else a new one appended to ``modes``; then the stopping rule of the
     module docstring, checked after every start (unless ``stall_rule`` is false: the partner
-    search's starts).  ``counters`` (``C_*``) carry the state from batch to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
+    search's starts).  ``counters`` (``C_*``) carry the state from batch to batch.  Returns the number of starts used;
+    ``counters[C_STOP]`` says why it returned
     (``GOING``: the batch is used up; ``STALL_RULE``; ``FULL``: ``modes`` has no room left)."""
     n_vars = modes.shape[1]
     info = n_vars + 7
@@ -423,7 +424,8 @@ def _spatial_starts(P, q, arms):
 
 
 class _Search:
-    """The multistart's state (``leg_noise_std``: redundant legs, as :func:`consistent_fitness`): the modes found (grown when full), the hits of the random starts, the
+    """The multistart's state (``leg_noise_std``: redundant legs, as :func:`consistent_fitness`): the modes found
+    (grown when full), the hits of the random starts, the
     conditioning of the modes seen by the partner search, and the compiled kernel's arguments; :meth:`run`
     solves a batch of starts with :func:`_multistart_batch`."""
 

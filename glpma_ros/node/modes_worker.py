@@ -66,7 +66,8 @@ def _reply(out, kind: str, payload) -> None:
 
 def child_main(argv=None) -> int:
     """The child: ``python -m glpma_ros.node.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
-    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line on stdout
+    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line
+    on stdout
     (``["ok", {"modes": [x, ...], "starts": n, "stop_reason": r, "miss_probability": p}]``,
     ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
     argv = sys.argv[1:] if argv is None else argv

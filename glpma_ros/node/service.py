@@ -16,7 +16,8 @@ A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
 ``publish(PoseOutput)`` out -- then, from the extras thread,
 ``publish_extras(service.extras(outcome, ...))``: TF, covariance, twist and markers
 (:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s`` from a
-:class:`~glpma_ros.node.loops.ReportLoop`, and ``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
+:class:`~glpma_ros.node.loops.ReportLoop`, and ``AssemblyModesLoop.request(arrival_ns)`` on
+``~/request_assembly_modes`` with
 ``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
 received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
 (:mod:`glpma_ros.node.modes_worker`), so that the real-time solve loop keeps its latency.

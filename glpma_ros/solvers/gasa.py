@@ -173,7 +173,8 @@ class GASAPopulation(EvolutionaryState):
         self.term = term
         self.temperature = float(t0)
         self.sa_iterations, self.chain_length = int(sa_iterations), int(chain_length)
-        self.cooling_rate, self.crossover_rate, self.sa_rate = float(cooling_rate), float(crossover_rate), float(sa_rate)
+        self.cooling_rate, self.crossover_rate = float(cooling_rate), float(crossover_rate)
+        self.sa_rate = float(sa_rate)
         width = np.broadcast_to(np.asarray(width, dtype=float), (pop.shape[1],))
         self.b_ref = np.ascontiguousarray(float(neighbour_fraction) * width)
         if not (self.temperature > 0 and self.sa_iterations >= 1 and self.chain_length >= 1
@@ -213,7 +214,8 @@ class GASAPopulation(EvolutionaryState):
         gens, evals, self.temperature = gasa_generations(
             self.pop, self.fit, self.new, self.new_f, self.cum, self.progress, self.child, self.child_best,
             self.child_state, self.rng, n_generations, max_chains, max_evals, tolerance, self.temperature, sa.T0,
-            self.b_ref, self.sa_iterations, self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate, p.kind, p.data, p.legs,
+            self.b_ref, self.sa_iterations, self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate,
+            p.kind, p.data, p.legs,
             p.n_res)
         return gens, evals
 

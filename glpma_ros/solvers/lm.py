@@ -176,7 +176,8 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
     ``kind``/``data``: the model's ``kind_id`` and data tuple (:mod:`glpma_ros.models.kernels`);
     ``platform``: its platform joints (one per leg); ``frame``: its frame joints (``Manipulator.frame``);
     ``settings``: see :func:`make_settings`; ``x_ref``: the variables the distance is measured from;
-    ``legs_ref``: the legs the movement is measured from (empty: none).  Fills ``out`` = [solver variables (n_vars), position (3), quaternion [qx, qy, qz,
+    ``legs_ref``: the legs the movement is measured from (empty: none).  Fills ``out`` = [solver variables (n_vars),
+    position (3), quaternion [qx, qy, qz,
     qw], info (``N_INFO``, layout: the ``I_*`` constants)]; ``work``: :func:`workspace_size` floats.
     Nothing is allocated."""
     ref = _reference_length(legs, settings)

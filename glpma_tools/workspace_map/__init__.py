@@ -38,4 +38,5 @@ from .cli import main
 from .engines import MapResult, compute_map
 from .grid import DEFAULT_METHOD, DEFAULT_RUNS, METHODS, OUTSIDE, MapSpec, pose_variables, quaternion_from_rpy
 
-__all__ = ["DEFAULT_METHOD", "DEFAULT_RUNS", "METHODS", "OUTSIDE", "MapResult", "MapSpec", "compute_map", "main", "pose_variables", "quaternion_from_rpy"]
+__all__ = ["DEFAULT_METHOD", "DEFAULT_RUNS", "METHODS", "OUTSIDE", "MapResult", "MapSpec", "compute_map", "main",
+           "pose_variables", "quaternion_from_rpy"]
