@@ -15,7 +15,7 @@ import yaml
 
 from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML, interrupt
 from glpma_ros import __version__
-from glpma_ros.cli.main import build_parser, main
+from glpma_ros.cli.main import commands, main
 from glpma_ros.config import load_manipulator, model_from_dict, unit_mistake
 from glpma_ros.errors import ConfigError, GlpmaError, InputError
 from glpma_ros.node.ros_args import check_params_files, load_params_file
@@ -198,9 +198,7 @@ def test_a_closed_pipe_ends_quietly():
 
 
 def _subcommands():
-    # argparse lists its subcommands only in its (private) actions
-    sub = next(a for a in build_parser()._actions if a.dest == "command")  # noqa: SLF001
-    return sorted(sub.choices)
+    return sorted(commands())
 
 
 def _options_of(help_text: str) -> tuple[set, set]:
@@ -355,7 +353,7 @@ PRINTED_LEG_TOL = {"planar_3rpr": 1e-4, "hexapod_66": 1e-2}
 
 @pytest.mark.parametrize("config, legs", [(RPR_YAML, [100, 120, 150]), (HEX_YAML, [1250] * 6)])
 def test_solve_all_text_names_its_columns(config, legs, capsys):
-    from glpma_ros.cli.main import mode_columns
+    from glpma_ros.cli.solve_all import mode_columns
     model = load_manipulator(config)
     assert main(["solve-all", str(config), "--legs", *map(str, legs), "--max-starts", "2000"]) == 0
     out = capsys.readouterr().out.splitlines()

@@ -1,7 +1,8 @@
 """The plug-in API of ``glpma-fk``: what a command's module (the tools' and the built-in ones) imports.
 
-A command is an entry point of the group :data:`COMMANDS` (setup.py: ``"NAME = module:main [extra]"``):
-``main(argv) -> exit status`` parses its own arguments with a :class:`OneLineParser` (a usage error is one
+A command is an entry point of the group :data:`COMMANDS` naming a :class:`Command` (setup.py:
+``"NAME = module:COMMAND [extra]"``, the built-in commands too): its ``--help`` line and its
+``main(argv) -> exit status``, which parses its own arguments with a :class:`OneLineParser` (a usage error is one
 line, exit 2) and is wrapped in :func:`command_main` (the one place where its outcomes become exit
 statuses); the argument types :data:`seed_type`, :data:`count_type` and :data:`positive_float` refuse a
 bad number in one line."""
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import importlib
 import math
 import sys
 
@@ -72,3 +74,18 @@ def _number(kind, test, what):
 seed_type = _number(int, lambda v: 0 <= v < 2**63, "a non-negative integer")
 count_type = _number(int, lambda v: v >= 1, "at least 1")
 positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "a positive number")
+
+
+class Command:
+    """A ``glpma-fk`` command as its entry point gives it (the group :data:`COMMANDS`): its line in
+    ``glpma-fk --help`` and where its ``main(argv) -> exit status`` is (``"module:function"``), imported
+    only when the command runs, so that ``--help`` loads none of the commands' code."""
+
+    def __init__(self, help: str, main: str):
+        self.help = help
+        self.main = main
+
+    def load(self):
+        """The command's ``main``."""
+        module, _, function = self.main.partition(":")
+        return getattr(importlib.import_module(module), function)
