@@ -30,9 +30,9 @@ def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, 
     """The floor's stand-in over real DDS: each pose carries the legs of the input it answers and
     is stamped between that input's write and the pose's receipt."""
     from glpma_ros.node.dds import endpoints
+    from glpma_ros.testing.matching import pair, split_at_stamp
     from glpma_tools.sim.controller import Controller
     from glpma_tools.sim.echo_node import legs_of
-    from glpma_tools.sim.matching import pair, split_at_stamp
     from glpma_tools.sim.node_process import NodeProcess
     from glpma_tools.sim.trajectories import Plan
 

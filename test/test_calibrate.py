@@ -1,5 +1,5 @@
-"""glpma-fk calibrate on simulated data (issue 22's protocol: a shipped geometry with every joint
-moved by up to 1 mm, leg offsets up to 0.5 mm, 200 poses over the workspace, 0.01 mm noise on legs
+"""glpma-fk calibrate on simulated data (the protocol of glpma_tools/calibrate/simulate.py: a shipped geometry
+with every joint moved by up to 1 mm, leg offsets up to 0.5 mm, 200 poses over the workspace, 0.01 mm noise on legs
 and poses): parameters within 3 standard errors of the truth, honest standard errors over many
 seeds, forward kinematics with NEW.yaml within 0.05 mm of the true poses, a rosbag2 calibrating as
 the CSV does, every option, bad input; and the config key ``leg_offsets`` where measured legs enter."""

@@ -1,5 +1,5 @@
 """Every Gough-Stewart design (joints coinciding in pairs: 6-3, 3-6, 3-3) and redundant legs with the
-isolation of a faulty one (issue 21): validation, solves, solve-all, the node's service and diagnostics,
+isolation of a faulty one: validation, solves, solve-all, the node's service and diagnostics,
 the CLI and the shipped configs.  Every solve has an evaluation cap or a generous budget; nothing here
 depends on how busy the machine is."""
 import json
@@ -24,7 +24,7 @@ from glpma_ros.node.leg_health import FAILED_AFTER
 from glpma_ros.node.service import FkService
 from glpma_tools.sim.trajectories import Plan
 
-#: the 6-3 of issue 21, verbatim
+#: a 6-3 design (two legs on each platform joint) as a user reported it, verbatim
 ISSUE_63 = {"manipulator": "hexapod_66", "unit": "mm",
             "base": [[100, 0, 0], [50, 86.6, 0], [-50, 86.6, 0], [-100, 0, 0], [-50, -86.6, 0], [50, -86.6, 0]],
             "platform": [[50, 0, 0], [50, 0, 0], [-25, 43.3, 0], [-25, 43.3, 0], [-25, -43.3, 0], [-25, -43.3, 0]]}
@@ -118,10 +118,10 @@ def _needs_msolve():
         pytest.skip("the exact extra (msolve) is not installed")
 
 
-@pytest.mark.parametrize("case", ["issue 6-3", "random 3-3"])
+@pytest.mark.parametrize("case", ["reported 6-3", "random 3-3"])
 def test_exact_agrees_with_the_multistart_on_shared_joints(case):
     _needs_msolve()
-    if case == "issue 6-3":
+    if case == "reported 6-3":
         model = model_from_dict(ISSUE_63)
         legs = np.array([130.0, 148.0, 130.0, 148.0, 130.0, 148.0])
     else:

@@ -39,12 +39,11 @@ Three methods (``solve_all(model, legs, method=...)``):
   *Parallel Robots*, 2nd ed., 2006, section 4.5).  Near a fold the two modes of the pair lie on
   either side of the midpoint along the nearly-null direction of ``J`` (its right singular
   vector of the smallest singular value), and the one nearer the fold often has a basin too
-  small for the random starts (on the seed 6-6's default map slice the stopping rule ended with
-  one mode of such a pair missing at 2 % of the points).  So, once the random starts stop, every
-  mode whose reciprocal condition number is below ``PARTNER_CONDITIONING`` gets one local solve
-  from each of ``PARTNER_STEPS`` (shares of the scale) both ways along that direction; a new mode
-  found so gets its own partner search.  These starts are counted in ``partner_starts``, apart
-  from the random ``starts`` that the estimates above are about.
+  small for the random starts (the stopping rule then ends with one mode of the pair missing).  So,
+  once the random starts stop, every mode whose reciprocal condition number is below
+  ``PARTNER_CONDITIONING`` gets one local solve from each of ``PARTNER_STEPS`` (shares of the scale)
+  both ways along that direction; a new mode found so gets its own partner search.  These starts are
+  counted in ``partner_starts``, apart from the random ``starts`` that the estimates above are about.
 
   Parity rule: the forward kinematics is a polynomial system with real coefficients (3-RPR: a
   sextic, Gosselin, Sefrioui & Richard 1992; 6-6: 40 complex solutions, Husty 1996; 16 for the
@@ -93,7 +92,7 @@ from ..estimation.redundancy import chi2_limit, leg_noise
 from ..models.pose_kernels import joint_distance
 from ..solvers import refine
 from ..solvers.common import CONVERGED, SolveResult
-from ..solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
+from ..solvers.lm import I_LEG_FITNESS, I_NFEV, solve_one
 from ..solvers.local import LocalSolver, make_settings
 
 METHODS = ("multistart", "g3pcx", "exact")
@@ -298,7 +297,7 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
         if counters[C_MODES] == modes.shape[0]:
             counters[C_STOP] = FULL
             return k
-        _solve_one(kind, data, platform, frame, legs, ref, starts[k], starts[k], settings, out, work, False)
+        solve_one(kind, data, platform, frame, legs, ref, starts[k], starts[k], settings, out, work, False)
         counters[C_STARTS] += 1
         counters[C_NFEV] += int(out[info + I_NFEV])
         if out[info + I_LEG_FITNESS] < tolerance:

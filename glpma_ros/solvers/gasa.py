@@ -54,7 +54,7 @@ from numba import njit
 from ..models.kernels import fitness_one
 from . import sa
 from .driver import EvolutionaryState, solve_population
-from .rcga import CROSSOVER_RATE, _roulette, mutation_width, start_generation, wright_crossover
+from .rcga import CROSSOVER_RATE, mutation_width, roulette, start_generation, wright_crossover
 
 #: 004 section IV.A item 4: "initial temperature of 10"
 T0 = 10.0
@@ -120,8 +120,8 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, child, child_best, chi
                 if not start_generation(pop, fit, cum, new, new_f, tolerance):
                     break
                 progress[0] = 1
-            a = _roulette(cum, rng)
-            b = _roulette(cum, rng)
+            a = roulette(cum, rng)
+            b = roulette(cum, rng)
             if rng.random() < crossover_rate and a != b:
                 wright_crossover(pop, fit, a, b, rng, child)
                 cf = fitness_one(child, kind, data, legs, r)

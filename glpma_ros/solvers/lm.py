@@ -184,7 +184,7 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
     if ref < 0.0:
         out[:] = 0.0                          # I_INPUT_OK = 0: nothing solved
         return
-    _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, True)
+    solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, True)
     if legs_ref.shape[0] == legs.shape[0]:
         mv = 0.0
         for i in range(legs.shape[0]):
@@ -212,7 +212,7 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
     nfev = 0.0
     nit = 0.0
     for k in range(starts.shape[0]):
-        _solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core, True)
+        solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core, True)
         nfev += trial_out[base_info + I_NFEV]
         nit += trial_out[base_info + I_NIT]
         converged = trial_out[base_info + I_CONVERGED] == 1.0
@@ -227,7 +227,7 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, figures):
+def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, figures):
     """The iteration of :func:`lm_kernel` for legs that passed the check (``ref``: reference length).
     ``figures=False`` leaves out what only a decision on the pose needs -- the papers' fitness,
     stationarity, conditioning and distance (left 0) -- for callers that keep the leg fitness alone

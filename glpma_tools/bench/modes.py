@@ -1,4 +1,4 @@
-"""Every real assembly mode, three ways (issue 13): the fast multistart (``solve_all``'s default), the certified count
+"""Every real assembly mode, three ways: the fast multistart (``solve_all``'s default), the certified count
 (msolve, ``method="exact"``) and the papers' method (200 polished G3-PCX runs), per case: the seed examples and the
 random cases of test/data/assembly_modes_cases.json (their certified modes are stored there)."""
 from __future__ import annotations

@@ -43,7 +43,7 @@ FLEET_BAGS = 4
 #: log time of the first message of the recorded legs, and their period (1 kHz)
 T0_NS = 1_700_000_000_000_000_000
 PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22), each this many times (the median and
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements, each this many times (the median and
 #: the smallest are reported: a shared machine only adds time); its forward kinematics checked at fresh true poses
 CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
@@ -265,7 +265,7 @@ def _fk_error(model, sim, legs, p, R) -> float:
 
 def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
-    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
+    """``glpma-fk calibrate`` on simulated data (the protocol of :mod:`glpma_tools.calibrate.simulate`) for the
     3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
     NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
     kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses: rows

@@ -13,9 +13,9 @@ import numpy as np
 from glpma_ros.config import config_dir
 from glpma_ros.node.dds import endpoints
 from glpma_ros.node.ros_args import load_params_file
+from glpma_ros.testing.matching import compare, pair, split_at_stamp
 from glpma_tools.sim.controller import Controller
 from glpma_tools.sim.echo_node import legs_of
-from glpma_tools.sim.matching import compare, pair, split_at_stamp
 from glpma_tools.sim.node_process import NODE_MODULE, NodeProcess, node_environment
 from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution

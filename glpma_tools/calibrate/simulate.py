@@ -2,7 +2,7 @@
 offset, poses spread over the workspace around one of the config's known solutions, and the
 measurements an external instrument and the leg sensors would give, with noise on both.
 
-The protocol of issue 22 (in metres, converted to the config's unit): every joint moved by up to
+The protocol (in metres, converted to the config's unit): every joint moved by up to
 :data:`JOINT_ERROR_M` in a random direction, offsets uniform within :data:`OFFSET_ERROR_M`, Gaussian
 noise :data:`NOISE_M` on each leg reading and on each coordinate of the measured position; the
 measured orientation is off by a rotation whose components have the standard deviation that moves

@@ -5,7 +5,8 @@ Lengths go out in metres (REP 103): the only place the tools convert the legs fo
 
 The controller stays out of the latency it measures: an input is serialized before its send time
 is taken and written as bytes, and a pose is taken as bytes, its receive time taken at once and
-its fields read with ``struct`` (the binding's Python (de)serializers take 30-40 us a message)."""
+its fields read with ``struct`` (the binding's Python (de)serializers would add their own time to
+every message's)."""
 from __future__ import annotations
 
 import gc
