@@ -71,9 +71,9 @@ setup(
             "precompile = glpma_ros.cli.commands:PRECOMPILE",
             "modes = glpma_ros.cli.commands:MODES",
             "node = glpma_ros.cli.commands:NODE",
+            "calibrate = glpma_ros.cli.commands:CALIBRATE",
             "bag = glpma_tools.commands:BAG [bag]",
             "bench = glpma_tools.commands:BENCH [tools]",        # the peers (bench extra) are optional rows
-            "calibrate = glpma_tools.commands:CALIBRATE",
             "demo = glpma_tools.commands:DEMO [tools]",
             "map = glpma_tools.commands:MAP [map]",
             "stress = glpma_tools.commands:STRESS [tools]",

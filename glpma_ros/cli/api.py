@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib
+import importlib.util
 import math
 import sys
 
@@ -89,3 +90,16 @@ class Command:
         """The command's ``main``."""
         module, _, function = self.main.partition(":")
         return getattr(importlib.import_module(module), function)
+
+
+class MissingExtra(GlpmaError):
+    """An optional dependency of a command is not installed."""
+
+
+def require(extra: str, command: str, modules) -> None:
+    """Raise :class:`MissingExtra` (one line naming the pip command of setup.py's ``extra``) when one of
+    ``modules`` cannot be imported."""
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    if missing:
+        raise MissingExtra(f"{command} needs {', '.join(missing)}: pip install '{DISTRIBUTION}[{extra}]' "
+                           f"(in a checkout: pip install -e '.[{extra}]')")

@@ -12,18 +12,19 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_ros.calibration import main as calibrate_main
 from glpma_ros.config import config_dir, load_document, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
+from glpma_ros.node.dds.rosbag import FLOAT64_MULTI_ARRAY, decode_float64_multi_array
 from glpma_ros.node.ros_args import parse_ros_args
 from glpma_ros.node.service import FkService
 from glpma_tools import bag, workspace_map
-from glpma_tools.bag_run import FLOAT64_MULTI_ARRAY, OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
-from glpma_tools.calibrate import main as calibrate_main
-from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
+from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch
+from glpma_tools.sim.calibration_data import simulate, true_readings, write_csv
 from glpma_tools.sim.trajectories import start_pose
 
 from .markdown import dict_table, key_values, md_blocks, prose
@@ -265,7 +266,7 @@ def _fk_error(model, sim, legs, p, R) -> float:
 
 def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
-    """``glpma-fk calibrate`` on simulated data (the protocol of :mod:`glpma_tools.calibrate.simulate`) for the
+    """``glpma-fk calibrate`` on simulated data (the protocol of :mod:`glpma_tools.sim.calibration_data`) for the
     3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
     NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
     kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses: rows

@@ -14,11 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.cli.api import OneLineParser, command_main, seed_type
-from glpma_ros.config import load_document, model_from_dict, resolve_config
-from glpma_ros.errors import GlpmaError, InputError
-
-from ..extras import require
+from ..cli.api import OneLineParser, command_main, require, seed_type
+from ..config import load_document, model_from_dict, resolve_config
+from ..errors import GlpmaError, InputError
 from . import data as D
 from .identify import GROUPS, UNIDENTIFIABLE_SE_SHARE, WEAK_SE_SHARE, Geometry, identify, leg_residuals
 from .yaml_edit import check_edit, edit_config

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
-
-from .identify import Geometry, Measurements
+from glpma_ros.calibration.data import pose_columns, pose_values, rotation_2d
+from glpma_ros.calibration.identify import Geometry, Measurements
+from glpma_ros.models.rotations import rotation_from_vector
 
 #: joints moved by up to this much (m), each in a random direction
 JOINT_ERROR_M = 1e-3
@@ -46,12 +46,6 @@ class Simulated:
     truth: Geometry            # the manipulator's real geometry
     measured: Measurements     # noisy leg readings and noisy measured poses
     true_poses: Measurements   # the true poses and their noise-free readings
-
-
-def rotation_2d(theta) -> np.ndarray:
-    """(m, 2, 2) rotations of angles ``theta`` (m,)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.stack((np.stack((c, -s), -1), np.stack((s, c), -1)), -2)
 
 
 def _rotations_3d(vectors) -> np.ndarray:
@@ -102,26 +96,6 @@ def simulate(model, center, rng: np.random.Generator, poses: int = POSES, joint_
     return Simulated(nominal, truth, measured, Measurements(readings, position, rotation))
 
 
-def pose_columns(dim: int) -> tuple:
-    """The pose columns of a calibration CSV: planar ``x y theta``, spatial ``x y z qx qy qz qw``."""
-    return ("x", "y", "theta") if dim == 2 else ("x", "y", "z", "qx", "qy", "qz", "qw")
-
-
-def pose_values(position, rotation) -> np.ndarray:
-    """Rows of the pose columns for poses (m, d) / (m, d, d)."""
-    if position.shape[1] == 2:
-        return np.column_stack((position, np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])))
-    return np.column_stack((position, np.array([quaternion_from_matrix(R) for R in rotation])))
-
-
-def rotations_from_values(values) -> np.ndarray:
-    """Rotations (m, d, d) from the orientation columns: planar theta (m,), spatial quaternions (m, 4)."""
-    values = np.asarray(values, dtype=float)
-    if values.ndim == 1:
-        return rotation_2d(values)
-    return np.array([matrix_from_quaternion(q) for q in values])
-
-
 def write_csv(path, meas: Measurements) -> None:
     """A calibration CSV (header row, then one measurement per row) of ``meas``."""
     n, d = meas.legs.shape[1], meas.position.shape[1]
@@ -133,7 +107,7 @@ def write_csv(path, meas: Measurements) -> None:
 
 
 def main(argv=None) -> int:
-    """``python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]``: simulated data for
+    """``python -m glpma_tools.sim.calibration_data CONFIG OUT.csv [POSES] [SEED]``: simulated data for
     the README's example (the true geometry printed on stderr)."""
     import sys
 
@@ -141,7 +115,7 @@ def main(argv=None) -> int:
     from glpma_tools.sim.trajectories import start_pose
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) not in (2, 3, 4):
-        print("usage: python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]", file=sys.stderr)
+        print("usage: python -m glpma_tools.sim.calibration_data CONFIG OUT.csv [POSES] [SEED]", file=sys.stderr)
         return 2
     path = resolve_config(args[0])
     doc = load_document(path)
