@@ -65,7 +65,7 @@ Three methods (``solve_all(model, legs, method=...)``):
   initial range ``U[-2R, 2R]^n`` (Rolland & Chandra 2016, section 5.5.2 collect the 16 hexapod
   solutions with 100 runs from U[-2000, 2000]^9), de-duplicated the same way.
 
-``"exact"`` -- the certified count (:mod:`glpma_ros.exact`, msolve's real root isolation of
+``"exact"`` -- the certified count (:mod:`glpma_ros.modes.exact`, msolve's real root isolation of
   the rational polynomial system; the optional ``exact`` extra): every real solution,
   polished, and the number of complex solutions.
 
@@ -195,7 +195,7 @@ class AllSolutions:
 def consistent_fitness(model, leg_noise_std=None) -> float:
     """Redundant legs: the largest sum of squared leg residuals (config unit squared) of a mode, the
     estimator's consistency limit for the leg noise ``leg_noise_std`` (config unit; default the
-    node's default, :func:`~glpma_ros.redundancy.leg_noise`); 0 without redundant legs."""
+    node's default, :func:`~glpma_ros.estimation.redundancy.leg_noise`); 0 without redundant legs."""
     if not model.redundancy:
         return 0.0
     return chi2_limit(model.redundancy) * leg_noise(model, leg_noise_std) ** 2
@@ -578,7 +578,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
 
 # -- certified ----------------------------------------------------------------------------------
 def exact_modes(model, legs, *, seed=0) -> AllSolutions:
-    """Every real mode certified by msolve (:mod:`glpma_ros.exact`), each polished."""
+    """Every real mode certified by msolve (:mod:`glpma_ros.modes.exact`), each polished."""
     from . import exact
     t0 = time.perf_counter()
     sol = exact.solve_exact(model, legs)

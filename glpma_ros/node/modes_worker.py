@@ -1,6 +1,6 @@
 """Every real assembly mode, computed in a child process.
 
-:func:`~glpma_ros.solve_all.solve_all` (its multistart: hundreds of local solves, until many
+:func:`~glpma_ros.modes.multistart.solve_all` (its multistart: hundreds of local solves, until many
 starts in a row find nothing new; ``runs`` = parameter ``assembly_modes_runs`` caps the starts)
 takes up to a second.  Compiled code holds the GIL while it runs, so in a thread of the node it
 would hold up the real-time solve loop (BENCHMARKS.md, "Design measurements").
@@ -46,7 +46,7 @@ class Modes(list):
 
 
 def modes_of(result) -> Modes:
-    """:class:`Modes` of a :class:`~glpma_ros.solve_all.AllSolutions`."""
+    """:class:`Modes` of a :class:`~glpma_ros.modes.multistart.AllSolutions`."""
     return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], result.starts, result.stop_reason,
                  result.miss_probability)
 

@@ -26,7 +26,7 @@ Convergence is judged on the leg residuals, relative to the geometry::
 
 or, with redundant legs (more than the degrees of freedom; ``S_GTOL`` > 0), at the least-squares pose
 (``LSQ_GTOL``: the gradient ``J^T r`` at round-off relative to ``|J| |r|``) -- whether those residuals
-are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.redundancy`), which
+are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.estimation.redundancy`), which
 it may hand in as ``ftol``
 
 (``scale``: the model's characteristic length; the legs enter ``L`` because a computed leg length is
@@ -55,7 +55,7 @@ fitness).
 
 Layout: the pose-space pieces of the two models (residuals and Jacobians, retraction, rotations, Kabsch
 fit, joint distance) are in :mod:`glpma_ros.models.pose_kernels`, the small dense linear algebra in
-:mod:`glpma_ros.linalg`, the Python side (:class:`~glpma_ros.solvers.local.LocalSolver`,
+:mod:`glpma_ros.models.linalg`, the Python side (:class:`~glpma_ros.solvers.local.LocalSolver`,
 :func:`~glpma_ros.solvers.local.local_solve`) in :mod:`glpma_ros.solvers.local`; this module is the
 iteration itself.
 """
