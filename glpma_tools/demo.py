@@ -61,8 +61,8 @@ def _parser() -> OneLineParser:
     p = OneLineParser(prog="glpma-fk demo", description=what[0].upper() + what[1:])
     p.add_argument("--manipulator", default="3rpr",
                    help="which manipulator to drive: 3rpr (default), hexapod or delta (the shipped seed 3-RPR, "
-                        "Rolland's 6-6 and the IRB 360-size rotary Delta), or a manipulator config (a path, or a shipped config's name such as "
-                        "hexapod_7legs)")
+                        "Rolland's 6-6 and the IRB 360-size rotary Delta), or a manipulator config (a path, or a "
+                        "shipped config's name such as hexapod_7legs)")
     p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod and delta 100)")
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, default="glpma", help="the node's solver parameter")

@@ -5,7 +5,8 @@ config's known solutions (the loop the DDS mock controller, the demo and the ben
 every ``1 / rate_hz`` seconds, publishes
 
 * the legs of that pose in metres: ``leg_lengths`` (``std_msgs/msg/Float64MultiArray``, leg order;
-  an actuated family's actuator positions, radians, on ``actuator_positions``) or, with ``input_type:=joint_state``, ``joint_states`` (``sensor_msgs/msg/JointState``: the legs
+  an actuated family's actuator positions, radians, on ``actuator_positions``) or, with
+  ``input_type:=joint_state``, ``joint_states`` (``sensor_msgs/msg/JointState``: the legs
   under ``joint_names``, ``header.stamp`` = the time of publishing);
 * beside them the true pose, ``~/true_pose`` (``geometry_msgs/msg/PoseStamped``, metres, unit
   quaternion, ``frame_id``, stamped with the same time as the JointState).

@@ -7,9 +7,9 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from conftest import CONFIG  # noqa: E402
-from glpma_ros.config import load_manipulator  # noqa: E402
-from test_dds_integration import check_tracking, run_mock, start_node  # noqa: E402, F401 - start_node: a fixture
+from conftest import CONFIG
+from glpma_ros.config import load_manipulator
+from test_dds_integration import check_tracking, run_mock, start_node  # noqa: F401 - start_node: a fixture
 
 DELTA = CONFIG / "delta_irb360.yaml"
 

@@ -104,7 +104,8 @@ def _leg(i, leg, dim, actuator, problems):
     if dim == 2 and kind == REVOLUTE and float(np.linalg.norm(crank)) < DEGENERATE * max(1.0, rod):
         problems.append(f"{where}.crank must not be zero (it would not move)")
         return None
-    if dim == 3 and kind == REVOLUTE and float(np.linalg.norm(np.cross(axis / norm, crank))) < DEGENERATE * max(1.0, rod):
+    along_axis = dim == 3 and float(np.linalg.norm(np.cross(axis / norm, crank))) < DEGENERATE * max(1.0, rod)
+    if kind == REVOLUTE and along_axis:
         problems.append(f"{where}.crank must not be along the axis (it would not move)")
         return None
     return kind, origin, axis, crank, rod, platform
@@ -152,7 +153,8 @@ def model_from_family(doc: dict, path: str):
         parsed = [_leg(i, leg, dim, actuator, problems) for i, leg in enumerate(legs)]
     limits = _per_leg(doc, "actuator_limits", n, problems, pairs=True)
     offsets = _per_leg(doc, "actuator_offsets", n, problems)
-    if offsets is not None and ACTUATOR_KINDS[actuator] == REVOLUTE and np.abs(offsets).max() > MAX_OFFSET_SHARE * math.pi:
+    revolute = ACTUATOR_KINDS[actuator] == REVOLUTE
+    if offsets is not None and revolute and np.abs(offsets).max() > MAX_OFFSET_SHARE * math.pi:
         problems.append(f"'actuator_offsets' must be small zero errors (at most {MAX_OFFSET_SHARE * math.pi:.3g} rad)")
     if problems or any(p is None for p in parsed):
         raise ConfigError(f"{path}: {problems[0]}" if len(problems) == 1
@@ -162,7 +164,7 @@ def model_from_family(doc: dict, path: str):
         model = cls(family, kinds, origin, axis, crank, rods, platform, unit=unit, actuator_limits=limits)
     except ValueError as exc:
         raise ConfigError(f"{path}: {exc}") from None
-    if offsets is not None and ACTUATOR_KINDS[actuator] == PRISMATIC and np.abs(offsets).max() > MAX_OFFSET_SHARE * model.scale:
+    if offsets is not None and not revolute and np.abs(offsets).max() > MAX_OFFSET_SHARE * model.scale:
         raise ConfigError(f"{path}: 'actuator_offsets' must be small zero errors beside the geometry")
     model.actuator_offsets = offsets
     model.leg_offsets = None
