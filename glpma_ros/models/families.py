@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .actuated import ActuatedPlanar, ActuatedSpatial, DeltaTranslation
-from .legs import ACTUATOR_KINDS, PRISMATIC, REVOLUTE
+from .legs import ACTUATOR_KINDS, REVOLUTE
 
 #: the shipped families: model class, legs, the actuator every leg has, the platform's motion
 FAMILIES = {
