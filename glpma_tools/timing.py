@@ -7,7 +7,9 @@ thread's involuntary context switches grew) or Python's garbage collector ran du
 shared machine these explain most overruns, so the reports also give the figures without them."""
 from __future__ import annotations
 
+import contextlib
 import gc
+import multiprocessing
 import os
 import platform
 import subprocess
@@ -53,10 +55,41 @@ def involuntary_switches() -> int:
 
 def infeasible_legs(model) -> np.ndarray:
     """Leg lengths of the shipped configs' geometries with no real assembly (the platform cannot
-    reach the base joints), so that a search runs until its deadline or its evaluation cap."""
+    reach the base joints), so that a search runs until its deadline or its evaluation cap.  The
+    Estimator tells these from the legs alone (a pair of legs too short for its loop)."""
     if model.kind == "planar_3rpr":
         return np.array([10.0, 10.0, 400.0])
     return np.full(model.n_legs, 100.0)
+
+
+def probed_infeasible_legs(model) -> np.ndarray:
+    """Leg lengths of the shipped configs' geometries with no real assembly that every pair of legs
+    could close (:mod:`glpma_ros.models.reach`): the Estimator needs its search and its probe to tell."""
+    if model.kind == "planar_3rpr":
+        return np.array([400.0, 400.0, 400.0])
+    return np.tile([900.0, 1600.0], model.n_legs // 2)
+
+
+def _spin() -> None:
+    while True:
+        pass
+
+
+@contextlib.contextmanager
+def busy_cores(n: int):
+    """``n`` processes that each keep a core busy (a plain Python loop) while the block runs: the load
+    generator of the bench's "cores busy" measurements."""
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=_spin, daemon=True) for _ in range(n)]
+    for p in procs:
+        p.start()
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.join()
 
 
 def warm_up(call, budget_ms: float, quiet: int = WARM_UP_QUIET, max_calls: int = WARM_UP_MAX_CALLS) -> int:

@@ -61,6 +61,11 @@ class EvolutionaryState:
     def evals_per_generation(self) -> int:
         return len(self.pop)
 
+    def first_chunk(self) -> int:
+        """Generations of the first chunk under a deadline, which measures the time per generation: enough
+        to hold every kind of work a generation may bring (:data:`PROBE_GENERATIONS` by default)."""
+        return PROBE_GENERATIONS
+
     def advance(self, n_generations, max_evals, tolerance):  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -131,7 +136,7 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
         if stop is not None:
             break
         if term.deadline is None or seconds_per_gen is None:
-            chunk = CHUNK_GENERATIONS if term.deadline is None else PROBE_GENERATIONS
+            chunk = CHUNK_GENERATIONS if term.deadline is None else state.first_chunk()
         else:
             left = term.deadline - time.perf_counter()
             if left < seconds_per_gen:          # not even one generation fits: stop at the deadline

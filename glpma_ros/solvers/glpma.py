@@ -47,6 +47,11 @@ class GLPMAState(EvolutionaryState):
         self.since_local_search = 0
         self.local_left = 0             # generations of the local search under way (0: none)
 
+    def first_chunk(self) -> int:
+        """At least one local search's worth of master generations: the time per generation measured on it
+        includes the local search's share."""
+        return max(super().first_chunk(), self.ls_interval)
+
     def advance(self, n_generations, max_evals, tolerance):
         gens = evals = 0
         local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from collections import Counter
 from types import SimpleNamespace
 
@@ -199,40 +200,52 @@ def tracking_section(res, md_path) -> list[str]:
 
 
 # -- deadlines -----------------------------------------------------------------------------------------------
-def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[SimpleNamespace]:
-    """The bench's deadline experiment: cold searches that cannot converge, stopped only by their time
-    budget (every registered solver, and the Estimator as the node runs it, cold: every stage runs until the
-    deadline)."""
+#: the load conditions of the deadline experiment: no load added (the machine is shared: its own load is said in
+#: the report's header), then one busy loop per core
+LOADS = ("no load added", "every core busy")
+#: the quantile of (end - deadline) the deadline section reports besides the largest
+TAIL_QUANTILE = 99.9
+
+
+def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> list[SimpleNamespace]:
+    """The bench's deadline experiment, under each of ``loads``: every registered solver (evaluation cap
+    10^9: only the deadline or convergence stops it) on feasible legs and on legs without a real assembly, and
+    the Estimator as the node runs it, cold, on feasible legs, on legs without an assembly that its probe must
+    tell, and on legs the loop bounds of a pair of legs tell at once.  A row per cell, with the statuses."""
     from glpma_ros import solvers
 
-    def search(name, model, legs, polish, budget_ms):
-        return lambda seed: solvers.solve(name, model, legs, rng=seed, polish=polish, budget_s=budget_ms / 1e3,
-                                          max_evals=NO_CAP)
+    def search(name, model, legs, budget_ms):
+        def call(seed):
+            return solvers.solve(name, model, legs, rng=seed, budget_s=budget_ms / 1e3, max_evals=NO_CAP).status
+        return call
 
     def cold(model, legs, budget_ms):
         est = Estimator(model, time_budget_s=budget_ms / 1e3)
 
         def call(_):
             est.reset()
-            est.estimate(legs)
+            return est.estimate(legs).status
         return call
     cells = []          # (case, case in short, solver, budget ms, call(seed))
     for sc in scenarios:
-        infeasible = timing.infeasible_legs(sc.model)
-        cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible, True)]
-        if sc.key == "hexapod":
-            cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
-                             sc.legs, False))
-        cells += [(case, short, name, b, search(name, sc.model, legs, polish, b))
-                  for case, short, legs, polish in cases for name in names or solvers.SOLVERS for b in budgets_ms]
-        cells += [(f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)",
-                   f"{sc.label} infeasible, cold", "Estimator", b, cold(sc.model, infeasible, b)) for b in budgets_ms]
+        probed, told = timing.probed_infeasible_legs(sc.model), timing.infeasible_legs(sc.model)
+        cases = [(f"{sc.label}, feasible legs", f"{sc.label} feasible", sc.legs),
+                 (f"{sc.label}, legs without an assembly", f"{sc.label} infeasible", probed)]
+        cells += [(case, short, name, b, search(name, sc.model, legs, b))
+                  for case, short, legs in cases for name in names or solvers.SOLVERS for b in budgets_ms]
+        cases.append((f"{sc.label}, legs without an assembly, told by a pair's loop bounds", f"{sc.label} told", told))
+        cells += [(f"{case} (Estimator: GLPMA, cold)", short, "Estimator", b, cold(sc.model, legs, b))
+                  for case, short, legs in cases for b in budgets_ms]
     rows = []
-    for case, short, solver, b, call in cells:
-        warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
-        calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
-        rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
-                                    solver=solver, label=f"{short} | {solver}"))
+    for load in loads:
+        with timing.busy_cores(0 if load == LOADS[0] else os.cpu_count() or 1):
+            for case, short, solver, b, call in cells:
+                warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
+                calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms, {load}", progress,
+                                    stop_early=False)
+                rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
+                                            solver=solver, load=load, statuses=Counter(calls.results),
+                                            label=f"{short} | {solver}" + ("" if load == LOADS[0] else " | busy")))
     return rows
 
 
@@ -252,15 +265,31 @@ def worst_overrun(over) -> str:
     return f"{float(np.max(over)):+.3f}" if over.size else MISSING
 
 
+def tail(over) -> str:
+    """p99.9 and max of the overruns ``over`` (ms), signed; dashes when there are none."""
+    if not over.size:
+        return f"{MISSING} / {MISSING}"
+    return f"{float(np.percentile(over, TAIL_QUANTILE)):+.3f} / {float(np.max(over)):+.3f}"
+
+
 def deadline_section(res, md_path) -> list[str]:
-    """Each cell's solves on time and overruns, with and without the preempted ones, and the totals."""
+    """Per solver and load, p99.9 and max of (end - deadline) over every cell, with and without the preempted
+    solves; then each cell's, with its statuses."""
     rows = res["deadline"]
 
     def on_time(over):
         return pct(share_on_time(over), 4) if over.size else MISSING
-    body = [[r.case, r.solver, f"{r.budget_ms:g}", f"{len(over)} (stopped)" if r.stopped_early else len(over),
-             on_time(over), fmt(distribution(r.elapsed_s, 1e3)["p99"]), worst_overrun(over), int(np.sum(r.preempted)),
-             on_time(calm), worst_overrun(calm)]
+    loads = list(dict.fromkeys(getattr(r, "load", LOADS[0]) for r in rows))
+    per_solver = []
+    for load in loads:
+        for solver in dict.fromkeys(r.solver for r in rows):
+            mine = [r for r in rows if r.solver == solver and getattr(r, "load", LOADS[0]) == load]
+            over, calm = all_overruns(mine)
+            per_solver.append([solver, load, len(over), tail(over), int(np.sum([np.sum(r.preempted) for r in mine])),
+                               tail(calm)])
+    body = [[r.case, r.solver, f"{r.budget_ms:g}", getattr(r, "load", LOADS[0]), len(over), tail(over),
+             int(np.sum(r.preempted)), tail(calm), on_time(over),
+             ", ".join(f"{k} {v}" for k, v in sorted(getattr(r, "statuses", {}).items()))]
             for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~r.preempted])]]
     total, calm = all_overruns(rows)
     late = sorted({r.solver for r in rows if np.any(r.overrun_ms[~r.preempted] > DEADLINE_MARGIN_MS)})
@@ -271,6 +300,8 @@ def deadline_section(res, md_path) -> list[str]:
                             worst=worst_overrun(total), preempted=total.size - calm.size, calm_on_time=on_time(calm),
                             calm_worst=worst_overrun(calm)),
         late and "Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
-        table(["case", "solver", "budget ms", "solves", "on time", "p99 elapsed ms", "worst overrun ms", "preempted",
-               "on time, not preempted", "worst overrun, not preempted"], body),
+        table(["solver", "load", "solves", "p99.9 / max of end − deadline, ms", "preempted",
+               "p99.9 / max, not preempted"], per_solver),
+        table(["case", "solver", "budget ms", "load", "solves", "p99.9 / max ms", "preempted",
+               "p99.9 / max ms, not preempted", "within budget + margin", "statuses"], body),
         figure_link(res, "deadline", md_path, "deadline overruns"))
