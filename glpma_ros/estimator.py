@@ -262,7 +262,7 @@ class Estimator:
         self.set_solver(solver, population=population, local_population=local_population,
                         ls_interval=ls_interval, ls_intensity=ls_intensity)
         self._settle_s, self._chunk_s = _Expected(), _Expected()
-        self._calibrate()
+        self.calibrate()
         self.reset(initial_pose)
 
     # -- state ------------------------------------------------------------------
@@ -300,11 +300,12 @@ class Estimator:
         margin covers)."""
         return self.decision_reserve_s / DECISION_MAX_SHARE
 
-    def _calibrate(self) -> None:
+    def calibrate(self) -> None:
         """A first measure of the deciding work's calls, before any input: a settle and the whole probe
         on the legs of the cold range's centre, with a fitness threshold no start meets (so that every
         start runs to its stationary point or stall, as on legs with no assembly).  Run twice, the first
-        time to load the code and the caches; the inputs then keep the measures up to date."""
+        time to load the code and the caches; the inputs then keep the measures up to date.  Called again,
+        it adds a new measure (the machine's load changed, say)."""
         model = self.model
         legs = model.inverse_kinematics(0.5 * (self._cold_range[0] + self._cold_range[1]))
         legs = np.where(legs > 0.0, legs, model.scale)          # any legs the kernel accepts will do

@@ -132,9 +132,10 @@ class TimedCalls:
 
 
 def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool = False,
-                stop_early: bool = True) -> TimedCalls:
+                stop_early: bool = True, rest_s: float = 0.0) -> TimedCalls:
     """``n`` timed calls ``call(i)``; with ``stop_early`` the series stops after :data:`STOP_AFTER`
-    calls that all overran by more than :data:`STOP_OVERRUN_FACTOR` times the budget."""
+    calls that all overran by more than :data:`STOP_OVERRUN_FACTOR` times the budget; ``rest_s``: a sleep
+    before each call, not timed (a real-time thread that never sleeps is throttled by the kernel)."""
     collections = [0]
 
     def on_gc(phase, info):
@@ -147,6 +148,8 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
     gc.callbacks.append(on_gc)
     try:
         for i in progress_bar(range(n), desc, progress):
+            if rest_s:
+                time.sleep(rest_s)
             c0, g0 = involuntary_switches(), collections[0]
             t0 = time.perf_counter()
             results.append(call(i))

@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from glpma_ros.estimator import Estimator
+from glpma_ros.node import realtime
 from glpma_ros.solvers.lm import LEG_RTOL
 from glpma_tools import timing
 from glpma_tools.sim import trajectories as traj
@@ -201,8 +202,14 @@ def tracking_section(res, md_path) -> list[str]:
 
 # -- deadlines -----------------------------------------------------------------------------------------------
 #: the load conditions of the deadline experiment: no load added (the machine is shared: its own load is said in
-#: the report's header), then one busy loop per core
-LOADS = ("no load added", "every core busy")
+#: the report's header), then one busy loop per core, then the same with the measuring thread under SCHED_FIFO
+#: (the node's thread_priority; measured where the process may use it)
+LOADS = ("no load added", "every core busy", "every core busy, SCHED_FIFO")
+#: the SCHED_FIFO priority of the last load condition
+FIFO_PRIORITY = 10
+#: ... and the sleep before each of its solves: a real-time thread that never sleeps is throttled by the
+#: kernel (sched_rt_runtime_us: 50 ms of every second), which a node answering inputs never meets
+FIFO_REST_S = 1e-3
 #: the quantile of (end - deadline) the deadline section reports besides the largest
 TAIL_QUANTILE = 99.9
 
@@ -219,8 +226,11 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
             return solvers.solve(name, model, legs, rng=seed, budget_s=budget_ms / 1e3, max_evals=NO_CAP).status
         return call
 
+    estimators = []             # (manipulator, load, Estimator): their smallest deciding budgets after the cells
+
     def cold(model, legs, budget_ms):
         est = Estimator(model, time_budget_s=budget_ms / 1e3)
+        estimators.append((model.kind, est))
 
         def call(_):
             est.reset()
@@ -238,20 +248,32 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
                   for case, short, legs in cases for b in budgets_ms]
     rows = []
     for load in loads:
+        fifo = load == LOADS[2]
+        if fifo and realtime.apply(realtime.RealtimeSettings(FIFO_PRIORITY)):
+            continue                        # not allowed here: the report says so
         with timing.busy_cores(0 if load == LOADS[0] else os.cpu_count() or 1):
+            for _, est in estimators:       # measured again under this load
+                est.calibrate()
             for case, short, solver, b, call in cells:
                 warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
                 calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms, {load}", progress,
-                                    stop_early=False)
+                                    stop_early=False, rest_s=FIFO_REST_S if fifo else 0.0)
                 rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
                                             solver=solver, load=load, statuses=Counter(calls.results),
-                                            label=f"{short} | {solver}" + ("" if load == LOADS[0] else " | busy")))
+                                            label=f"{short} | {solver}" + {LOADS[1]: " | busy",
+                                                                           LOADS[2]: " | busy, FIFO"}.get(load, "")))
+        for kind in dict.fromkeys(k for k, _ in estimators):
+            floors = [1e3 * est.smallest_deciding_budget_s for k, est in estimators if k == kind]
+            rows.append(SimpleNamespace(floor=True, kind=kind, load=load, floor_ms=floors))
+        if fifo:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     return rows
 
 
 # -- the report's section: deadlines -------------------------------------------------------------------------
 def all_overruns(rows) -> tuple[np.ndarray, np.ndarray]:
     """The overruns (ms) of every deadline solve, and of those not preempted."""
+    rows = [r for r in rows if hasattr(r, "overrun_ms")]
     return np.concatenate([r.overrun_ms for r in rows]), np.concatenate([r.overrun_ms[~r.preempted] for r in rows])
 
 
@@ -275,7 +297,8 @@ def tail(over) -> str:
 def deadline_section(res, md_path) -> list[str]:
     """Per solver and load, p99.9 and max of (end - deadline) over every cell, with and without the preempted
     solves; then each cell's, with its statuses."""
-    rows = res["deadline"]
+    floors = [r for r in res["deadline"] if getattr(r, "floor", False)]
+    rows = [r for r in res["deadline"] if not getattr(r, "floor", False)]
 
     def on_time(over):
         return pct(share_on_time(over), 4) if over.size else MISSING
@@ -300,6 +323,10 @@ def deadline_section(res, md_path) -> list[str]:
                             worst=worst_overrun(total), preempted=total.size - calm.size, calm_on_time=on_time(calm),
                             calm_worst=worst_overrun(calm)),
         late and "Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
+        floors and prose("deadline", "floor"),
+        floors and table(["manipulator", "load", "Estimators", "smallest deciding budget ms: median", "max"],
+                         [[f.kind, f.load, len(f.floor_ms), fmt(float(np.median(f.floor_ms))),
+                           fmt(float(np.max(f.floor_ms)))] for f in floors]),
         table(["solver", "load", "solves", "p99.9 / max of end − deadline, ms", "preempted",
                "p99.9 / max, not preempted"], per_solver),
         table(["case", "solver", "budget ms", "load", "solves", "p99.9 / max ms", "preempted",
