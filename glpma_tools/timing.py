@@ -71,6 +71,8 @@ def probed_infeasible_legs(model) -> np.ndarray:
 
 
 def _spin() -> None:
+    # normal scheduling whatever the parent's (a real-time parent's children inherit its policy)
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     while True:
         pass
 

@@ -249,9 +249,10 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
     rows = []
     for load in loads:
         fifo = load == LOADS[2]
-        if fifo and realtime.apply(realtime.RealtimeSettings(FIFO_PRIORITY)):
-            continue                        # not allowed here: the report says so
         with timing.busy_cores(0 if load == LOADS[0] else os.cpu_count() or 1):
+            # after the busy loops started: they must not inherit the real-time policy
+            if fifo and realtime.apply(realtime.RealtimeSettings(FIFO_PRIORITY)):
+                continue                    # not allowed here: the report says so
             for _, est in estimators:       # measured again under this load
                 est.calibrate()
             for case, short, solver, b, call in cells:
