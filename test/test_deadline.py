@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from glpma_ros import solvers
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.solvers import driver, lm, local
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)

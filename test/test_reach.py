@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from glpma_ros.estimator import (
+from glpma_ros.estimation.estimator import (
     NEAR_SINGULAR,
     STATIONARY,
     STATUS_BUDGET,

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from glpma_ros import precompile
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.hexapod_66 import rotation_from_vector
+from glpma_ros.runtime import precompile
 
 #: budgets from "the deciding work fits, with room for a busy machine" to "everything fits" (seconds)
 BUDGETS = (0.2, 5.0)

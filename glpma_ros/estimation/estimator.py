@@ -62,13 +62,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import redundancy, solvers
-from .config import UNIT_TO_METRES
-from .errors import InputError
-from .models.base import Pose
-from .models.reach import PairBounds
-from .solvers import lm, local
-from .solvers.driver import POLISH_MAX_ITER
+from .. import solvers
+from ..config import UNIT_TO_METRES
+from ..errors import InputError
+from ..models.base import Pose
+from ..models.reach import PairBounds
+from ..solvers import lm, local
+from ..solvers.driver import POLISH_MAX_ITER
+from . import redundancy
 
 #: spread of the widened stage relative to the warm one
 WIDEN_FACTOR = 10.0
@@ -132,7 +133,7 @@ STATUS_NO_SOLUTION = "no_solution"
 STATUS_BUDGET = "budget_exhausted"
 STATUS_NEAR_SINGULAR = "near_singular"
 STATUS_MAX_EVALS = "max_evals"
-#: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.redundancy`)
+#: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.estimation.redundancy`)
 STATUS_INCONSISTENT = redundancy.STATUS_INCONSISTENT
 
 
@@ -149,7 +150,7 @@ class Estimate:
     solver: str
     message: str = ""
     max_residual: float = math.nan   # max |IK(x) - legs| over the legs (config unit)
-    # redundant legs (glpma_ros.redundancy), set after construction; legs are numbered from 0 here.  Class
+    # redundant legs (glpma_ros.estimation.redundancy), set after construction; legs are numbered from 0 here.  Class
     # attributes, not fields: the everyday estimate (exactly determined legs) does not pay for them
     consistency = math.nan           # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
     consistency_limit = math.nan     # its limit (inconsistent above)
@@ -229,10 +230,10 @@ class Estimator:
 
     Redundant legs (more than the degrees of freedom): the pose is the least-squares one, converged
     when its residuals pass the chi-square test against ``leg_noise_std`` (config unit; default
-    :data:`~glpma_ros.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is
+    :data:`~glpma_ros.estimation.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is
     ``inconsistent_legs`` with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other
     legs determine the pose consistently, the pose without it (the policy:
-    :class:`~glpma_ros.redundancy.RedundantLegs`)."""
+    :class:`~glpma_ros.estimation.redundancy.RedundantLegs`)."""
 
     def __init__(self, model, solver="glpma", time_budget_s=0.002, tolerance=solvers.common.DEFAULT_TOLERANCE,
                  seed=0, polish=True, initial_pose=None, population=None, local_population=None,
@@ -375,7 +376,7 @@ class Estimator:
 
     def _accept(self, e: Estimate, legs, leg_fitness: float, t0: float) -> Estimate:
         """A converged estimate: the next warm start; with redundant legs, after the consistency test
-        (:class:`~glpma_ros.redundancy.RedundantLegs`), which may turn it into ``inconsistent_legs``."""
+        (:class:`~glpma_ros.estimation.redundancy.RedundantLegs`), which may turn it into ``inconsistent_legs``."""
         if not self.redundant.active:
             self._advance(e.x, legs)
             return e
