@@ -15,7 +15,9 @@ from collections import Counter
 from types import SimpleNamespace
 
 import numpy as np
+from scipy.optimize import least_squares
 
+from glpma_ros import solvers
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.node import realtime
 from glpma_ros.solvers.lm import LEG_RTOL
@@ -25,8 +27,8 @@ from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, fmt, ratio, table
 from glpma_tools.timing import DEADLINE_MARGIN_MS, NO_CAP, STOP_AFTER, STOP_OVERRUN_FACTOR, timed_calls, warm_up
 
+from .markdown import figure_link, md_blocks, pct, prose
 from .peers import available
-from .report import figure_link, md_blocks, pct, prose
 from .scenarios import LATENCY_TARGET_MS
 
 #: steps of the loop the tracking warm-up solves (on an Estimator of its own)
@@ -76,7 +78,6 @@ def _peers(sc, starts, legs, budget_ms, progress) -> list[SimpleNamespace]:
     why = available("scipy")
     peers = {"plain NumPy Newton": functools.partial(numpy_newton, sc.model)}
     if why is None:
-        from scipy.optimize import least_squares
         peers.update({f"scipy `{method}`, {jac}": functools.partial(scipy_solve, least_squares, sc.model, method, jac)
                       for method, jac in SCIPY_VARIANTS})
     out, m = [], min(WARM_UP_STEPS, len(legs))
@@ -219,7 +220,6 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
     10^9: only the deadline or convergence stops it) on feasible legs and on legs without a real assembly, and
     the Estimator as the node runs it, cold, on feasible legs, on legs without an assembly that its probe must
     tell, and on legs the loop bounds of a pair of legs tell at once.  A row per cell, with the statuses."""
-    from glpma_ros import solvers
 
     def search(name, model, legs, budget_ms):
         def call(seed):
