@@ -312,10 +312,14 @@ class Estimator:
         time to load the code and the caches; the inputs then keep the measures up to date.  Called again,
         it adds a new measure (the machine's load changed, say)."""
         model = self.model
-        legs = model.inverse_kinematics(0.5 * (self._cold_range[0] + self._cold_range[1]))
-        legs = np.where(legs > 0.0, legs, model.scale)          # any legs the kernel accepts will do
-        if model.leg_limits is not None:
-            legs = np.clip(legs, *model.leg_limits)
+        reference = getattr(model, "reference_legs", None)
+        if reference is not None:       # an actuated family: its actuators at mid-range
+            legs = reference()
+        else:
+            legs = model.inverse_kinematics(0.5 * (self._cold_range[0] + self._cold_range[1]))
+            legs = np.where(legs > 0.0, legs, model.scale)          # any legs the kernel accepts will do
+            if model.leg_limits is not None:
+                legs = np.clip(legs, *model.leg_limits)
         legs = np.ascontiguousarray(legs, dtype=float)
         for _ in range(2):
             t0 = time.thread_time()

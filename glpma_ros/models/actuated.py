@@ -195,14 +195,19 @@ class ActuatedLegs:
         arr[prismatic] = arr[prismatic] * self.metres_per_unit
         return arr
 
+    def reference_legs(self) -> np.ndarray:
+        """The leg vector of the actuators at mid-range (zero without limits): an input the kernels accept,
+        whether or not it has an assembly (for measuring the solvers before any input)."""
+        q = np.zeros(self.n_legs) if self.actuator_limits is None else self.actuator_limits.mean(axis=1)
+        return self.legs_from_sensors(q)
+
     def home_variables(self) -> np.ndarray:
         """A pose inside the workspace (warm-ups, demos): the config's first known solution, else the working
         mode at the actuators' mid-range (zero without limits)."""
         known = getattr(self, "known_solutions", None)
         if known is not None:
             return np.array(known[0], dtype=float)
-        q = np.zeros(self.n_legs) if self.actuator_limits is None else self.actuator_limits.mean(axis=1)
-        legs = self.legs_from_sensors(q)
+        legs = self.reference_legs()
         closed = getattr(self, "closed_form", None)
         xs = closed(legs) if closed is not None else None
         if xs:
