@@ -1,0 +1,1 @@
+"""Every assembly mode of a manipulator: the parameter homotopy (:mod:`.homotopy`)."""
