@@ -225,7 +225,17 @@ def cmd_solve_all(args) -> int:
     legs = _legs(model, args.legs)
     if args.exact and args.method is not None:
         raise GlpmaError(f"--exact and --method {args.method} exclude each other")
-    method = "exact" if args.exact else args.method or ("g3pcx" if args.runs is not None else "multistart")
+    if args.exact:
+        method = "exact"
+    elif args.method is not None:
+        method = args.method
+    elif args.runs is not None:
+        method = "g3pcx"
+    elif args.max_starts is not None or args.budget_s is not None:
+        method = "multistart"
+    else:
+        from .solve_all import default_method
+        method = default_method(model)
     if args.runs is not None and method != "g3pcx":
         raise GlpmaError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
     if (args.max_starts is not None or args.budget_s is not None) and method != "multistart":
@@ -241,22 +251,34 @@ def cmd_solve_all(args) -> int:
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
     if res.method == "multistart":
         extra.update(starts=res.starts, stop_reason=res.stop_reason, miss_probability=res.miss_probability,
-                     unseen_share_bound=res.unseen_share_bound, hits=list(res.hits),
+                     good_turing=res.good_turing, unseen_share_bound=res.unseen_share_bound, hits=list(res.hits),
                      partner_starts=res.partner_starts, parity_starts=res.parity_starts,
                      conditioning=list(res.conditioning), double_modes=res.double_modes)
     if res.method == "exact":
-        extra.update(complex_solutions=res.complex_solutions)
+        extra.update(complex_solutions=res.complex_solutions, complete=True, real_solutions=res.real_solutions)
+    if res.method == "homotopy":
+        extra.update(complete=res.complete, paths=res.paths, paths_failed=list(res.paths_failed),
+                     complex_solutions=res.complex_solutions, real_solutions=res.real_solutions,
+                     fallback=res.fallback or None, retracked=res.retracked, steps=res.steps)
     if args.json:
         print(json.dumps({"solutions": [{"variables": [float(v) for v in s.x], "pose": _pose_json(model, s.x),
                                          "fitness": s.fun} for s in res.solutions],
                           "runs": res.runs, "elapsed_s": res.elapsed_s, **extra}))
     else:
         work = {"g3pcx": f"{res.runs} G3-PCX runs", "multistart": f"{res.starts} starts ({res.stop_reason})",
-                "exact": f"msolve, {res.complex_solutions} complex solutions"}[res.method]
+                "exact": f"msolve, {res.complex_solutions} complex solutions",
+                "homotopy": f"{res.paths} homotopy paths, {res.complex_solutions} complex solutions"}[res.method]
         print(f"{len(res.solutions)} distinct real assembly modes from {work} in {res.elapsed_s:.3f} s")
+        if res.method == "homotopy":
+            print("  complete: every solution found (certified by the root count)" if res.complete and not res.fallback
+                  else "  complete: by msolve, after the homotopy fell short" if res.complete
+                  else f"  NOT complete: {res.complex_solutions} of {res.paths} solutions found; paths without "
+                       f"their own: {', '.join(map(str, res.paths_failed)) or 'none'} (install the exact extra "
+                       "for msolve's certified count)")
         if res.method == "multistart" and res.starts:
-            print(f"  chance that one more start finds a new mode (Good-Turing): {res.miss_probability:.3g}; "
-                  f"95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
+            print(f"  not certified: a mode whose basin holds too few of the starts is missed unseen (use the "
+                  f"homotopy or --exact); chance that the next start finds a new mode (Good-Turing): "
+                  f"{res.good_turing:.3g}; 95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
         if load_s:
             print(f"  one-time load of the compiled solvers: {load_s:.2f} s (not part of the search time)")
         for line in mode_table(model, res.solutions):
@@ -298,8 +320,11 @@ def mode_table(model, solutions) -> list:
 
 
 def _no_mode_reason(res) -> str:
-    if res.method == "exact":
+    if res.method == "exact" or (res.method == "homotopy" and res.complete):
         return f"certified: none of the {res.complex_solutions} complex solutions is real"
+    if res.method == "homotopy":
+        return (f"none of the {res.complex_solutions} complex solutions found is real, and the homotopy is not "
+                "complete")
     if res.stop_reason == "unreachable":
         return "the legs cannot reach a common platform position"
     return f"none of {res.runs} {'runs' if res.method == 'g3pcx' else 'starts'} converged; the legs may have no assembly"
@@ -321,8 +346,12 @@ def build_parser() -> argparse.ArgumentParser:
                        "or when --exact cannot run (extra not installed, degenerate geometry).")
     a.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
     a.add_argument("--legs", type=float, nargs="+", required=True, help="leg lengths, config unit")
-    a.add_argument("--method", choices=("multistart", "g3pcx"), default=None,
-                   help="multistart (default): Levenberg-Marquardt from random poses within the legs' reach, "
+    a.add_argument("--method", choices=("homotopy", "multistart", "g3pcx"), default=None,
+                   help="homotopy (default for the 3-RPR and the hexapods): a compiled parameter homotopy, one "
+                   "path per complex solution of a generic member, complete when the distinct endpoints are "
+                   "as many as the root count (JSON complete, paths, paths_failed, complex_solutions, "
+                   "real_solutions); multistart (the default when --max-starts or --budget-s is given): "
+                   "Levenberg-Marquardt from random poses within the legs' reach, "
                    "stopped when many starts in a row find nothing new; g3pcx: the papers' independent "
                    "polished G3-PCX searches (default when --runs is given)")
     a.add_argument("--exact", action="store_true",
@@ -337,7 +366,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="redundant legs: standard deviation of the leg measurements in the config's unit; a mode "
                         "is a least-squares pose whose residuals pass the chi-square test against it (default: "
                         "1e-5 m, the node's leg_noise_std)")
-    a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
+    a.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (homotopy gamma, "
+                   "multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
     a.set_defaults(func=cmd_solve_all)
     _add_precompile(sub)
