@@ -6,7 +6,7 @@ modes, on machines with or without the ``exact`` extra).
 Case ``k`` of a kind is ``glpma_ros.models.random_geometry.GENERATORS[kind](numpy.random.default_rng(SEED_BASE
 + k))``, solved by ``solve_all(method="exact")``.  Needs the extra: ``pip install 'glpma_ros[exact]'``.
 
-    PYTHONPATH=. python tools/homotopy_cases.py            # a few minutes
+    PYTHONPATH=. python tools/homotopy_cases.py    # about a minute per 6-6 on two busy cores; resumable
 """
 from __future__ import annotations
 
@@ -34,11 +34,15 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
     p.add_argument("--per-kind", type=int, default=50, help="cases of each kind")
     args = p.parse_args(argv)
-    cases = []
+    # resumable: the cases already written are kept, the file is rewritten after every new one
+    cases = json.loads(args.out.read_text())["cases"] if args.out.exists() else []
+    done = {(c["kind"], c["seed"]) for c in cases}
     t0 = time.perf_counter()
     for kind in ("planar_3rpr", "hexapod_66"):
         for k in range(args.per_kind):
             seed = SEED_BASE + k
+            if (kind, seed) in done:
+                continue
             model, legs, _ = GENERATORS[kind](np.random.default_rng(seed))
             res = solve_all(model, legs, method="exact")
             cases.append({"kind": kind, "seed": seed, "base": model.base.tolist(), "platform": model.platform.tolist(),
@@ -46,11 +50,15 @@ def main(argv=None) -> int:
                           "modes": [[float(v) for v in s.x] for s in res.solutions]})
             print(f"{kind} {seed}: {len(res.solutions)} real of {res.complex_solutions} "
                   f"({time.perf_counter() - t0:.0f} s)", flush=True)
-    args.out.write_text(json.dumps({"about": "random manipulators (glpma_ros.models.random_geometry, seeds from "
-                                    f"{SEED_BASE}) with their real assembly modes certified by msolve "
-                                    "(solve_all method exact); written by tools/homotopy_cases.py",
-                                    "cases": cases}, indent=1) + "\n")
+            write(args.out, cases)
     return 0
+
+
+def write(out: Path, cases: list) -> None:
+    out.write_text(json.dumps({"about": "random manipulators (glpma_ros.models.random_geometry, seeds from "
+                               f"{SEED_BASE}) with their real assembly modes certified by msolve "
+                               "(solve_all method exact); written by tools/homotopy_cases.py",
+                               "cases": cases}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

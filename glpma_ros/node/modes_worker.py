@@ -46,15 +46,22 @@ class Modes(list):
 
 
 def modes_of(result) -> Modes:
-    """:class:`Modes` of a :class:`~glpma_ros.solve_all.AllSolutions`."""
+    """:class:`Modes` of a :class:`~glpma_ros.solve_all.AllSolutions`; the homotopy's ``stop_reason`` is
+    ``complete`` or ``incomplete`` and its ``miss_probability`` 0 when complete (certified), else None."""
+    if result.method == "homotopy":
+        return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], 0,
+                     "complete" if result.complete else "incomplete", 0.0 if result.complete else None)
     return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], result.starts, result.stop_reason,
                  result.miss_probability)
 
 
 def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
-    """What a request computes: the multistart, at most ``runs`` starts; ``leg_noise_std`` (config
-    unit): redundant legs, the noise a mode's leg residuals are tested against (the node's parameter)."""
-    from ..solve_all import solve_all
+    """What a request computes: the parameter homotopy where the model's family has a start system (``runs``
+    unused), else the multistart, at most ``runs`` starts; ``leg_noise_std`` (config unit): redundant legs,
+    the noise a mode's leg residuals are tested against (the node's parameter)."""
+    from ..solve_all import default_method, solve_all
+    if default_method(model) == "homotopy":
+        return modes_of(solve_all(model, legs, method="homotopy", seed=int(seed), leg_noise_std=leg_noise_std))
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
                               leg_noise_std=leg_noise_std))
 
