@@ -75,8 +75,7 @@ def make_spec(model, args) -> MapSpec:
     shape = (resolution[0], resolution[-1])
     if min(shape) < 2 or len(resolution) > 2:
         raise InputError("--resolution expects one or two numbers of points per axis, each at least 2")
-    method = args.method or ("g3pcx" if args.runs is not None else "multistart" if args.max_starts is not None
-                             else DEFAULT_METHOD)
+    method = args.method or ("g3pcx" if args.runs is not None else DEFAULT_METHOD)
     if args.runs is not None and method != "g3pcx":
         raise InputError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
     if args.max_starts is not None and method != "multistart":
@@ -116,9 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--at", nargs="+", default=None, metavar="NAME=VALUE",
                    help="the fixed coordinates, e.g. --at theta=30 (3-RPR) or --at z=900 yaw=10 (hexapod)")
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="how the modes of a point are counted: homotopy (default; solve_all's parameter homotopy, "
-                        "certified by the root count, as glpma-fk solve-all), multistart (solve_all's multistart of "
-                        "Levenberg-Marquardt solves with its stopping rule; default when --max-starts is given) or "
+                   help="how the modes of a point are counted: multistart (default; solve_all's multistart of "
+                        "Levenberg-Marquardt solves with its stopping rule), homotopy (solve_all's parameter "
+                        "homotopy, certified by the root count, as glpma-fk solve-all) or "
                         "g3pcx (the papers' polished G3-PCX searches, --runs of them; default when --runs is given)")
     p.add_argument("--runs", type=int, default=None, metavar="N",
                    help=f"g3pcx: searches per point (default {DEFAULT_RUNS}; more finds rare modes)")

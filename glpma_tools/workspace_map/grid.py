@@ -25,10 +25,11 @@ from glpma_ros.errors import InputError
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
 COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
 ANGLES = ("theta", "roll", "pitch", "yaw")
-#: how the modes of a point are counted: solve_all's parameter homotopy (default; certified by the root count,
-#: msolve's modes where it falls short and the exact extra is installed), its multistart or the papers' G3-PCX runs
-METHODS = ("homotopy", "multistart", "g3pcx")
-DEFAULT_METHOD = "homotopy"
+#: how the modes of a point are counted: solve_all's multistart (default), its parameter homotopy (certified by
+#: the root count, msolve's modes where it falls short and the exact extra is installed; a point exactly on a
+#: singularity is not yet marked as the multistart marks it, so not the default) or the papers' G3-PCX runs
+METHODS = ("multistart", "homotopy", "g3pcx")
+DEFAULT_METHOD = "multistart"
 #: independent G3-PCX searches per grid point with method g3pcx (what the maps used before the multistart)
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
