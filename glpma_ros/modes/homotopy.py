@@ -650,7 +650,7 @@ def load_start_system(name: str) -> StartSystem:
     return StartSystem(family, data["params"], np.ascontiguousarray(data["solutions"]), int(data["loops"]))
 
 
-def _track(K, starts, gammas, settings=SETTINGS):
+def track(K, starts, gammas, settings=SETTINGS):
     P, n = starts.shape
     ends = np.empty((P, n), complex)
     jac = np.empty((P, n, n), complex)
@@ -662,7 +662,7 @@ def _track(K, starts, gammas, settings=SETTINGS):
     return ends, jac, outcome, steps, t_end
 
 
-def _random_gammas(rng, m):
+def random_gammas(rng, m):
     return np.exp(2j * math.pi * rng.uniform(size=m))
 
 
@@ -688,7 +688,7 @@ def build_start_system(family: Family, seed: int, *, verbose=False) -> StartSyst
         ok = np.ones(len(current), bool)
         for pa, pb in ((p0, p1), (p1, p2), (p2, p0)):
             K = family.coefficient_path(pa, pb)
-            ends, jac, outcome, _, _ = _track(K, current, _random_gammas(rng, 1).repeat(len(current)))
+            ends, jac, outcome, _, _ = track(K, current, random_gammas(rng, 1).repeat(len(current)))
             ok &= outcome == REGULAR
             current = ends
         found = current[ok]
@@ -771,7 +771,7 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
     pending = np.arange(n_paths)
     outcome_of = np.full(n_paths, STEP_FAILED, np.int64)
     total_steps = retracked = 0
-    family, starts, gamma, settings = base_family, start.solutions, _random_gammas(rng, 1)[0], SETTINGS
+    family, starts, gamma, settings = base_family, start.solutions, random_gammas(rng, 1)[0], SETTINGS
     for round_ in range(retrack_rounds + 1):
         if round_ == 1:
             # the same homotopy (same gamma and patch: each path keeps its endpoint), tracked more carefully
@@ -780,11 +780,11 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
             # another gamma and patch: another pairing of start solutions and endpoints, so every path again
             family = base_family.another_patch(rng)
             starts = base_family.convert(start.solutions, family)
-            gamma = _random_gammas(rng, 1)[0]
+            gamma = random_gammas(rng, 1)[0]
             pending = np.arange(n_paths)
         retracked += pending.size if round_ else 0
         K = family.coefficient_path(start.params, target.params)
-        ends, jac, outcome, steps, _ = _track(K, starts[pending], np.full(pending.size, gamma), settings)
+        ends, jac, outcome, steps, _ = track(K, starts[pending], np.full(pending.size, gamma), settings)
         total_steps += int(steps.sum())
         good = _regular(jac, outcome)
         outcome_of[pending] = outcome
