@@ -279,8 +279,10 @@ def test_cli_exact_without_the_extra_exit_2_one_line():
 
 
 def test_cli_no_mode_exit_1_with_the_reason():
-    p = run("solve-all", RPR_YAML, "--legs", 1, 1, 1)
+    p = run("solve-all", RPR_YAML, "--legs", 1, 1, 1, "--method", "multistart")
     assert p.returncode == 1 and "cannot reach" in p.stderr
+    p = run("solve-all", RPR_YAML, "--legs", 1, 1, 1)           # the homotopy: a certificate
+    assert p.returncode == 1 and "certified: none of the 6 complex solutions is real" in p.stderr
 
 
 # -- the node's ~/assembly_modes ---------------------------------------------------------------------------
