@@ -1,5 +1,5 @@
 """Every Gough-Stewart design (joints coinciding in pairs: 6-3, 3-6, 3-3) and redundant legs with the
-isolation of a faulty one (issue 21): validation, solves, solve-all, the node's service and diagnostics,
+isolation of a faulty one: validation, solves, solve-all, the node's service and diagnostics,
 the CLI and the shipped configs.  Every solve has an evaluation cap or a generous budget; nothing here
 depends on how busy the machine is."""
 import json
@@ -14,21 +14,21 @@ import yaml
 from conftest import CONFIG, GENEROUS_BUDGET_MS, GENEROUS_BUDGET_S
 from glpma_ros.config import load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
-from glpma_ros.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
+from glpma_ros.estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
+from glpma_ros.estimation.redundancy import CONSISTENCY_LEVEL, chi2_limit
 from glpma_ros.models.random_geometry import random_hexapod_33, random_hexapod_63
 from glpma_ros.models.rotations import quaternion_from_matrix, rotation_from_vector
+from glpma_ros.modes.multistart import solve_all
 from glpma_ros.node.diagnostics import WARN
 from glpma_ros.node.leg_health import FAILED_AFTER
 from glpma_ros.node.service import FkService
-from glpma_ros.redundancy import CONSISTENCY_LEVEL, chi2_limit
-from glpma_ros.solve_all import solve_all
 from glpma_tools.sim.trajectories import Plan
 
-#: the 6-3 of issue 21, verbatim
+#: a 6-3 design (two legs on each platform joint) as a user reported it, verbatim
 ISSUE_63 = {"manipulator": "hexapod_66", "unit": "mm",
             "base": [[100, 0, 0], [50, 86.6, 0], [-50, 86.6, 0], [-100, 0, 0], [-50, -86.6, 0], [50, -86.6, 0]],
             "platform": [[50, 0, 0], [50, 0, 0], [-25, 43.3, 0], [-25, 43.3, 0], [-25, -43.3, 0], [-25, -43.3, 0]]}
-SHIPPED = ("hexapod_63_stewart", "hexapod_33_octahedral", "hexapod_7legs")
+SHIPPED = ("hexapod_63_stewart", "hexapod_33_octahedral", "hexapod_7legs", "hexapod_8legs")
 #: evaluation cap of each search stage in these tests (the statuses come from work done)
 MAX_EVALS = 20_000
 #: leg residuals "at round-off": a few hundred units in the last place of the longest leg (lm.LEG_RTOL)
@@ -48,8 +48,8 @@ def _round_off(model, e, legs):
                                                          ((0, 0, 1, 1, 2, 2), (0, 1, 2, 3, 4, 5)),    # 3-6
                                                          ((0, 1, 1, 2, 2, 0), (0, 0, 1, 1, 2, 2))])   # 3-3
 def test_coincident_joints_are_accepted(base_pairs, platform_pairs):
-    ring = lambda r, phase: [[r * math.cos(phase + k * math.pi / 3), r * math.sin(phase + k * math.pi / 3), 0.0]
-                             for k in range(6)]
+    def ring(r, phase):
+        return [[r * math.cos(phase + k * math.pi / 3), r * math.sin(phase + k * math.pi / 3), 0.0] for k in range(6)]
     base, platform = ring(200.0, 0.1), ring(100.0, 0.4)
     doc = {"manipulator": "hexapod_66", "unit": "mm", "base": [base[i] for i in base_pairs],
            "platform": [platform[i] for i in platform_pairs]}
@@ -111,17 +111,17 @@ def test_random_shared_joint_designs_track_to_round_off(generator):
 
 
 def _needs_msolve():
-    from glpma_ros.exact import ExactUnavailableError, msolve_executable
+    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
     try:
         msolve_executable()
     except ExactUnavailableError:
         pytest.skip("the exact extra (msolve) is not installed")
 
 
-@pytest.mark.parametrize("case", ["issue 6-3", "random 3-3"])
+@pytest.mark.parametrize("case", ["reported 6-3", "random 3-3"])
 def test_exact_agrees_with_the_multistart_on_shared_joints(case):
     _needs_msolve()
-    if case == "issue 6-3":
+    if case == "reported 6-3":
         model = model_from_dict(ISSUE_63)
         legs = np.array([130.0, 148.0, 130.0, 148.0, 130.0, 148.0])
     else:
@@ -256,7 +256,7 @@ def test_the_node_names_a_corrupted_leg_and_keeps_publishing_correct_poses():
 
 
 def test_a_pose_without_a_leg_gets_the_covariance_of_the_other_legs(seven):
-    from glpma_ros.covariance import PoseJacobian
+    from glpma_ros.estimation.covariance import PoseJacobian
     x0 = yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0]
     svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"), "time_budget_ms": GENEROUS_BUDGET_MS,
                      "initial_pose": x0})
@@ -294,7 +294,7 @@ def test_exclude_faulty_leg_off_publishes_nothing_and_says_why(seven):
 
 
 def test_covariance_uses_every_leg(seven):
-    from glpma_ros.covariance import PoseJacobian
+    from glpma_ros.estimation.covariance import PoseJacobian
     x = np.array(yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0])
     pose = seven.pose(x)
     jac = PoseJacobian(seven)
@@ -428,8 +428,8 @@ def test_demo_refuses_an_unknown_manipulator_in_one_line(tmp_path):
 
 def test_package_functions_carry_the_digest_of_every_compiled_module():
     """A change to one kernel file recompiles the compiled functions of other files that carry its code."""
-    from glpma_ros import numba_cache
     from glpma_ros.models import kernels
+    from glpma_ros.runtime import numba_cache
     from glpma_ros.solvers import g3pcx
     for fn in (kernels.population_fitness, g3pcx.g3pcx_generations):
         stamp = fn._cache._cache_file._source_stamp

@@ -1,4 +1,4 @@
-"""Issue 23: the map counts assembly modes right.  Points taken from the default maps (seed 3-RPR at
+"""The map counts assembly modes right.  Points taken from the default maps (seed 3-RPR at
 theta = 0, seed 6-6 slice at z = its size, angles 0; 101 x 101, seed 0) where the multistart's count
 was odd: on the 6-6 a mode missed by the stopping rule (the count now the certified one), on the 3-RPR a
 grid pose exactly on a singularity line, a double mode (now said so, not printed as an odd count)."""
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, RPR_YAML
-from glpma_ros import exact
-from glpma_ros import solve_all as SA
-from glpma_ros.solve_all import solve_all
+from glpma_ros.modes import exact
+from glpma_ros.modes import multistart as SA
+from glpma_ros.modes.multistart import solve_all
 from glpma_tools import workspace_map as W
 from glpma_tools.workspace_map.cli import DEFAULT_RESOLUTION, Z_DEFAULT, default_limits
 from glpma_tools.workspace_map.grid import point_seed

@@ -85,7 +85,7 @@ def test_leg_lengths_in_pose_out(fk_node):
         client.destroy_node()
 
 
-# -- the further outputs (issue 12) ------------------------------------------------------------------------
+# -- the further outputs ---------------------------------------------------------------------------------
 
 def _spin_until(executor, done, timeout_s=20.0, publish=None):
     deadline = time.monotonic() + timeout_s
@@ -181,7 +181,7 @@ def test_ctrl_c_stops_cleanly(tmp_path, dds_env):
         assert bad not in log, log
 
 
-# -- the managed node, QoS overrides, the mock publisher (issue 20) --------------------------------------
+# -- the managed node, QoS overrides, the mock publisher -----------------------------------------------
 
 def test_lifecycle_node_walk_in_process(ros):
     """configure builds the service and the endpoints (with the QoS override), activate lets inputs

@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 from glpma_ros.config import model_from_dict  # noqa: E402
 from glpma_ros.models.random_geometry import GENERATORS  # noqa: E402
 from glpma_ros.modes import homotopy as H  # noqa: E402
-from glpma_ros.solve_all import solve_all  # noqa: E402
+from glpma_ros.modes.multistart import solve_all  # noqa: E402
 
 DIETMAIER = {"manipulator": "hexapod_66", "unit": "m",
              "base": [[0, 0, 0], [1.107915, 0, 0], [0.549094, 0.756063, 0], [0.735077, -0.223935, 0.525991],
@@ -81,7 +81,8 @@ def main(argv=None) -> int:
                 lambda m=model, lg=legs, k=k: solve_all(m, lg, method="multistart", seed=k), max(1, args.repeats // 2))
             row["multistart_modes"] = len(ms.solutions)
             if k < args.exact:
-                row["msolve_wall"], row["msolve_cpu"], ex = timed(lambda m=model, lg=legs: solve_all(m, lg, method="exact"), 1)
+                row["msolve_wall"], row["msolve_cpu"], ex = timed(
+                    lambda m=model, lg=legs: solve_all(m, lg, method="exact"), 1)
                 row["msolve_modes"] = len(ex.solutions)
             rows.append(row)
             print(name, k, json.dumps({a: (round(b, 5) if isinstance(b, float) else b) for a, b in row.items()}),

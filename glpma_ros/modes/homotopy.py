@@ -600,9 +600,9 @@ class Hexapod66Family(Family):
         D = float(e @ e)
         if not D > NULL_ROTATION * float(v.real @ v.real):
             return None
-        from ..exact import _qconj, qmul
         from ..models.hexapod_66 import matrix_from_quaternion
-        t = np.array(qmul(tuple(2.0 * f), _qconj(tuple(e)))[1:]) / D
+        from .exact import qmul
+        t = np.array(qmul(tuple(2.0 * f), (e[0], -e[1], -e[2], -e[3]))[1:]) / D      # 2 f e~ / D
         q = np.array([e[1], e[2], e[3], e[0]]) / math.sqrt(D)
         R = matrix_from_quaternion(q)
         position = target.base_centre + target.scale * t - R @ target.platform_centre
@@ -730,7 +730,7 @@ class HomotopyResult:
 
 def root_count(model) -> int:
     """The count that certifies ``model``'s answer: the family's, or the design's (coincident joints)."""
-    from ..exact import has_coincident_joints
+    from .exact import has_coincident_joints
     if model.kind == "hexapod_66" and has_coincident_joints(_first_legs_model(model)):
         return COINCIDENT_ROOT_COUNT if _three_and_three(model) else 0
     return load_start_system(model.kind).family.root_count

@@ -1,6 +1,6 @@
 """Every real assembly mode, computed in a child process.
 
-:func:`~glpma_ros.solve_all.solve_all` (its multistart: hundreds of local solves, until many
+:func:`~glpma_ros.modes.multistart.solve_all` (its multistart: hundreds of local solves, until many
 starts in a row find nothing new; ``runs`` = parameter ``assembly_modes_runs`` caps the starts)
 takes up to a second.  Compiled code holds the GIL while it runs, so in a thread of the node it
 would hold up the real-time solve loop (BENCHMARKS.md, "Design measurements").
@@ -46,7 +46,7 @@ class Modes(list):
 
 
 def modes_of(result) -> Modes:
-    """:class:`Modes` of a :class:`~glpma_ros.solve_all.AllSolutions`; the homotopy's ``stop_reason`` is
+    """:class:`Modes` of a :class:`~glpma_ros.modes.multistart.AllSolutions`; the homotopy's ``stop_reason`` is
     ``complete`` or ``incomplete`` and its ``miss_probability`` 0 when complete (certified), else None."""
     if result.method == "homotopy":
         return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], 0,
@@ -59,7 +59,7 @@ def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
     """What a request computes: the parameter homotopy where the model's family has a start system (``runs``
     unused), else the multistart, at most ``runs`` starts; ``leg_noise_std`` (config unit): redundant legs,
     the noise a mode's leg residuals are tested against (the node's parameter)."""
-    from ..solve_all import default_method, solve_all
+    from ..modes.multistart import default_method, solve_all
     if default_method(model) == "homotopy":
         return modes_of(solve_all(model, legs, method="homotopy", seed=int(seed), leg_noise_std=leg_noise_std))
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
@@ -73,7 +73,8 @@ def _reply(out, kind: str, payload) -> None:
 
 def child_main(argv=None) -> int:
     """The child: ``python -m glpma_ros.node.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
-    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line on stdout
+    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line
+    on stdout
     (``["ok", {"modes": [x, ...], "starts": n, "stop_reason": r, "miss_probability": p}]``,
     ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
     argv = sys.argv[1:] if argv is None else argv

@@ -5,10 +5,10 @@ For every pose published on ``pose_estimate`` (each switchable by a parameter):
 * ``publish_tf``: the transform ``frame_id`` -> ``child_frame_id`` on ``/tf`` -- the pose itself,
   same stamp, same numbers;
 * ``publish_covariance``: ``pose_estimate_cov``, the pose with the 6x6 covariance of
-  :class:`~glpma_ros.covariance.PoseJacobian` for leg noise ``leg_noise_std``;
+  :class:`~glpma_ros.estimation.covariance.PoseJacobian` for leg noise ``leg_noise_std``;
 * ``publish_twist``: ``twist_estimate``, from the ``joint_states`` velocities by the forward
   velocity kinematics when the input carries them, else the finite difference
-  (:mod:`glpma_ros.velocity`) of this pose and the previous one;
+  (:mod:`glpma_ros.estimation.velocity`) of this pose and the previous one;
 * ``publish_markers``: ``~/markers``, at most one every ``markers_period_s`` (by the stamps).
 
 :class:`OutputBuilder` turns an :class:`~glpma_ros.node.service.Outcome` into
@@ -23,9 +23,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..covariance import PoseJacobian
+from ..estimation.covariance import PoseJacobian
+from ..estimation.velocity import finite_difference_twist
 from ..models.rotations import matrix_from_quaternion
-from ..velocity import finite_difference_twist
 
 #: ``twist_estimate`` sources, as /diagnostics names them
 TWIST_FROM_VELOCITIES = "joint_states velocities (forward velocity kinematics)"

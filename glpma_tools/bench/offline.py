@@ -6,29 +6,31 @@ import contextlib
 import io
 import json
 import logging
+import math
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from glpma_ros.calibration import main as calibrate_main
 from glpma_ros.config import config_dir, load_document, model_from_dict
-from glpma_ros.estimator import Estimator
-from glpma_ros.exact import ExactUnavailableError, msolve_executable
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
+from glpma_ros.node.dds.rosbag import FLOAT64_MULTI_ARRAY, decode_float64_multi_array
 from glpma_ros.node.ros_args import parse_ros_args
 from glpma_ros.node.service import FkService
 from glpma_tools import bag, workspace_map
-from glpma_tools.bag_run import FLOAT64_MULTI_ARRAY, OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
-from glpma_tools.calibrate import main as calibrate_main
-from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
+from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch
+from glpma_tools.sim.calibration_data import simulate, true_readings, write_csv
 from glpma_tools.sim.trajectories import start_pose
 
-from .dds import params_file
-from .report import dict_table, key_values, md_blocks, prose
+from .markdown import dict_table, key_values, md_blocks, prose
 from .scenarios import load
+from .transport import params_file
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
@@ -43,11 +45,15 @@ FLEET_BAGS = 4
 #: log time of the first message of the recorded legs, and their period (1 kHz)
 T0_NS = 1_700_000_000_000_000_000
 PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22), each this many times (the median and
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements, each this many times (the median and
 #: the smallest are reported: a shared machine only adds time); its forward kinematics checked at fresh true poses
 CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
 CALIBRATION_FK_POSES = 20
+#: a tracker campaign in the robot's working range (the README's example, the tests' campaign): poses within
+#: +- (position, config unit; angle, radians) of the known pose, where some directions are only weakly
+#: identifiable and stay at nominal; measured at the first of the sizes
+CALIBRATION_WORKING_RANGE = {"planar_3rpr_seed": (10.0, 0.2), "hexapod_66_rolland": (20.0, math.radians(8.0))}
 PARAMS_3RPR = ["--ros-args", "--params-file", str(params_file("planar_3rpr"))]
 #: what the breakdown writes per input, as glpma-fk bag does: the input's copy, the pose, /tf and a status (a
 #: stand-in of this many bytes)
@@ -63,7 +69,7 @@ def _recorded_legs(n: int) -> np.ndarray:
 
 def _write_bag(path: Path, records, typestore) -> None:
     """An MCAP rosbag2 of ``(topic, log time ns, CDR bytes)`` records, each topic a Float64MultiArray."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer  # the bag extra: optional, imported where used
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
         conns = {}
         for topic, t, raw in records:
@@ -83,14 +89,14 @@ def _write_legs_bag(path: Path, legs_m, typestore) -> None:
 
 def _read_bag(path: Path, topic: str | None = None) -> list:
     """``(log time ns, CDR bytes)`` of the messages of the bag at ``path`` (on ``topic``; None: all)."""
-    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2 import Reader  # the bag extra: optional, imported where used
     with Reader(path) as reader:
         return [(t, bytes(raw)) for c, t, raw in reader.messages() if topic in (None, c.topic)]
 
 
 def _typestore():
     """The ROS 2 Jazzy message types of ``rosbags``."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # the bag extra: optional, imported where used
     return get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -160,7 +166,7 @@ def _engines(workers=MAP_WORKERS):
     ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
     engines = [(f"{n} process(es)", ["--workers", str(n)]) for n in workers]
     try:
-        import distributed
+        import distributed  # the map extra: optional, imported where used
     except ImportError:
         yield engines
         return
@@ -265,19 +271,21 @@ def _fk_error(model, sim, legs, p, R) -> float:
 
 def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
-    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
+    """``glpma-fk calibrate`` on simulated data (the protocol of :mod:`glpma_tools.sim.calibration_data`) for the
     3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
-    NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
-    kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses: rows
-    under the report's column names."""
+    NEW.yaml, the held-out forward kinematics) and of the identification alone, the leg residual RMS and the forward
+    kinematics' position error on the held-out measurements, the observability O1, and the forward kinematics' pose
+    error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses; poses over the
+    workspace at every size, and in the working range (:data:`CALIBRATION_WORKING_RANGE`) at the first: rows under
+    the report's column names."""
     rows = []
     for name in ("planar_3rpr_seed", "hexapod_66_rolland"):
         path = config_dir() / f"{name}.yaml"
         doc = load_document(path)
         model = model_from_dict(doc, str(path))
         center, mm = start_pose(model, doc), model.metres_per_unit * 1e3
-        for size in sizes:
-            sim = simulate(model, center, np.random.default_rng(0), size)
+        for size, spread in [(size, None) for size in sizes] + [(sizes[0], CALIBRATION_WORKING_RANGE[name])]:
+            sim = simulate(model, center, np.random.default_rng(0), size, spread=spread)
             with tempfile.TemporaryDirectory(prefix="glpma_bench_calibrate_") as tmp:
                 data, new = Path(tmp) / "data.csv", Path(tmp) / "new.yaml"
                 write_csv(data, sim.measured)
@@ -285,20 +293,26 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                                           for _ in range(repeats)))
                 calibrated = model_from_dict(load_document(new), str(new))
             out = outs[-1]
-            fresh = simulate(model, center, np.random.default_rng(1), fk_poses).true_poses
+            fresh = simulate(model, center, np.random.default_rng(1), fk_poses, spread=spread).true_poses
             readings = true_readings(sim.truth, fresh.position, fresh.rotation)
             errors = {label: [_fk_error(m, sim, *args) * mm for args in zip(readings, fresh.position, fresh.rotation)]
                       for label, m in (("nominal", model), ("calibrated", calibrated))}
-            rows.append({"config": name, "measurements": size, "fitted": out["fitted"],
+            campaign = "workspace" if spread is None else \
+                f"+- {spread[0]:g} {model.unit}, {math.degrees(spread[1]):.3g} deg"
+            pose = out["holdout_pose"]
+            rows.append({"config": name, "campaign": campaign, "measurements": size, "fitted": out["fitted"],
                          "command wall s (median / min)": (float(np.median(walls)), float(min(walls))),
                          "command CPU s": float(np.median(cpus)),
                          "identification ms": float(np.median([o["identify_s"] for o in outs])) * 1e3,
                          "Gauss-Newton iterations": out["iterations"],
                          "held-out leg RMS mm (before / after)": (out["holdout_rms_before"] * mm,
                                                                   out["holdout_rms_after"] * mm),
+                         "held-out FK position RMS mm (before / after)": (pose["before"]["position_rms"] * mm,
+                                                                          pose["after"]["position_rms"] * mm),
+                         "O1": out["observability"]["o1"],
                          **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v))
                             for k, v in errors.items()},
-                         "weak directions": len(out["weak"])})
+                         "weak directions": len(out["weak"]), "left at nominal": len(out["unidentifiable"])})
     return rows
 
 

@@ -9,11 +9,11 @@ from matplotlib import __version__ as MATPLOTLIB_VERSION
 from matplotlib.figure import Figure
 
 from glpma_ros import solvers
-from glpma_ros.compat import version_tuple
+from glpma_ros.runtime.compat import version_tuple
 from glpma_tools.timing import DEADLINE_MARGIN_MS
 
 from .common import SUCCESS_TOLERANCE
-from .report import SOLVER_LABEL
+from .markdown import SOLVER_LABEL
 from .scenarios import LATENCY_TARGET_MS
 
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",

@@ -3,10 +3,10 @@
 K grid points with valid legs and without a double mode (a point on a singularity, whose count is
 decided by round-off, see :func:`.grid.double_modes`) are drawn at random (a ``numpy.random.Generator`` seeded by the
 map's seed, so the same map checks the same points) and their real assembly modes are counted
-again by :func:`glpma_ros.solve_all.solve_all` with ``method="exact"`` (msolve's real root
-isolation, :mod:`glpma_ros.exact`).  A point whose map count differs is listed with both counts;
+again by :func:`glpma_ros.modes.multistart.solve_all` with ``method="exact"`` (msolve's real root
+isolation, :mod:`glpma_ros.modes.exact`).  A point whose map count differs is listed with both counts;
 the command then exits 1.  This certifies the sample, not the whole map: the multistart's counts
-are statements about basins of attraction (see :mod:`glpma_ros.solve_all`).
+are statements about basins of attraction (see :mod:`glpma_ros.modes.multistart`).
 """
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ class ExactCheck:
 
 def require_exact() -> None:
     """:class:`InputError` (exit 2) before the map is computed when msolve is missing."""
-    from glpma_ros.exact import ExactUnavailableError, msolve_executable
+    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
     try:
         msolve_executable()
     except ExactUnavailableError as exc:
@@ -65,7 +65,7 @@ def sample(spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None 
 
 def exact_check(model, spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None = None) -> ExactCheck:
     """Certified counts at ``k`` sampled points (none with a double mode) compared with the map's ``counts``."""
-    from glpma_ros.solve_all import solve_all
+    from glpma_ros.modes.multistart import solve_all
     t0 = time.perf_counter()
     flat = counts.reshape(-1)
     check = ExactCheck(list(sample(spec, counts, k, double)))

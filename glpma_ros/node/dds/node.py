@@ -41,7 +41,6 @@ from .. import params as P
 from .. import qos
 from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop, pause_report
 from ..ros_args import node_values, parse_ros_args, remapped, split_transport
-from ..security import check_dds_transport
 from ..service import FkService, JointStateInput
 from . import cdr, endpoints
 from .messages import (
@@ -61,6 +60,7 @@ from .messages import (
     Time,
     TwistStamped,
 )
+from .security import check_dds_transport
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
 #: samples taken per read; the newest is solved, the others count as dropped
@@ -226,7 +226,8 @@ class DdsNode:
 
     def _publish_report(self, report) -> None:
         """Encoded by :func:`cdr.diagnostic_array <glpma_ros.node.dds.cdr.diagnostic_array>` in chunks, with the
-        report thread's pauses between them (the binding's serializer takes ~0.1 ms in one piece)."""
+        report thread's pauses between them (the binding's serializer would hold the interpreter's lock for the
+        whole report in one piece)."""
         self._raw_diag.write(cdr.diagnostic_array(time.time_ns(), report, pause=pause_report))
 
     def publish_diagnostics(self) -> None:
