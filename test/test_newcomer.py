@@ -176,8 +176,9 @@ def test_version_matches_the_package():
     assert code == 0 and out.strip() == f"glpma-fk {__version__}"
     assert ET.parse(ROOT / "package.xml").getroot().findtext("version") == __version__
     changelog = (ROOT / "README.md").read_text().split("## Changelog", 1)[1]
-    first = next(line for line in changelog.splitlines() if line.startswith("- "))
-    assert first.startswith(f"- {__version__} -- "), first       # the newest release is this version
+    # the newest release is this version (the changes of the next one gather under "- X.Y.Z -- unreleased:")
+    first = next(line for line in changelog.splitlines() if line.startswith("- ") and "-- unreleased" not in line)
+    assert first.startswith(f"- {__version__} -- "), first
 
 
 def test_a_closed_pipe_ends_quietly():
