@@ -88,7 +88,7 @@ def test_the_stored_cases_are_the_generator_s(case):
 @pytest.mark.parametrize("case", CASES, ids=case_id)
 def test_multistart_finds_exactly_the_certified_modes(case):
     model = model_of(case)
-    res = solve_all(model, case["legs"], seed=0)
+    res = solve_all(model, case["legs"], method="multistart", seed=0)
     assert res.method == "multistart" and res.stop_reason == SA.STALLED
     assert_same_modes(model, [s.x for s in res.solutions], case["modes"])
     for s in res.solutions:                                        # polished to round-off
@@ -190,14 +190,14 @@ def test_exact_refuses_without_msolve(monkeypatch, rpr):
 # -- the multistart's rule and limits ---------------------------------------------------------------------
 
 def test_stopping_rule_and_estimates_are_as_documented(hexapod):
-    res = solve_all(hexapod, hexapod.example_leg_lengths, seed=3)
+    res = solve_all(hexapod, hexapod.example_leg_lengths, method="multistart", seed=3)
     n_new = res.starts - res.stall
     assert res.stop_reason == SA.STALLED
     assert res.stall >= max(SA.STALL_MIN, SA.STALL_FACTOR * n_new) > res.stall - 1     # stopped at once
     assert sum(res.hits) <= res.starts and len(res.hits) == len(res.solutions) and min(res.hits) >= 1
-    assert res.miss_probability == sum(h == 1 for h in res.hits) / res.starts
+    assert res.good_turing == sum(h == 1 for h in res.hits) / res.starts and res.miss_probability is None
     assert res.unseen_share_bound == pytest.approx(1 - 0.05 ** (1 / res.stall))
-    again = solve_all(hexapod, hexapod.example_leg_lengths, seed=3)
+    again = solve_all(hexapod, hexapod.example_leg_lengths, method="multistart", seed=3)
     assert again.starts == res.starts and [s.x.tolist() for s in again.solutions] == [s.x.tolist() for s in
                                                                                        res.solutions]
 
@@ -209,7 +209,7 @@ def test_limits_max_starts_budget_and_unreachable(rpr, monkeypatch):
     res = solve_all(rpr, rpr.example_leg_lengths, budget_s=1e-9)
     assert res.starts == 8 and res.stop_reason == SA.BUDGET_EXHAUSTED            # checked after each batch
     monkeypatch.undo()
-    res = solve_all(rpr, [1.0, 1.0, 1.0])                  # base joints 200 mm apart: out of reach
+    res = solve_all(rpr, [1.0, 1.0, 1.0], method="multistart")     # base joints 200 mm apart: out of reach
     assert res.stop_reason == SA.UNREACHABLE and res.solutions == [] and res.starts == 0
     with pytest.raises(GlpmaError, match="runs counts G3-PCX"):
         solve_all(rpr, rpr.example_leg_lengths, method="multistart", runs=5)
@@ -237,11 +237,12 @@ def test_cli_help_names_every_option():
 
 
 def test_cli_multistart_json():
-    p = run("solve-all", RPR_YAML, "--legs", 100, 120, 150, "--json", "--seed", 1)
+    p = run("solve-all", RPR_YAML, "--legs", 100, 120, 150, "--json", "--seed", 1, "--method", "multistart")
     assert p.returncode == 0, p.stderr
     out = json.loads(p.stdout)
     assert out["method"] == "multistart" and len(out["solutions"]) == 2 and out["runs"] == out["starts"] > 0
-    assert {"miss_probability", "unseen_share_bound", "stop_reason", "evaluations"} <= set(out)
+    assert {"miss_probability", "good_turing", "unseen_share_bound", "stop_reason", "evaluations"} <= set(out)
+    assert out["miss_probability"] is None                  # not estimable by the multistart (solve_all's docstring)
 
 
 @needs_msolve
@@ -278,8 +279,10 @@ def test_cli_exact_without_the_extra_exit_2_one_line():
 
 
 def test_cli_no_mode_exit_1_with_the_reason():
-    p = run("solve-all", RPR_YAML, "--legs", 1, 1, 1)
+    p = run("solve-all", RPR_YAML, "--legs", 1, 1, 1, "--method", "multistart")
     assert p.returncode == 1 and "cannot reach" in p.stderr
+    p = run("solve-all", RPR_YAML, "--legs", 1, 1, 1)           # the homotopy: a certificate
+    assert p.returncode == 1 and "certified: none of the 6 complex solutions is real" in p.stderr
 
 
 # -- the node's ~/assembly_modes ---------------------------------------------------------------------------
@@ -288,7 +291,7 @@ def test_node_reply_says_how_many_starts():
     svc = FkService({"manipulator_config": str(HEX_YAML)})
     svc.modes.note_input([1.25] * 6, 0)
     result = svc.modes.compute(0)
-    assert len(result.poses) == 16 and result.starts >= SA.STALL_MIN
+    assert len(result.poses) == 16 and result.starts == 0          # the homotopy: no random starts
     svc.modes.note(result)
     values = svc.diagnostics().as_dict()
     assert values["assembly modes last starts"] == str(result.starts)
@@ -302,10 +305,11 @@ def test_worker_process_reports_its_starts():
         modes = worker([100.0, 120.0, 150.0], SA.MAX_STARTS, 0)
     finally:
         worker.close()
-    assert len(modes) == 2 and modes.starts >= SA.STALL_MIN and modes.stop_reason == SA.STALLED
+    # the homotopy where a start system exists: certified, no random starts
+    assert len(modes) == 2 and modes.starts == 0 and modes.stop_reason == "complete"
+    assert modes.miss_probability == 0.0
     model = Planar3RPR(*(np.array(v) for v in _rpr_geometry()))
     here = solve_all(model, [100.0, 120.0, 150.0], seed=0)
-    assert modes.starts == here.starts
     assert_same_modes(model, list(modes), [s.x for s in here.solutions])     # the same modes, to round-off
 
 

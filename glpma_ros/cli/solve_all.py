@@ -5,7 +5,7 @@ import json
 import sys
 
 from ..errors import GlpmaError
-from ..modes.multistart import has_closed_form, solve_all
+from ..modes.multistart import default_method, has_closed_form, solve_all
 from ..runtime import precompile
 from ..runtime.compat import check_numba
 from .api import OneLineParser, command_main, count_type, positive_float, seed_type
@@ -26,9 +26,13 @@ def build_parser() -> OneLineParser:
     a.add_argument("--legs", type=float, nargs="+", required=True,
                    help="leg lengths, config unit (an actuated family, e.g. delta: the actuator positions, "
                    "radians for revolute actuators)")
-    a.add_argument("--method", choices=("multistart", "g3pcx", "closed_form"), default=None,
+    a.add_argument("--method", choices=("homotopy", "multistart", "g3pcx", "closed_form"), default=None,
                    help="closed_form: the Delta's sphere intersection (its default); "
-                   "multistart (default otherwise): Levenberg-Marquardt from random poses within the legs' reach, "
+                   "homotopy (default for the 3-RPR and the hexapods): a compiled parameter homotopy, one "
+                   "path per complex solution of a generic member, complete when the distinct endpoints are "
+                   "as many as the root count (JSON complete, paths, paths_failed, complex_solutions, "
+                   "real_solutions); multistart (the default otherwise and when --max-starts or --budget-s is "
+                   "given): Levenberg-Marquardt from random poses within the legs' reach, "
                    "stopped when many starts in a row find nothing new; g3pcx: the papers' independent "
                    "polished G3-PCX searches (default when --runs is given)")
     a.add_argument("--exact", action="store_true",
@@ -44,7 +48,7 @@ def build_parser() -> OneLineParser:
                         "is a least-squares pose whose residuals pass the chi-square test against it (default: "
                         "1e-5 m, the node's leg_noise_std)")
     a.add_argument("--seed", type=seed_type, default=0,
-                   help="random seed, a non-negative integer (multistart starts, G3-PCX runs)")
+                   help="random seed, a non-negative integer (homotopy gamma, multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
     return a
 
@@ -56,8 +60,16 @@ def run(args) -> int:
     legs = sensor_legs(model, args.legs)
     if args.exact and args.method is not None:
         raise GlpmaError(f"--exact and --method {args.method} exclude each other")
-    default = "closed_form" if has_closed_form(model) else "multistart"
-    method = "exact" if args.exact else args.method or ("g3pcx" if args.runs is not None else default)
+    if args.exact:
+        method = "exact"
+    elif args.method is not None:
+        method = args.method
+    elif args.runs is not None:
+        method = "g3pcx"
+    elif args.max_starts is not None or args.budget_s is not None:
+        method = "multistart"
+    else:
+        method = default_method(model)
     if method == "closed_form" and not has_closed_form(model):
         raise GlpmaError(f"{model.kind} has no closed-form forward kinematics; use --method multistart")
     if args.runs is not None and method != "g3pcx":
@@ -75,11 +87,15 @@ def run(args) -> int:
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
     if res.method == "multistart":
         extra.update(starts=res.starts, stop_reason=res.stop_reason, miss_probability=res.miss_probability,
-                     unseen_share_bound=res.unseen_share_bound, hits=list(res.hits),
+                     good_turing=res.good_turing, unseen_share_bound=res.unseen_share_bound, hits=list(res.hits),
                      partner_starts=res.partner_starts, parity_starts=res.parity_starts,
                      conditioning=list(res.conditioning), double_modes=res.double_modes)
     if res.method == "exact":
-        extra.update(complex_solutions=res.complex_solutions)
+        extra.update(complex_solutions=res.complex_solutions, complete=True, real_solutions=res.real_solutions)
+    if res.method == "homotopy":
+        extra.update(complete=res.complete, paths=res.paths, paths_failed=list(res.paths_failed),
+                     complex_solutions=res.complex_solutions, real_solutions=res.real_solutions,
+                     fallback=res.fallback or None, retracked=res.retracked, steps=res.steps)
     if args.json:
         print(json.dumps({"solutions": [{"variables": [float(v) for v in s.x], "pose": pose_json(model, s.x),
                                          "fitness": s.fun} for s in res.solutions],
@@ -87,11 +103,19 @@ def run(args) -> int:
     else:
         work = {"g3pcx": f"{res.runs} G3-PCX runs", "multistart": f"{res.starts} starts ({res.stop_reason})",
                 "exact": f"msolve, {res.complex_solutions} complex solutions",
-                "closed_form": "the closed form"}[res.method]
+                "closed_form": "the closed form",
+                "homotopy": f"{res.paths} homotopy paths, {res.complex_solutions} complex solutions"}[res.method]
         print(f"{len(res.solutions)} distinct real assembly modes from {work} in {res.elapsed_s:.3f} s")
+        if res.method == "homotopy":
+            print("  complete: every solution found (certified by the root count)" if res.complete and not res.fallback
+                  else "  complete: by msolve, after the homotopy fell short" if res.complete
+                  else f"  NOT complete: {res.complex_solutions} of {res.paths} solutions found; paths without "
+                       f"their own: {', '.join(map(str, res.paths_failed)) or 'none'} (install the exact extra "
+                       "for msolve's certified count)")
         if res.method == "multistart" and res.starts:
-            print(f"  chance that one more start finds a new mode (Good-Turing): {res.miss_probability:.3g}; "
-                  f"95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
+            print(f"  not certified: a mode whose basin holds too few of the starts is missed unseen (use the "
+                  f"homotopy or --exact); chance that the next start finds a new mode (Good-Turing): "
+                  f"{res.good_turing:.3g}; 95 % bound on the unseen basins' share: {res.unseen_share_bound:.3g}")
         if load_s:
             print(f"  one-time load of the compiled solvers: {load_s:.2f} s (not part of the search time)")
         for line in mode_table(model, res.solutions):
@@ -135,8 +159,11 @@ def mode_table(model, solutions) -> list:
 
 
 def no_mode_reason(res) -> str:
-    if res.method == "exact":
+    if res.method == "exact" or (res.method == "homotopy" and res.complete):
         return f"certified: none of the {res.complex_solutions} complex solutions is real"
+    if res.method == "homotopy":
+        return (f"none of the {res.complex_solutions} complex solutions found is real, and the homotopy is not "
+                "complete")
     if res.stop_reason == "unreachable":
         return "the legs cannot reach a common platform position"
     what = "runs" if res.method == "g3pcx" else "starts"

@@ -1,3 +1,4 @@
-"""Every real assembly mode of a set of leg lengths: :mod:`.multistart` (local solves from random
-starts with a stopping rule, or the papers' G3-PCX runs; ``solve_all``) and :mod:`.exact` (certified by
-msolve)."""
+"""Every real assembly mode of a set of leg lengths: :mod:`.homotopy` (a compiled parameter homotopy,
+certified by the root count; ``solve_all``'s default where a start system exists), :mod:`.multistart`
+(local solves from random starts with a stopping rule, or the papers' G3-PCX runs; ``solve_all``) and
+:mod:`.exact` (certified by msolve)."""

@@ -1,8 +1,19 @@
 """Every distinct real assembly mode of a manipulator for given leg lengths.
 
-Three methods (``solve_all(model, legs, method=...)``):
+Four methods (``solve_all(model, legs, method=...)``):
 
-``"multistart"`` (default) -- many cheap local solves from starts spread over the pose space.
+``"homotopy"`` (default where the model's family has a start system: the 3-RPR and every hexapod with six
+  legs, coincident joints included) -- the compiled parameter homotopy of :mod:`glpma_ros.modes.homotopy`:
+  one path per complex solution of a generic member, tracked to the given legs.  ``complete`` is a
+  certificate, not a probability: the distinct regular endpoints are as many as the family's (or the
+  design's) root count, so every real mode is among them.  Its real endpoints are polished by the model's
+  refinement and de-duplicated as below.  When the count falls short (paths failed twice, a double root at
+  a singularity) the answer says so (``complete`` false, ``paths_failed``) and, when msolve is installed and
+  the legs are not redundant, the exact method's modes replace it (``fallback``: ``"exact"``).  With
+  redundant legs the homotopy solves the first ``n_pose`` legs and the least-squares polish with every leg
+  keeps the consistent modes.
+
+``"multistart"`` -- many cheap local solves from starts spread over the pose space.
   Each start is a pose drawn at random (seeded ``numpy.random.Generator``): an orientation
   uniform on SO(3) (a normalised 4-D Gaussian, i.e. a uniform unit quaternion; 3-RPR: an
   angle uniform on (-pi, pi]) and a platform centre uniform in the region the legs can reach,
@@ -31,7 +42,11 @@ Three methods (``solve_all(model, legs, method=...)``):
     ``1 - 0.05 ** (1 / k)`` (about ``3 / k``, the "rule of three").
 
   Both are statements about the basins of this start distribution, not a proof: a mode whose
-  basin is tiny can be missed.  Use ``"exact"`` for a certificate.
+  basin is tiny can be missed.  On Dietmaier's 6-6 with 40 real modes (1998) the search stops with 36 to
+  38 of them while the Good-Turing estimate reads 0 to 0.001: the missed modes' basins hold less than one
+  start in a thousand, so no start-count statistic sees them.  So ``miss_probability`` is not reported
+  (None): the Good-Turing figure is kept as ``good_turing`` under its own meaning, the chance that the
+  next start finds a new mode.  Use ``"homotopy"`` or ``"exact"`` for a certificate.
 
   Partner search: real modes are born and die in pairs, at a fold of the forward kinematics
   where the leg Jacobian ``J`` turns singular (the real roots of a polynomial system with real
@@ -99,7 +114,7 @@ from ..solvers.common import CONVERGED, SolveResult
 from ..solvers.lm import I_LEG_FITNESS, I_NFEV, solve_one
 from ..solvers.local import LocalSolver, make_settings
 
-METHODS = ("multistart", "g3pcx", "exact", "closed_form")
+METHODS = ("homotopy", "multistart", "g3pcx", "exact", "closed_form")
 
 #: two polished solutions closer than this share of the scale are the same mode
 DEDUP_RELATIVE = 1e-4
@@ -180,7 +195,8 @@ class AllSolutions:
     evaluations: int      # residual(-and-Jacobian) evaluations, counted as in solvers.common
     method: str = "g3pcx"
     starts: int = 0                      # multistart: starts used (= runs)
-    miss_probability: float | None = None  # multistart: Good-Turing chance that one more start finds a new mode
+    miss_probability: float | None = None  # not estimable by the multistart (module docstring): None
+    good_turing: float | None = None     # multistart: Good-Turing chance that the next start finds a new mode
     unseen_share_bound: float | None = None  # multistart: 95 % bound on the share of starts leading to unseen modes
     complex_solutions: int | None = None  # exact: complex solutions (with multiplicity)
     stop_reason: str = ""                # multistart: stalled | max_starts | budget_exhausted | unreachable
@@ -189,6 +205,17 @@ class AllSolutions:
     partner_starts: int = 0              # multistart: local solves of the partner search (module docstring)
     parity_starts: int = 0               # multistart: random starts added by the parity rule (among ``starts``)
     conditioning: tuple = ()             # multistart: each mode's conditioning as found (order of solutions)
+    complete: bool | None = None         # homotopy / exact: every real mode certainly found
+    paths: int = 0                       # homotopy: paths tracked (the family's generic root count)
+    paths_failed: tuple = ()             # homotopy, incomplete: the paths without a solution of their own
+    fallback: str = ""                   # homotopy, incomplete: "exact" when msolve's modes replaced its own
+    retracked: int = 0                   # homotopy: path trackings repeated (another gamma / more care)
+    steps: int = 0                       # homotopy: predictor-corrector steps over every path
+
+    @property
+    def real_solutions(self) -> int:
+        """Distinct real assembly modes (the solutions' count)."""
+        return len(self.solutions)
 
     @property
     def double_modes(self) -> int:
@@ -217,8 +244,9 @@ def wide_range(model, legs) -> tuple[float, float]:
 def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", max_evals=None,
               max_starts=None, budget_s=None, polish=True, leg_noise_std=None) -> AllSolutions:
     """Every distinct real assembly mode of ``model`` at ``legs`` (config unit) by ``method``
-    (module docstring; default ``"multistart"``, or ``"g3pcx"`` when ``runs`` is given, as
-    before the multistart existed).  ``runs``: G3-PCX runs (default ``G3PCX_RUNS``);
+    (module docstring; default ``"homotopy"`` where the model's family has a start system, else
+    ``"multistart"``; ``"g3pcx"`` when ``runs`` is given, as before the multistart existed, and the
+    multistart when one of its limits or ``polish=False`` is).  ``runs``: G3-PCX runs (default ``G3PCX_RUNS``);
     ``solver``, ``max_evals``: of those runs; ``max_starts`` (default ``MAX_STARTS``) and
     ``budget_s`` (seconds, default none): limits of the multistart, ``polish=False``: its modes as
     found (counting only); ``seed``: the random stream; ``leg_noise_std`` (config unit, default the
@@ -227,7 +255,12 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
     if leg_noise_std is not None:
         leg_noise(model, leg_noise_std)         # checked up front, for every model
     if method is None:
-        method = "g3pcx" if runs is not None else "closed_form" if has_closed_form(model) else "multistart"
+        if runs is not None:
+            method = "g3pcx"
+        elif max_starts is not None or budget_s is not None or not polish:
+            method = "multistart"
+        else:
+            method = default_method(model)
     if runs is not None and method != "g3pcx":
         raise GlpmaError(f"runs counts G3-PCX searches (method g3pcx); {method} does not take it")
     if (max_starts is not None or budget_s is not None or not polish) and method != "multistart":
@@ -242,7 +275,18 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
         return exact_modes(model, legs, seed=seed)
     if method == "closed_form":
         return closed_form_modes(model, legs, seed=seed)
+    if method == "homotopy":
+        return homotopy_modes(model, legs, seed=seed, leg_noise_std=leg_noise_std)
     raise GlpmaError(f"unknown solve_all method {method!r}; choose one of {', '.join(METHODS)}")
+
+
+def default_method(model) -> str:
+    """``"closed_form"`` where the model has one (the Delta), ``"homotopy"`` where the model's family has a
+    start system, else ``"multistart"``."""
+    from . import homotopy
+    if has_closed_form(model):
+        return "closed_form"
+    return "homotopy" if homotopy.has_start_system(model) else "multistart"
 
 
 def _order(model, found: list) -> list:
@@ -580,7 +624,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
     conditioning = search.conditioning if len(search.conditioning) == n_modes else [math.nan] * n_modes
     return AllSolutions([found[k] for k in order], starts_used, time.perf_counter() - t0, evaluations,
                         method="multistart", starts=starts_used,
-                        miss_probability=singletons / starts_used if starts_used else None,
+                        good_turing=singletons / starts_used if starts_used else None,
                         unseen_share_bound=1.0 - (1.0 - UNSEEN_CONFIDENCE) ** (1.0 / stall) if stall else 1.0,
                         stop_reason=reason, stall=stall, hits=tuple(int(hits[k]) for k in order),
                         partner_starts=partner_starts, parity_starts=parity_starts,
@@ -604,7 +648,7 @@ def exact_modes(model, legs, *, seed=0) -> AllSolutions:
                              f"{model.unit} (near-singular legs?)")
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "exact", polished=True))
     return AllSolutions(_sorted(model, found), 0, time.perf_counter() - t0, evaluations, method="exact",
-                        complex_solutions=sol.complex_solutions)
+                        complex_solutions=sol.complex_solutions, complete=True)
 
 
 # -- closed form ----------------------------------------------------------------------------------
@@ -627,3 +671,40 @@ def closed_form_modes(model, legs, *, seed=0) -> AllSolutions:
         evaluations += nfev
         found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "closed_form", polished=True))
     return AllSolutions(_sorted(model, found), 0, time.perf_counter() - t0, evaluations, method="closed_form")
+
+
+# -- homotopy -------------------------------------------------------------------------------------
+def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None) -> AllSolutions:
+    """Every real mode by the parameter homotopy (:mod:`glpma_ros.modes.homotopy`), each polished with every
+    leg; redundant legs: those the polish leaves consistent (:func:`consistent_fitness`).  Incomplete and
+    msolve installed (not with redundant legs): msolve's modes instead, ``fallback = "exact"``."""
+    from . import homotopy
+    t0 = time.perf_counter()
+    res = homotopy.solve(model, legs, seed=seed)
+    rng = np.random.default_rng(seed)
+    limit = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
+    found, evaluations = [], 0
+    for x in res.real:
+        t1 = time.perf_counter()
+        xp, fp, nfev, _ = refine.polish(model, x, legs, rng)
+        evaluations += nfev
+        if _leg_fitness(model, xp, legs) > limit:
+            continue                     # redundant legs: inconsistent with the others
+        if all(model.distance(xp, s.x) > DEDUP_RELATIVE * model.scale for s in found):
+            found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "homotopy",
+                                     polished=True))
+    fallback = ""
+    complex_solutions, complete = res.complex_solutions, res.complete
+    if not res.complete and not model.redundancy:
+        try:
+            certified = exact_modes(model, legs, seed=seed)
+        except GlpmaError:              # not installed, a degenerate system or a polish off its box: as it is
+            certified = None
+        if certified is not None:
+            found, fallback = certified.solutions, "exact"
+            complex_solutions, complete = certified.complex_solutions, True
+            evaluations += certified.evaluations
+    return AllSolutions(_sorted(model, found), 0, time.perf_counter() - t0, evaluations, method="homotopy",
+                        complex_solutions=complex_solutions, complete=complete, paths=res.paths,
+                        paths_failed=tuple(res.paths_failed), fallback=fallback, retracked=res.retracked,
+                        steps=res.steps)

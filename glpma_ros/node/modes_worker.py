@@ -46,17 +46,26 @@ class Modes(list):
 
 
 def modes_of(result) -> Modes:
-    """:class:`Modes` of a :class:`~glpma_ros.modes.multistart.AllSolutions`."""
+    """:class:`Modes` of a :class:`~glpma_ros.modes.multistart.AllSolutions`; the homotopy's ``stop_reason`` is
+    ``complete`` or ``incomplete`` and its ``miss_probability`` 0 when complete (certified), else None."""
+    if result.method == "homotopy":
+        return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], 0,
+                     "complete" if result.complete else "incomplete", 0.0 if result.complete else None)
     return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], result.starts, result.stop_reason,
                  result.miss_probability)
 
 
 def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
-    """What a request computes: the multistart, at most ``runs`` starts; ``leg_noise_std`` (config
-    unit): redundant legs, the noise a mode's leg residuals are tested against (the node's parameter)."""
-    from ..modes.multistart import has_closed_form, solve_all
-    if has_closed_form(model):          # the Delta: its two modes in closed form
+    """What a request computes: the closed form where the model has one (the Delta), the parameter homotopy
+    where the model's family has a start system (``runs`` unused for both), else the multistart, at most
+    ``runs`` starts; ``leg_noise_std`` (config unit): redundant legs, the noise a mode's leg residuals are
+    tested against (the node's parameter)."""
+    from ..modes.multistart import default_method, solve_all
+    method = default_method(model)
+    if method == "closed_form":
         return modes_of(solve_all(model, legs, method="closed_form", seed=int(seed)))
+    if method == "homotopy":
+        return modes_of(solve_all(model, legs, method="homotopy", seed=int(seed), leg_noise_std=leg_noise_std))
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
                               leg_noise_std=leg_noise_std))
 

@@ -78,12 +78,16 @@ def exercise(model, solver: str) -> float:
     return time.perf_counter() - t0
 
 
-def exercise_solve_all(model, methods=("multistart", "g3pcx")) -> float:
-    """Load what :func:`~glpma_ros.modes.multistart.solve_all` uses for ``methods`` (default both the
-    multistart and the G3-PCX runs); returns the seconds spent."""
+def exercise_solve_all(model, methods=("homotopy", "multistart", "g3pcx")) -> float:
+    """Load what :func:`~glpma_ros.modes.multistart.solve_all` uses for ``methods`` (default the homotopy,
+    the multistart and the G3-PCX runs); returns the seconds spent."""
+    from ..modes import homotopy
     from ..modes.multistart import solve_all
     t0 = time.perf_counter()
     legs = warm_up_legs(model)
+    if "homotopy" in methods and homotopy.has_start_system(model):
+        homotopy.solve(model, legs, seed=0)         # the tracker (the polish is the multistart's code)
+        solve_all(model, legs, method="multistart", max_starts=1, seed=0)
     if "multistart" in methods:
         solve_all(model, legs, method="multistart", max_starts=SOLVE_ALL_STARTS, seed=0)
     if "g3pcx" in methods:

@@ -119,8 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the fixed coordinates, e.g. --at theta=30 (3-RPR) or --at z=900 yaw=10 (hexapod)")
     p.add_argument("--method", choices=METHODS, default=None,
                    help="how the modes of a point are counted: multistart (default; solve_all's multistart of "
-                        "Levenberg-Marquardt solves with its stopping rule, as glpma-fk solve-all) or g3pcx (the "
-                        "papers' polished G3-PCX searches, --runs of them; default when --runs is given)")
+                        "Levenberg-Marquardt solves with its stopping rule), homotopy (solve_all's parameter "
+                        "homotopy, certified by the root count, as glpma-fk solve-all) or "
+                        "g3pcx (the papers' polished G3-PCX searches, --runs of them; default when --runs is given)")
     p.add_argument("--runs", type=int, default=None, metavar="N",
                    help=f"g3pcx: searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
     p.add_argument("--max-starts", type=int, default=None, metavar="N",

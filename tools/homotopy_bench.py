@@ -1,0 +1,102 @@
+#!/usr/bin/env python3
+"""Time the parameter homotopy beside the multistart and msolve in one run (BENCHMARKS.md, "Every assembly
+mode: the homotopy"): Dietmaier's 6-6, random 6-6s and random 3-RPRs (glpma_ros.models.random_geometry).
+
+Per case: the homotopy's paths alone (``track_paths``, every path of one round, in-process), the whole
+``solve_all(method="homotopy")`` (certificate, real endpoints, LM polish), ``solve_all(method="multistart")``
+and, with ``--exact N``, msolve on the first N cases of each kind; the medians, wall clock and process CPU
+time, and the modes each found.
+
+    PYTHONPATH=. python tools/homotopy_bench.py [--cases 20] [--exact 3] [--repeats 5]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from glpma_ros.config import model_from_dict  # noqa: E402
+from glpma_ros.models.random_geometry import GENERATORS  # noqa: E402
+from glpma_ros.modes import homotopy as H  # noqa: E402
+from glpma_ros.modes.multistart import solve_all  # noqa: E402
+
+DIETMAIER = {"manipulator": "hexapod_66", "unit": "m",
+             "base": [[0, 0, 0], [1.107915, 0, 0], [0.549094, 0.756063, 0], [0.735077, -0.223935, 0.525991],
+                      [0.514188, -0.526063, -0.368418], [0.590473, 0.094733, -0.205018]],
+             "platform": [[0, 0, 0], [0.542805, 0, 0], [0.956919, -0.528915, 0], [0.665885, -0.353482, 1.402538],
+                          [0.478359, 1.158742, 0.107672], [-0.137087, -0.235121, 0.353913]]}
+DIETMAIER_LEGS = np.array([1.0, 0.645275, 1.086284, 1.503439, 1.281933, 0.771071])
+
+
+def timed(fn, repeats):
+    """(median wall s, median CPU s, last result) of ``repeats`` calls."""
+    wall, cpu, out = [], [], None
+    for _ in range(repeats):
+        w0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    return statistics.median(wall), statistics.median(cpu), out
+
+
+def paths_only(model, legs, seed):
+    start = H.load_start_system(model.kind)
+    family = start.family
+    K = family.coefficient_path(start.params, family.target(model, legs).params)
+    gammas = np.full(len(start.solutions), H.random_gammas(np.random.default_rng(seed), 1)[0])
+    return lambda: H.track(K, start.solutions, gammas)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--cases", type=int, default=20, help="random cases of each kind")
+    p.add_argument("--exact", type=int, default=3, help="cases of each kind also solved by msolve")
+    p.add_argument("--repeats", type=int, default=5)
+    args = p.parse_args(argv)
+    rng = np.random.default_rng(2026)
+    groups = {"dietmaier": [(model_from_dict(DIETMAIER), DIETMAIER_LEGS)],
+              "hexapod_66": [GENERATORS["hexapod_66"](rng)[:2] for _ in range(args.cases)],
+              "planar_3rpr": [GENERATORS["planar_3rpr"](rng)[:2] for _ in range(args.cases)]}
+    for model, legs in (groups["dietmaier"][0], groups["planar_3rpr"][0]):    # load the compiled code
+        solve_all(model, legs, method="homotopy")
+        solve_all(model, legs, method="multistart")
+    report = {}
+    for name, cases in groups.items():
+        rows = []
+        for k, (model, legs) in enumerate(cases):
+            row = {}
+            row["paths_wall"], row["paths_cpu"], _ = timed(paths_only(model, legs, k), args.repeats)
+            row["homotopy_wall"], row["homotopy_cpu"], res = timed(
+                lambda m=model, lg=legs, k=k: solve_all(m, lg, method="homotopy", seed=k), args.repeats)
+            row["homotopy_modes"], row["complete"] = res.real_solutions, res.complete
+            row["multistart_wall"], row["multistart_cpu"], ms = timed(
+                lambda m=model, lg=legs, k=k: solve_all(m, lg, method="multistart", seed=k), max(1, args.repeats // 2))
+            row["multistart_modes"] = len(ms.solutions)
+            if k < args.exact:
+                row["msolve_wall"], row["msolve_cpu"], ex = timed(
+                    lambda m=model, lg=legs: solve_all(m, lg, method="exact"), 1)
+                row["msolve_modes"] = len(ex.solutions)
+            rows.append(row)
+            print(name, k, json.dumps({a: (round(b, 5) if isinstance(b, float) else b) for a, b in row.items()}),
+                  flush=True)
+        med = {key: statistics.median(r[key] for r in rows if key in r)
+               for key in rows[0] if key.endswith(("_wall", "_cpu"))}
+        med.update(complete=sum(r["complete"] for r in rows), cases=len(rows),
+                   multistart_missed=sum(r["multistart_modes"] < r["homotopy_modes"] for r in rows),
+                   msolve_agrees=sum(r.get("msolve_modes") == r["homotopy_modes"] for r in rows if "msolve_modes" in r))
+        report[name] = med
+        print(name, "MEDIANS", json.dumps({a: (round(b, 5) if isinstance(b, float) else b) for a, b in med.items()}),
+              flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
