@@ -42,7 +42,8 @@ setup(
         # pytest < 9: ROS 2 Jazzy's launch_testing plugin (the launch tests under colcon test) fails to load
         # under pytest 9 (README, "Testing your integration"); Ubuntu 24.04 ships 7.4.4
         "test": TOOLS + ["pytest>=7,<9", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
-                         "dask[distributed]>=2024.1", "ruff>=0.4"],     # ruff: .ci/run's lint
+                         "dask[distributed]>=2024.1", "ruff>=0.4",     # ruff: .ci/run's lint
+                         "yourdfpy>=0.0.56"],     # yourdfpy: parses the generated URDF, its forward kinematics
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
         "bag": TOOLS + ["rosbags>=0.10"],

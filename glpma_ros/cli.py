@@ -342,6 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
     a.set_defaults(func=cmd_solve_all)
     _add_precompile(sub)
     _add_modes(sub)
+    _add_urdf(sub)
     # subcommands with parsers of their own (their options may start with ``--``)
     delegated = {"node": "run the estimator node (rclpy or Cyclone DDS)"}
     for name, ep in sorted(plugins().items()):
@@ -424,6 +425,59 @@ def cmd_modes(args) -> int:
     return modes_main(args)
 
 
+def _add_urdf(sub) -> None:
+    q = sub.add_parser("urdf", help="the manipulator's URDF (loop-cut tree) for robot_state_publisher and RViz",
+                       description="Write the URDF of the manipulator of CONFIG (plain URDF, no xacro; metres, "
+                       "radians): base_link, each leg a chain of its joints as built (hexapod: universal joint "
+                       "legI_u1, legI_u2, prismatic legI_actuator, spherical joint legI_s1, legI_s2, legI_s3; "
+                       "3-RPR: legI_base, legI_actuator, legI_platform) ending at its platform joint (link "
+                       "legI_end), platform_link fixed to leg1_end (the loop cut). The glpma_fk node publishes "
+                       "every joint's state on ~/mechanism_joint_states (publish_joint_states:=true). Joint naming: "
+                       "doc/interface.md.")
+    q.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
+    q.add_argument("--out", default=None, metavar="FILE", help="write the URDF here (default: stdout)")
+    q.add_argument("--prefix", default="", metavar="NAME_",
+                   help="put before every link, joint and material name (e.g. left_), for two robots in one tree")
+    q.add_argument("--meshes", default=None, metavar="DIR",
+                   help="a folder of meshes (metres, in their link's frame): a link named LINK (without the prefix) "
+                        "shows DIR/LINK.stl (or .dae, .obj) where it exists, a leg's link also DIR/leg_PART.stl "
+                        "(e.g. leg_cylinder.stl, leg_rod.stl for every leg); the other links keep the simple geometry")
+    q.add_argument("--name", default=None, help="the robot's name (default: the config's file name)")
+    q.set_defaults(func=cmd_urdf)
+
+
+#: a prefix is put before URDF and TF names: letters, digits, underscores (and slashes for a namespace)
+PREFIX_PATTERN = re.compile(r"[A-Za-z0-9_/]*")
+
+
+def cmd_urdf(args) -> int:
+    from pathlib import Path
+
+    from .config import resolve_config
+    from .description.urdf import urdf_text
+    if not PREFIX_PATTERN.fullmatch(args.prefix):
+        raise GlpmaError(f"--prefix {args.prefix!r}: use letters, digits, '_' and '/' only")
+    if args.meshes is not None and not Path(args.meshes).expanduser().is_dir():
+        raise GlpmaError(f"--meshes {args.meshes}: not a folder")
+    path = resolve_config(args.config)
+    model = _load(args.config)
+    name = args.name or Path(str(path)).stem
+    text = urdf_text(model, robot_name=name, prefix=args.prefix, meshes=args.meshes, source=Path(str(path)).name,
+                     passive_limits=getattr(model, "passive_limits", None))
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    out = Path(args.out)
+    if out.resolve() == Path(str(path)).resolve():
+        raise GlpmaError(f"--out {args.out} is the config itself; an input file is never overwritten")
+    try:
+        out.write_text(text)
+    except OSError as exc:
+        raise GlpmaError(f"cannot write {args.out}: {exc.strerror or exc}") from None
+    print(f"wrote {out} ({model.n_legs} legs)", file=sys.stderr)
+    return 0
+
+
 def _run(argv) -> int:
     if argv and argv[0] == "node":
         from .node.entry import main as node_main
@@ -432,7 +486,7 @@ def _run(argv) -> int:
     if plugin is not None:
         return _run_plugin(plugin, argv[1:])
     args = build_parser().parse_args(argv)
-    if args.command != "modes":     # everything else runs the compiled kernels
+    if args.command not in ("modes", "urdf"):     # everything else runs the compiled kernels
         from .compat import check_numba
         check_numba()
     return args.func(args)
