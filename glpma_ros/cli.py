@@ -446,16 +446,13 @@ def _add_urdf(sub) -> None:
     q.set_defaults(func=cmd_urdf)
 
 
-#: a prefix is put before URDF and TF names: letters, digits, underscores (and slashes for a namespace)
-PREFIX_PATTERN = re.compile(r"[A-Za-z0-9_/]*")
-
-
 def cmd_urdf(args) -> int:
     from pathlib import Path
 
     from .config import resolve_config
     from .description.urdf import urdf_text
-    if not PREFIX_PATTERN.fullmatch(args.prefix):
+    from .node.params import URDF_PREFIX
+    if not URDF_PREFIX.fullmatch(args.prefix):
         raise GlpmaError(f"--prefix {args.prefix!r}: use letters, digits, '_' and '/' only")
     if args.meshes is not None and not Path(args.meshes).expanduser().is_dir():
         raise GlpmaError(f"--meshes {args.meshes}: not a folder")

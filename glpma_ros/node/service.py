@@ -113,7 +113,7 @@ class FkService:
         self._check_joint_names(values["joint_names"])
         self._check_frames(values)
         self.leg_health = LegHealth(self.model)
-        self.outputs = OutputBuilder(self.model)
+        self.outputs = OutputBuilder(self.model, values["urdf_prefix"])
         self.log_throttle = LogThrottle()    # one log line a second per rejection reason
         self._lock = threading.RLock()          # estimator and parameters (statistics and modes: their own)
         self._warmed: set = set()               # solvers warm_up() has run
@@ -373,9 +373,11 @@ class FkService:
         if not any(wanted.values()):
             self.outputs.reset_previous()      # no finite difference across a time it was off
             return None
+        # the joints' rates come from the twist: computed for them when publish_twist is on
+        twist_for_joints = wanted["joint_states"] and params["publish_twist"]
         if not all(wanted[name] == params[key] for name, key in OUTPUT_PARAMS.items()):
             params = {**params, **{OUTPUT_PARAMS[name]: on for name, on in wanted.items()}}
-        extras = self.outputs.build(outcome, params)
+        extras = self.outputs.build(outcome, params, twist_for_joints)
         return extras if extras.any else None
 
     def extras_on(self) -> bool:

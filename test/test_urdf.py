@@ -1,0 +1,224 @@
+"""The manipulator's URDF (``glpma-fk urdf``) and every joint's state (``~/mechanism_joint_states``).
+
+* for every shipped config the URDF parses with a URDF library (yourdfpy) and, with the joint
+  states the node computes for its poses -- along a trajectory, in several assembly modes -- every
+  leg's chain, composed by that library's joint transforms, ends at its platform joint, the platform
+  link is at the pose and the actuators are at the leg lengths, within 1e-9 m / 1e-9 rad;
+* the joints' rates are those of the twist (finite differences of the joint positions);
+* the JointState's wire form is Cyclone DDS's own; the command's options and bad input.
+"""
+import io
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import CONFIG, GENEROUS_BUDGET_MS, RPR_YAML
+from glpma_ros.cli import main
+from glpma_ros.config import load_manipulator, resolve_config, shipped_configs
+from glpma_ros.description.mechanism import Mechanism
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
+from glpma_ros.node.service import FkService, JointStateInput
+
+yourdfpy = pytest.importorskip("yourdfpy")
+
+#: the node's poses are solved to round-off (1e-13 of the legs); composing a chain of six joint
+#: transforms adds a few ulps: 1e-9 m / 1e-9 rad is far above both and far below any real error
+TOL = 1e-9
+#: poses along the trajectory per assembly mode, and the trajectory's size (share of the geometry's)
+STEPS = 8
+AMPLITUDE = 0.02
+#: assembly modes of hexapod_66_rolland.yaml tried (of its 16): a spread above and below the base
+ROLLAND_MODES = (0, 1, 4, 10, 11, 15)
+
+
+def known_modes(name: str) -> list:
+    """Solver variables of the config's known assembly modes (config unit, radians)."""
+    doc = yaml.safe_load((CONFIG / f"{name}.yaml").read_text())
+    if "real_solutions" in doc:
+        return [[s["x"], s["y"], math.radians(s["theta_deg"])] for s in doc["real_solutions"]]
+    modes = doc["published_solutions"]
+    return [modes[k] for k in ROLLAND_MODES] if name == "hexapod_66_rolland" else modes
+
+
+def trajectory(model, x0) -> list:
+    """Poses (solver variables) along a closed loop around the pose of ``x0``: a circle and a
+    wobble of the platform, small enough to stay on ``x0``'s assembly mode."""
+    pose = model.pose(model.canonical(x0) if model.kind == "planar_3rpr" else x0)
+    p0, R0 = np.asarray(pose.position), matrix_from_quaternion(pose.orientation)
+    r = AMPLITUDE * model.scale
+    out = []
+    for k in range(STEPS):
+        t = 2.0 * math.pi * k / STEPS
+        if model.kind == "planar_3rpr":
+            dp, w = np.array([r * math.sin(t), r * (math.cos(t) - 1.0), 0.0]), np.array([0.0, 0.0, 0.1 * math.sin(t)])
+        else:
+            dp = np.array([r * math.sin(t), r * (math.cos(t) - 1.0), 0.5 * r * math.sin(2 * t)])
+            w = 0.05 * np.array([math.sin(t), math.cos(t) - 1.0, math.sin(2 * t)])
+        R = rotation_from_vector(w) @ R0
+        out.append(model.variables_from_pose(p0 + dp, quaternion_from_matrix(R)))
+    return out
+
+
+def urdf_of(name: str, tmp_path, *extra) -> str:
+    out = tmp_path / f"{name}.urdf"
+    assert main(["urdf", name, "--out", str(out), *extra]) == 0
+    return out.read_text()
+
+
+def load(text: str):
+    robot = yourdfpy.URDF.load(io.StringIO(text), build_scene_graph=True, load_meshes=False)
+    assert robot.validate(), robot.errors
+    return robot
+
+
+@pytest.mark.parametrize("name", shipped_configs())
+def test_every_leg_of_the_urdf_ends_at_its_platform_joint(name, tmp_path):
+    model = load_manipulator(resolve_config(name))
+    robot = load(urdf_of(name, tmp_path))
+    metres = model.metres_per_unit
+    worst = {"end": 0.0, "platform": 0.0, "actuator": 0.0, "angle": 0.0}
+    poses = 0
+    for x0 in known_modes(name):
+        svc = FkService({"manipulator_config": str(CONFIG / f"{name}.yaml"), "initial_pose": list(map(float, x0)),
+                         "publish_joint_states": True, "time_budget_ms": GENEROUS_BUDGET_MS})
+        for k, x in enumerate(trajectory(model, x0)):
+            legs = model.inverse_kinematics(x)
+            outcome = svc.handle(list(legs * metres), 1_000_000_000 + k)
+            assert outcome.pose is not None, outcome.reason
+            ex = svc.extras(outcome)
+            assert ex.stamp_ns == outcome.pose.stamp_ns           # stamped as the pose
+            names = [j.name for j in robot.robot.joints if j.type != "fixed"]
+            assert sorted(ex.joint_names) == sorted(names)        # every moving joint of the URDF
+            robot.update_cfg(dict(zip(ex.joint_names, ex.joint_positions)))
+            p, R = np.array(outcome.pose.position), matrix_from_quaternion(outcome.pose.orientation)
+            B = p + model_platform_m(model) @ R.T                 # the platform joints at the pose
+            for i in range(model.n_legs):
+                T = robot.get_transform(f"leg{i + 1}_end", "base_link")
+                worst["end"] = max(worst["end"], float(np.abs(T[:3, 3] - B[i]).max()))
+                worst["angle"] = max(worst["angle"], float(np.abs(T[:3, :3] - R).max()))
+            T = robot.get_transform("platform_link", "base_link")
+            worst["platform"] = max(worst["platform"], float(np.abs(T[:3, 3] - p).max()),
+                                    float(np.abs(T[:3, :3] - R).max()))
+            # the pose is the truth's (the mode tracked), and the actuators are at the leg lengths
+            truth = model.pose(x)
+            assert np.abs(np.array(outcome.pose.position) - truth.position * metres).max() < TOL
+            actuators = [q for n, q in zip(ex.joint_names, ex.joint_positions) if n.endswith("_actuator")]
+            worst["actuator"] = max(worst["actuator"], float(np.abs(np.array(actuators) - legs * metres).max()))
+            poses += 1
+    assert poses >= STEPS
+    assert max(worst.values()) < TOL, worst
+
+
+def model_platform_m(model) -> np.ndarray:
+    pts = np.asarray(model.platform) * model.metres_per_unit
+    return np.hstack((pts, np.zeros((len(pts), 1)))) if pts.shape[1] == 2 else pts
+
+
+@pytest.mark.parametrize("name", ["planar_3rpr_seed", "hexapod_66_rolland", "hexapod_33_octahedral"])
+def test_joint_rates_are_the_twist_s(name):
+    """Each joint's rate = the finite difference of its position over a small step of the twist
+    (central difference: error O(dt^2) ~ 1e-10 of the rates' size, checked to 1e-6)."""
+    model = load_manipulator(resolve_config(name))
+    mech = Mechanism(model)
+    rng = np.random.default_rng(7)
+    planar = model.kind == "planar_3rpr"
+    dt = 1e-6
+    for x0 in known_modes(name)[:2]:
+        pose = model.pose(x0)
+        p, q = pose.position * model.metres_per_unit, pose.orientation
+        v = rng.normal(size=3) * 0.1
+        w = rng.normal(size=3)
+        if planar:
+            v[2], w[:2] = 0.0, 0.0
+        rates = mech.velocities(p, q, v, w)
+        R = matrix_from_quaternion(q)
+        at = [mech.positions(p + v * h, quaternion_from_matrix(rotation_from_vector(w * h) @ R)) for h in (dt, -dt)]
+        fd = (at[0] - at[1]) / (2 * dt)
+        assert np.abs(rates - fd).max() < 1e-6 * max(1.0, np.abs(rates).max())
+
+
+def test_node_joint_rates_follow_the_legs_rates():
+    """With joint_states velocities in, the twist is exact and the actuators' rates are the legs'."""
+    x0 = known_modes("planar_3rpr_seed")[0]
+    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": x0, "input_type": "joint_state",
+                     "publish_joint_states": True, "time_budget_ms": GENEROUS_BUDGET_MS})
+    legs_m = tuple(load_manipulator(RPR_YAML).inverse_kinematics(x0) * 1e-3)
+    rates = (0.01, -0.02, 0.005)
+    out = svc.handle(JointStateInput(("leg_1", "leg_2", "leg_3"), legs_m, rates), 5)
+    ex = svc.extras(out)
+    got = [v for n, v in zip(ex.joint_names, ex.joint_velocities) if n.endswith("_actuator")]
+    np.testing.assert_allclose(got, rates, rtol=0, atol=1e-12)   # a 3x3 solve and back: round-off
+
+
+def test_joint_states_are_off_by_default_and_the_twist_stays_unpublished():
+    x0 = known_modes("planar_3rpr_seed")[0]
+    svc = FkService({"manipulator_config": str(RPR_YAML), "initial_pose": x0, "time_budget_ms": GENEROUS_BUDGET_MS})
+    legs = list(load_manipulator(RPR_YAML).inverse_kinematics(x0) * 1e-3)
+    assert svc.extras(svc.handle(legs, 1)).joint_names is None
+    ok, _ = svc.set_parameters({"publish_joint_states": True})
+    assert ok
+    # joint states subscribed, twist_estimate not: the twist is computed for the rates, not published
+    svc.extras(svc.handle(legs, 2), subscribed={"joint_states"})
+    ex = svc.extras(svc.handle([v * (1 + 1e-4) for v in legs], 3), subscribed={"joint_states"})
+    assert ex.joint_names is not None and len(ex.joint_velocities) == len(ex.joint_names)
+    assert not ex.twist_out
+    from glpma_ros.node.dds.cdr import Encoder
+    assert [name for name, _ in Encoder().extras(ex)] == ["joint_states"]
+
+
+def test_joint_state_bytes_are_cyclone_dds_s():
+    pytest.importorskip("cyclonedds")
+    from glpma_ros.node.dds import messages as M
+    from glpma_ros.node.dds.cdr import Encoder
+    rng = np.random.default_rng(3)
+    enc = Encoder()
+    for frame in ("", "base", "robot_base_link"):
+        for names in ([], ["a"], ["leg1_u1", "leg1_u2", "leg1_actuator"], [f"j{k}" * (k + 1) for k in range(9)]):
+            stamp = int(rng.integers(0, 2**31 * 10**9))
+            pos = tuple(float(v) for v in rng.normal(size=len(names)))
+            for vel in ((), tuple(float(v) for v in rng.normal(size=len(names)))):
+                msg = M.JointState(M.Header(M.Time.from_ns(stamp), frame), list(names), list(pos), list(vel), [])
+                raw = msg.serialize()
+                raw += b"\0" * (-len(raw) % 4)
+                assert enc.joint_state(stamp, frame, names, pos, vel) == raw
+
+
+def test_urdf_prefix_meshes_and_names(tmp_path):
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    (meshes / "base_link.stl").write_bytes(b"solid x\nendsolid x\n")
+    (meshes / "leg_rod.dae").write_text("<COLLADA/>")
+    text = urdf_of("hexapod_63_stewart", tmp_path, "--prefix", "left_", "--meshes", str(meshes), "--name", "bot")
+    root = ET.fromstring(text)
+    assert root.get("name") == "bot"
+    links = {link.get("name"): link for link in root.iter("link")}
+    joints = {j.get("name"): j for j in root.iter("joint")}
+    assert "left_base_link" in links and "left_platform_link" in links
+    for i in range(1, 7):
+        for part in ("u1", "u2", "actuator", "s1", "s2", "s3"):
+            assert f"left_leg{i}_{part}" in joints
+    assert joints["left_platform_mount"].get("type") == "fixed"
+    assert joints["left_leg1_actuator"].find("limit").get("lower") == "0.15"     # leg_limits 150 mm
+    mesh = links["left_base_link"].find("visual/geometry/mesh")
+    assert mesh.get("filename") == (meshes / "base_link.stl").resolve().as_uri()
+    for i in range(1, 7):
+        assert links[f"left_leg{i}_rod"].find("visual/geometry/mesh").get("filename").endswith("leg_rod.dae")
+    assert links["left_leg1_cylinder"].find("visual/geometry/cylinder") is not None     # no mesh: simple
+    load(text)
+
+
+def test_urdf_to_stdout_and_bad_input(tmp_path, capsys):
+    assert main(["urdf", "planar_3rpr_seed"]) == 0
+    out = capsys.readouterr().out
+    names = [j.get("name") for j in ET.fromstring(out.split("\n", 2)[2]).iter("joint")]
+    assert names[:3] == ["leg1_base", "leg1_actuator", "leg1_platform"] and names[-1] == "platform_mount"
+    for argv, message in ((["urdf", "no_such_config"], "no_such_config"),
+                          (["urdf", "planar_3rpr_seed", "--prefix", "a b"], "--prefix"),
+                          (["urdf", "planar_3rpr_seed", "--meshes", str(tmp_path / "none")], "not a folder"),
+                          (["urdf", str(RPR_YAML), "--out", str(RPR_YAML)], "never overwritten")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
