@@ -222,3 +222,74 @@ def test_urdf_to_stdout_and_bad_input(tmp_path, capsys):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+# -- passive-joint limits ----------------------------------------------------------------------------
+
+
+def _config_with_limits(tmp_path, name: str, limits) -> str:
+    doc = yaml.safe_load((CONFIG / f"{name}.yaml").read_text())
+    doc["passive_joint_limits"] = limits
+    path = tmp_path / f"{name}_limits.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return str(path)
+
+
+def test_a_pose_beyond_a_passive_joint_limit_is_published_and_named(tmp_path):
+    """hexapod_63_stewart's example pose bends its joints 29.5-34.9 degrees: with 33-degree cones the legs
+    beyond are named on /diagnostics (WARN, the status stays converged); with the shipped 40 none is."""
+    doc = yaml.safe_load((CONFIG / "hexapod_63_stewart.yaml").read_text())
+    x0 = doc["published_solutions"][0]
+    for limits, beyond in (({"universal_cone_deg": 40.0, "spherical_cone_deg": 40.0}, False),
+                           ({"universal_cone_deg": 33.0, "spherical_cone_deg": [40, 40, 40, 40, 33, 40]}, True)):
+        path = _config_with_limits(tmp_path, "hexapod_63_stewart", limits)
+        model = load_manipulator(path)
+        svc = FkService({"manipulator_config": path, "initial_pose": x0, "time_budget_ms": GENEROUS_BUDGET_MS})
+        assert svc.extras_on()
+        out = svc.handle(list(model.inverse_kinematics(x0) * 1e-3), 1)
+        assert out.pose is not None and out.estimate.status == "converged"
+        svc.extras(out, subscribed=set())         # checked even with no extra output subscribed
+        report = svc.diagnostics()
+        values = report.as_dict()
+        if beyond:
+            # legs 5 (34.8 deg) universal; leg 5 spherical (34.9 > 33); nothing else is over 33
+            assert values["joint limit"] == ("leg 5 universal 34.8 deg > 33.0 deg; leg 5 spherical 34.9 deg > "
+                                             "33.0 deg"), values["joint limit"]
+            assert report.level == 1 and "joint_limit: leg 5 universal 34.8 deg > 33.0 deg" in report.message
+            assert values["poses beyond a joint limit"] == "1"
+        else:
+            assert values["joint limit"] == "none" and report.level == 0, report.message
+        assert 0.0 < float(values["conditioning last"]) <= 1.0
+
+
+def test_planar_revolute_ranges_and_the_urdf_limits(tmp_path):
+    # real solution 1: the legs at 58.1, 151.5, -43.8 deg from the base's x axis, the platform joints at
+    # -91.5, 175.1, 10.3 deg: leg 2's base joint beyond [-90, 150], leg 1's platform joint beyond [-90, 170]
+    x0 = known_modes("planar_3rpr_seed")[0]
+    path = _config_with_limits(tmp_path, "planar_3rpr_seed", {"base_revolute_deg": [[-90, 180], [-90, 150], [-90, 40]],
+                                                              "platform_revolute_deg": [[-90, 170], [-180, 180],
+                                                                                        [-170, 170]]})
+    model = load_manipulator(path)
+    svc = FkService({"manipulator_config": path, "initial_pose": x0, "time_budget_ms": GENEROUS_BUDGET_MS})
+    svc.extras(svc.handle(list(model.inverse_kinematics(x0) * 1e-3), 1))
+    assert svc.diagnostics().as_dict()["joint limit"] == ("leg 2 base revolute 151.5 deg > 150.0 deg; "
+                                                          "leg 1 platform revolute -91.5 deg < -90.0 deg")
+    robot = ET.fromstring(urdf_of(path, tmp_path).split("\n", 2)[2])
+    limits = {j.get("name"): j.find("limit") for j in robot.iter("joint")}
+    assert float(limits["leg3_base"].get("upper")) == pytest.approx(math.radians(40.0), abs=1e-15)
+    assert float(limits["leg1_platform"].get("lower")) == pytest.approx(math.radians(-90.0), abs=1e-15)
+    assert float(limits["leg2_platform"].get("upper")) == pytest.approx(math.pi, abs=1e-15)
+
+
+@pytest.mark.parametrize("limits, message", [
+    ({"cone": 3}, "no key 'cone'"),
+    ({"universal_cone_deg": 0}, "between 0 and 180"),
+    ({"universal_cone_deg": [30, 30]}, "one per leg"),
+    ({"base_revolute_deg": [10, 5]}, "min < max"),
+    ([30], "must be a mapping")])
+def test_bad_passive_limits_are_refused_in_one_line(tmp_path, limits, message):
+    from glpma_ros.errors import ConfigError
+    name = "planar_3rpr_seed" if "base_revolute_deg" in str(limits) else "hexapod_63_stewart"
+    with pytest.raises(ConfigError, match=message) as exc:
+        load_manipulator(_config_with_limits(tmp_path, name, limits))
+    assert "\n" not in str(exc.value)

@@ -122,7 +122,10 @@ class OutputBuilder:
 
     def __init__(self, model, urdf_prefix: str = ""):
         self.model = model
-        self.mechanism = Mechanism(model, prefix=urdf_prefix)
+        self.mechanism = Mechanism(model, prefix=urdf_prefix, passive_limits=getattr(model, "passive_limits", None))
+        self.passive_limits = getattr(model, "passive_limits", None)
+        self.limit_poses = 0             # poses with a passive joint beyond its limit, so far
+        self.last_violation = None       # the joints of the last such pose, as text
         self.metres_per_unit = float(model.metres_per_unit)
         self.jacobian = PoseJacobian(model)
         self._without: dict = {}         # redundant legs: leg left out -> the Jacobian of the others
@@ -194,6 +197,15 @@ class OutputBuilder:
         if params.get("publish_joint_states"):
             self.joint_states(out)
         return out
+
+    def check_limits(self, outcome) -> None:
+        """Count ``outcome``'s pose when a passive joint is beyond the config's limits (and name them)."""
+        if self.passive_limits is None or outcome.pose is None:
+            return
+        found = self.passive_limits.violations(self.mechanism, outcome.pose.position, outcome.pose.orientation)
+        if found:
+            self.limit_poses += 1
+            self.last_violation = "; ".join(str(v) for v in found)
 
     def joint_states(self, out: ExtraOutputs) -> None:
         """Fill ``out``'s joint fields: every moving joint of the URDF at ``out``'s pose, with rates

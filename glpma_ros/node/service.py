@@ -368,6 +368,7 @@ class FkService:
         params = self.params if params is None else params
         if outcome.pose is None:
             return None
+        self.outputs.check_limits(outcome)      # the config's passive-joint limits, for /diagnostics
         wanted = {name: params[key] and (subscribed is None or name in subscribed)
                   for name, key in OUTPUT_PARAMS.items()}
         if not any(wanted.values()):
@@ -381,9 +382,10 @@ class FkService:
         return extras if extras.any else None
 
     def extras_on(self) -> bool:
-        """Whether any extra output is switched on (else no pose is handed to the extras thread)."""
+        """Whether any extra output is switched on or the config has passive-joint limits to check (else no
+        pose is handed to the extras thread)."""
         params = self.params
-        return any(params[key] for key in OUTPUT_PARAMS.values())
+        return self.outputs.passive_limits is not None or any(params[key] for key in OUTPUT_PARAMS.values())
 
     def note_extras_time(self, seconds: float) -> None:
         """Time the extras thread spent on the extra outputs of one pose: building, converting, writing."""
