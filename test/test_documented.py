@@ -133,6 +133,7 @@ def test_readme_synopses_name_only_real_options():
 README_CHECKS = {
     "glpma-fk --version": (0, ["glpma-fk"]),
     "glpma-fk solve planar_3rpr_seed --legs 100 120 150": (0, ["converged", "position", "orientation"]),
+    "glpma-fk urdf planar_3rpr_seed": (0, ["<robot", "leg1_actuator", "platform_mount"]),
 }
 #: README commands that need a running node: checked by test_readme_node_and_modes
 NODE_COMMANDS = ("glpma-fk node ", "glpma-fk modes")
