@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from .mechanism import wrap
 
 KEY = "passive_joint_limits"
 #: cone keys (hexapod) -> the joint they bound, and the URDF joints whose box holds the cone
@@ -121,7 +122,7 @@ class PassiveLimits:
         phi = np.arctan2(d[:, 1], d[:, 0])
         theta = math.atan2(R[1, 0], R[0, 0])
         angles = {"base_revolute_deg": np.degrees(phi),
-                  "platform_revolute_deg": np.degrees(np.remainder(theta - phi + math.pi, 2 * math.pi) - math.pi)}
+                  "platform_revolute_deg": np.degrees(wrap(theta - phi))}
         for key, deg in angles.items():
             if key not in self.ranges:
                 continue

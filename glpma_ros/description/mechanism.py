@@ -63,24 +63,9 @@ class JointSpec:
     role: str = ""             # u1 u2 actuator s1 s2 s3 / base actuator platform / mount
 
 
-def _rx(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _ry(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _rz(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _wrap(angle: float) -> float:
-    """``angle`` in (-pi, pi]."""
-    return math.remainder(angle, 2.0 * math.pi)
+def wrap(angle):
+    """Angles in (-pi, pi]."""
+    return math.pi - np.remainder(math.pi - np.asarray(angle, dtype=float), 2.0 * math.pi)
 
 
 class Mechanism:
@@ -199,29 +184,36 @@ class Mechanism:
     def positions(self, position_m, orientation) -> np.ndarray:
         """Every moving joint's position (radians, metres; order :attr:`joint_names`) with the
         platform at ``position_m`` (metres) / ``orientation`` (unit quaternion x, y, z, w, platform
-        to base).  Raises :class:`InputError` for a leg of zero length (its direction is undefined)."""
+        to base).  Raises :class:`InputError` for a leg of zero length (its direction is undefined).
+        Every leg at once (NumPy over the legs: the extras thread computes this for every pose)."""
         R, _, d, L = self.legs_at(position_m, orientation)
         if np.any(L <= 0.0):
             raise InputError("a leg has zero length: its joints are undefined")
-        out = np.empty(len(self.moving))
-        k = 0
+        q = np.empty((self.n_legs, self.per_leg))
         if self.planar:
+            phi = np.arctan2(d[:, 1], d[:, 0])
             theta = math.atan2(R[1, 0], R[0, 0])
-            for i in range(self.n_legs):
-                phi = math.atan2(d[i, 1], d[i, 0])
-                out[k:k + 3] = (phi, L[i], _wrap(theta - phi))
-                k += 3
-            return out
-        for i in range(self.n_legs):
-            u = d[i] / L[i]
-            q1 = math.atan2(-u[1], u[2])
-            q2 = math.atan2(u[0], math.hypot(u[1], u[2]))
-            M = (_rx(q1) @ _ry(q2)).T @ R                 # the end link relative to the rod
-            s1 = math.atan2(-M[1, 2], M[2, 2])
-            s2 = math.atan2(M[0, 2], math.hypot(M[0, 0], M[0, 1]))
-            s3 = math.atan2(-M[0, 1], M[0, 0])
-            out[k:k + 6] = (q1, q2, L[i], s1, s2, s3)
-            k += 6
+            q[:, 0], q[:, 1] = phi, L
+            q[:, 2] = wrap(theta - phi)
+            return q.ravel()
+        u = d / L[:, None]
+        q[:, 0] = np.arctan2(-u[:, 1], u[:, 2])                       # universal joint: u = Rx(q1) Ry(q2) e_z
+        q[:, 1] = np.arctan2(u[:, 0], np.hypot(u[:, 1], u[:, 2]))
+        q[:, 2] = L
+        M = np.einsum("nji,jk->nik", self._rod_rotations(q[:, 0], q[:, 1]), R)   # end link relative to the rod
+        q[:, 3] = np.arctan2(-M[:, 1, 2], M[:, 2, 2])                 # spherical joint: M = Rx(s1) Ry(s2) Rz(s3)
+        q[:, 4] = np.arctan2(M[:, 0, 2], np.hypot(M[:, 0, 0], M[:, 0, 1]))
+        q[:, 5] = np.arctan2(-M[:, 0, 1], M[:, 0, 0])
+        return q.ravel()
+
+    @staticmethod
+    def _rod_rotations(a, b) -> np.ndarray:
+        """Rx(a) Ry(b) for arrays of angles, shape (n, 3, 3): the rods' orientations after the universal joints."""
+        ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+        out = np.empty((len(a), 3, 3))
+        out[:, 0] = np.stack((cb, np.zeros_like(cb), sb), axis=1)
+        out[:, 1] = np.stack((sa * sb, ca, -sa * cb), axis=1)
+        out[:, 2] = np.stack((-ca * sb, sa, ca * cb), axis=1)
         return out
 
     def velocities(self, position_m, orientation, linear, angular, positions=None):
@@ -229,39 +221,55 @@ class Mechanism:
         the platform frame's origin, ``angular``: angular velocity, both in the base frame), or
         None where a leg's joint rates are undetermined (a universal or spherical joint at its
         gimbal lock).  Per leg: the chain Jacobian (revolute joint at o with axis a: (a x (B - o),
-        a); prismatic along u: (u, 0)) times the rates = the end link's twist (v + w x R CB_i, w)."""
+        a); prismatic along u: (u, 0)) times the rates = the end link's twist (v + w x R CB_i, w);
+        the joints at B_i move no point of B_i, so the universal joint and the actuator follow from
+        B_i's velocity, then the spherical joint from the angular velocity left (two 3x3 solves)."""
         R, B, d, L = self.legs_at(position_m, orientation)
-        q = self.positions(position_m, orientation) if positions is None else np.asarray(positions, dtype=float)
+        q = (self.positions(position_m, orientation) if positions is None
+             else np.asarray(positions, dtype=float)).reshape(self.n_legs, self.per_leg)
         v, w = np.asarray(linear, dtype=float), np.asarray(angular, dtype=float)
-        out = np.empty(len(self.moving))
-        for i in range(self.n_legs):
-            qi = q[i * self.per_leg:(i + 1) * self.per_leg]
-            vB = v + np.cross(w, B[i] - np.asarray(position_m, dtype=float))
-            u = d[i] / L[i]
-            if self.planar:
-                ez = np.array([0.0, 0.0, 1.0])
-                J = np.column_stack((np.r_[np.cross(ez, d[i])[:2], 1.0], np.r_[u[:2], 0.0], [0.0, 0.0, 1.0]))
-                rhs = np.array([vB[0], vB[1], w[2]])
-            else:
-                if (abs(abs(qi[1]) - 0.5 * math.pi) < GIMBAL_MARGIN
-                        or abs(abs(qi[4]) - 0.5 * math.pi) < GIMBAL_MARGIN):
-                    return None
-                Rq1 = _rx(qi[0])
-                Rrod = Rq1 @ _ry(qi[1])
-                axes = (np.array([1.0, 0.0, 0.0]), Rq1[:, 1], Rrod[:, 0], (Rrod @ _rx(qi[3]))[:, 1],
-                        (Rrod @ _rx(qi[3]) @ _ry(qi[4]))[:, 2])
-                J = np.empty((6, 6))
-                J[:, 0] = np.r_[np.cross(axes[0], d[i]), axes[0]]      # u1, u2 at A_i
-                J[:, 1] = np.r_[np.cross(axes[1], d[i]), axes[1]]
-                J[:, 2] = np.r_[u, 0.0, 0.0, 0.0]                       # actuator
-                for col, a in zip((3, 4, 5), axes[2:]):                 # s1, s2, s3 at B_i
-                    J[:, col] = np.r_[0.0, 0.0, 0.0, a]
-                rhs = np.r_[vB, w]
-            try:
-                out[i * self.per_leg:(i + 1) * self.per_leg] = np.linalg.solve(J, rhs)
-            except np.linalg.LinAlgError:
-                return None
-        return out
+        vB = v + np.cross(w, B - np.asarray(position_m, dtype=float))        # each platform joint's velocity
+        u = d / L[:, None]
+        n = self.n_legs
+        if self.planar:
+            J = np.zeros((n, 3, 3))
+            J[:, 0, 0], J[:, 1, 0], J[:, 2, 0] = -d[:, 1], d[:, 0], 1.0        # base revolute: e_z x d, 1
+            J[:, 0, 1], J[:, 1, 1] = u[:, 0], u[:, 1]                         # actuator
+            J[:, 2, 2] = 1.0                                                  # platform revolute
+            rhs = np.stack((vB[:, 0], vB[:, 1], np.full(n, w[2])), axis=1)
+            return self._solve(J, rhs)
+        if np.any(np.abs(np.abs(q[:, [1, 4]]) - 0.5 * math.pi) < GIMBAL_MARGIN):
+            return None
+        ex = np.array([1.0, 0.0, 0.0])
+        ca, sa = np.cos(q[:, 0]), np.sin(q[:, 0])
+        a1 = np.stack((np.zeros(n), ca, sa), axis=1)                          # u2's axis: Rx(q1) e_y
+        J = np.empty((n, 3, 3))
+        J[:, :, 0] = np.cross(ex, d)
+        J[:, :, 1] = np.cross(a1, d)
+        J[:, :, 2] = u
+        lower = self._solve(J, vB)                                            # q1', q2', L'
+        if lower is None:
+            return None
+        lower = lower.reshape(n, 3)
+        rod = self._rod_rotations(q[:, 0], q[:, 1])
+        c3, s3 = np.cos(q[:, 3]), np.sin(q[:, 3])
+        K = np.empty((n, 3, 3))
+        K[:, :, 0] = rod[:, :, 0]                                             # s1: the rod's x axis
+        K[:, :, 1] = rod[:, :, 1] * c3[:, None] + rod[:, :, 2] * s3[:, None]  # s2: Rrod Rx(s1) e_y
+        K[:, :, 2] = R[:, 2]                                                  # s3: the end link's z = platform's
+        left = w - lower[:, [0]] * ex - lower[:, [1]] * a1                    # angular velocity past the rod
+        upper = self._solve(K, left)
+        if upper is None:
+            return None
+        return np.hstack((lower, upper.reshape(n, 3))).ravel()
+
+    @staticmethod
+    def _solve(A, b):
+        """``A x = b`` for a stack of square systems, flattened; None when one is singular."""
+        try:
+            return np.linalg.solve(A, b[..., None])[..., 0].ravel()
+        except np.linalg.LinAlgError:
+            return None
 
     def leg_lengths(self, positions) -> np.ndarray:
         """The actuators' positions (metres) among ``positions`` (order :attr:`joint_names`)."""
