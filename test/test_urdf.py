@@ -293,3 +293,4 @@ def test_bad_passive_limits_are_refused_in_one_line(tmp_path, limits, message):
     with pytest.raises(ConfigError, match=message) as exc:
         load_manipulator(_config_with_limits(tmp_path, name, limits))
     assert "\n" not in str(exc.value)
+
