@@ -294,3 +294,16 @@ def test_bad_passive_limits_are_refused_in_one_line(tmp_path, limits, message):
         load_manipulator(_config_with_limits(tmp_path, name, limits))
     assert "\n" not in str(exc.value)
 
+
+
+@pytest.mark.parametrize("name", shipped_configs())
+def test_urdfdom_check_urdf_parses_it(name, tmp_path):
+    """urdfdom's own parser (what robot_state_publisher links): ``check_urdf`` from Debian's liburdfdom-tools."""
+    import shutil
+    import subprocess
+    if shutil.which("check_urdf") is None:
+        pytest.skip("check_urdf (liburdfdom-tools) is not installed")
+    urdf_of(name, tmp_path, "--prefix", "r1_")
+    p = subprocess.run(["check_urdf", str(tmp_path / f"{name}.urdf")], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and "Successfully Parsed XML" in p.stdout, p.stdout + p.stderr
+    assert "root Link: r1_base_link" in p.stdout and p.stdout.count("r1_platform_link") == 1
