@@ -1,4 +1,4 @@
 """Real-time forward kinematics of parallel manipulators (3-RPR, 6-6 hexapod) from leg lengths."""
 
 #: the package's version (also in package.xml; setup.py reads it from here)
-__version__ = "0.3.2"
+__version__ = "0.4.0"

@@ -112,10 +112,6 @@ class Mechanism:
         """Link ``part`` of leg ``leg`` (0-based): e.g. ``leg3_end``."""
         return self.name(f"leg{leg + 1}_{part}")
 
-    def leg_links(self, leg: int) -> tuple:
-        """The links of leg ``leg`` (0-based) from the base up, its end link last."""
-        return tuple(j.child for j in self.joints if j.leg == leg)
-
     # -- the tree -------------------------------------------------------------------------
     def _build(self) -> list:
         joints = []
@@ -270,8 +266,3 @@ class Mechanism:
             return np.linalg.solve(A, b[..., None])[..., 0].ravel()
         except np.linalg.LinAlgError:
             return None
-
-    def leg_lengths(self, positions) -> np.ndarray:
-        """The actuators' positions (metres) among ``positions`` (order :attr:`joint_names`)."""
-        q = np.asarray(positions, dtype=float)
-        return q[[k for k, j in enumerate(self.moving) if j.role == "actuator"]]
