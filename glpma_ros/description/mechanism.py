@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..models.rotations import matrix_from_quaternion
+from ..models.rotations import cross_rows, matrix_from_quaternion
 
 REVOLUTE, PRISMATIC, FIXED = "revolute", "prismatic", "fixed"
 #: the leg whose chain carries the platform (the loop cut): leg 1, index 0
@@ -207,9 +207,9 @@ class Mechanism:
         """Rx(a) Ry(b) for arrays of angles, shape (n, 3, 3): the rods' orientations after the universal joints."""
         ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
         out = np.empty((len(a), 3, 3))
-        out[:, 0] = np.stack((cb, np.zeros_like(cb), sb), axis=1)
-        out[:, 1] = np.stack((sa * sb, ca, -sa * cb), axis=1)
-        out[:, 2] = np.stack((-ca * sb, sa, ca * cb), axis=1)
+        out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = cb, 0.0, sb
+        out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = sa * sb, ca, -sa * cb
+        out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = -ca * sb, sa, ca * cb
         return out
 
     def velocities(self, position_m, orientation, linear, angular, positions=None):
@@ -224,7 +224,8 @@ class Mechanism:
         q = (self.positions(position_m, orientation) if positions is None
              else np.asarray(positions, dtype=float)).reshape(self.n_legs, self.per_leg)
         v, w = np.asarray(linear, dtype=float), np.asarray(angular, dtype=float)
-        vB = v + np.cross(w, B - np.asarray(position_m, dtype=float))        # each platform joint's velocity
+        w_rows = np.broadcast_to(w, B.shape)
+        vB = v + cross_rows(w_rows, B - np.asarray(position_m, dtype=float))   # each platform joint's velocity
         u = d / L[:, None]
         n = self.n_legs
         if self.planar:
@@ -237,11 +238,11 @@ class Mechanism:
         if np.any(np.abs(np.abs(q[:, [1, 4]]) - 0.5 * math.pi) < GIMBAL_MARGIN):
             return None
         ex = np.array([1.0, 0.0, 0.0])
-        ca, sa = np.cos(q[:, 0]), np.sin(q[:, 0])
-        a1 = np.stack((np.zeros(n), ca, sa), axis=1)                          # u2's axis: Rx(q1) e_y
+        a1 = np.zeros((n, 3))                                                 # u2's axis: Rx(q1) e_y
+        a1[:, 1], a1[:, 2] = np.cos(q[:, 0]), np.sin(q[:, 0])
         J = np.empty((n, 3, 3))
-        J[:, :, 0] = np.cross(ex, d)
-        J[:, :, 1] = np.cross(a1, d)
+        J[:, 0, 0], J[:, 1, 0], J[:, 2, 0] = 0.0, -d[:, 2], d[:, 1]          # e_x x d
+        J[:, :, 1] = cross_rows(a1, d)
         J[:, :, 2] = u
         lower = self._solve(J, vB)                                            # q1', q2', L'
         if lower is None:
