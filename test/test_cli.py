@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from conftest import HEX_YAML, ROOT, RPR_YAML
-from glpma_ros.cli import main
+from glpma_ros.cli.main import main
 
 #: a bound for a hung command, not a timing figure: a cold Numba cache on a busy machine takes minutes
 TIMEOUT_S = 600

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from glpma_ros import cli
+from glpma_ros.cli import main as cli
 
 
 def _python(code: str) -> str:
@@ -21,7 +21,7 @@ def test_the_product_cli_imports_no_tool():
     """``import glpma_ros.cli`` and ``glpma-fk --help`` load no glpma_tools module (the help lines
     are read from the tools' docstrings without importing them)."""
     out = _python("import contextlib, io, sys\n"
-                  "import glpma_ros.cli as c\n"
+                  "import glpma_ros.cli.main as c\n"
                   "before = sorted(m for m in sys.modules if m.startswith('glpma_tools'))\n"
                   "with contextlib.redirect_stdout(io.StringIO()) as help_text:\n"
                   "    code = c.main(['--help'])\n"

@@ -1,4 +1,4 @@
-"""Covariance and velocity of the pose (glpma_ros.covariance, glpma_ros.velocity) and the node's
+"""Covariance and velocity of the pose (glpma_ros.estimation.covariance, glpma_ros.estimation.velocity) and the node's
 pose_estimate_cov / twist_estimate through the service.
 
 * the compiled leg Jacobian equals both models' pose Jacobians;
@@ -16,12 +16,12 @@ import pytest
 import yaml
 
 from conftest import HEX_YAML, RPR_YAML
-from glpma_ros.covariance import UNOBSERVED_VARIANCE, VARIANCE_CAP, PoseJacobian
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.covariance import UNOBSERVED_VARIANCE, VARIANCE_CAP, PoseJacobian
+from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.estimation.velocity import finite_difference_twist, rotation_vector_between
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.node.outputs import TWIST_FROM_POSES, TWIST_FROM_VELOCITIES
 from glpma_ros.node.service import FkService, JointStateInput
-from glpma_ros.velocity import finite_difference_twist, rotation_vector_between
 
 SIGMA_M = 1e-5                 # the parameter's default
 MC_SAMPLES = 2000

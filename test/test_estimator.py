@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from conftest import GENEROUS_BUDGET_S
 from glpma_ros.errors import InputError
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.rotations import rotation_from_vector
 from glpma_ros.solvers.refine import polish

@@ -13,10 +13,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import GENEROUS_BUDGET_S, RPR_YAML
-from glpma_ros import cli
+from glpma_ros.cli import main as cli
 from glpma_ros.config import model_from_dict
 from glpma_ros.errors import ConfigError, InputError
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.solvers.lm import LEG_RTOL
 
 CASES = {"estimator": 0, "config": 0, "cli": 0}

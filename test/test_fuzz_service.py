@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from conftest import GENEROUS_BUDGET_MS, RPR_YAML
-from glpma_ros.estimator import STATUS_BUDGET, STATUS_MAX_EVALS, STATUS_NEAR_SINGULAR, STATUS_NO_SOLUTION
+from glpma_ros.estimation.estimator import STATUS_BUDGET, STATUS_MAX_EVALS, STATUS_NEAR_SINGULAR, STATUS_NO_SOLUTION
 from glpma_ros.node.service import FkService
 from glpma_ros.solvers.lm import LEG_RTOL
 

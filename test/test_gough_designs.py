@@ -14,14 +14,14 @@ import yaml
 from conftest import CONFIG, GENEROUS_BUDGET_MS, GENEROUS_BUDGET_S
 from glpma_ros.config import load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
-from glpma_ros.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
+from glpma_ros.estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
+from glpma_ros.estimation.redundancy import CONSISTENCY_LEVEL, chi2_limit
 from glpma_ros.models.random_geometry import random_hexapod_33, random_hexapod_63
 from glpma_ros.models.rotations import quaternion_from_matrix, rotation_from_vector
+from glpma_ros.modes.multistart import solve_all
 from glpma_ros.node.diagnostics import WARN
 from glpma_ros.node.leg_health import FAILED_AFTER
 from glpma_ros.node.service import FkService
-from glpma_ros.redundancy import CONSISTENCY_LEVEL, chi2_limit
-from glpma_ros.solve_all import solve_all
 from glpma_tools.sim.trajectories import Plan
 
 #: the 6-3 of issue 21, verbatim
@@ -111,7 +111,7 @@ def test_random_shared_joint_designs_track_to_round_off(generator):
 
 
 def _needs_msolve():
-    from glpma_ros.exact import ExactUnavailableError, msolve_executable
+    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
     try:
         msolve_executable()
     except ExactUnavailableError:
@@ -256,7 +256,7 @@ def test_the_node_names_a_corrupted_leg_and_keeps_publishing_correct_poses():
 
 
 def test_a_pose_without_a_leg_gets_the_covariance_of_the_other_legs(seven):
-    from glpma_ros.covariance import PoseJacobian
+    from glpma_ros.estimation.covariance import PoseJacobian
     x0 = yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0]
     svc = FkService({"manipulator_config": str(CONFIG / "hexapod_7legs.yaml"), "time_budget_ms": GENEROUS_BUDGET_MS,
                      "initial_pose": x0})
@@ -294,7 +294,7 @@ def test_exclude_faulty_leg_off_publishes_nothing_and_says_why(seven):
 
 
 def test_covariance_uses_every_leg(seven):
-    from glpma_ros.covariance import PoseJacobian
+    from glpma_ros.estimation.covariance import PoseJacobian
     x = np.array(yaml.safe_load((CONFIG / "hexapod_7legs.yaml").read_text())["published_solutions"][0])
     pose = seven.pose(x)
     jac = PoseJacobian(seven)
@@ -428,8 +428,8 @@ def test_demo_refuses_an_unknown_manipulator_in_one_line(tmp_path):
 
 def test_package_functions_carry_the_digest_of_every_compiled_module():
     """A change to one kernel file recompiles the compiled functions of other files that carry its code."""
-    from glpma_ros import numba_cache
     from glpma_ros.models import kernels
+    from glpma_ros.runtime import numba_cache
     from glpma_ros.solvers import g3pcx
     for fn in (kernels.population_fitness, g3pcx.g3pcx_generations):
         stamp = fn._cache._cache_file._source_stamp

@@ -11,7 +11,7 @@ from matplotlib.colors import to_rgba
 
 from conftest import HEX_YAML, ROOT, RPR_YAML
 from glpma_ros.models.hexapod_66 import quaternion_from_matrix, rotation_from_vector
-from glpma_ros.solve_all import solve_all
+from glpma_ros.modes.multistart import solve_all
 from glpma_tools import workspace_map as W
 from glpma_tools.workspace_map.plot import count_colour, draw_map
 
@@ -238,7 +238,7 @@ def test_a_mode_count_has_the_same_colour_in_every_map():
 
 def test_exact_spot_check_certifies_a_sample(tmp_path):
     """--exact K: K points of the finished map certified by msolve; all agree on the seed 3-RPR."""
-    from glpma_ros.exact import ExactUnavailableError, msolve_executable
+    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
     try:
         msolve_executable()
     except ExactUnavailableError:
@@ -250,8 +250,8 @@ def test_exact_spot_check_certifies_a_sample(tmp_path):
 
 
 def test_exact_without_msolve_is_one_line_before_the_map(tmp_path, monkeypatch, capsys):
-    from glpma_ros import exact
-    from glpma_ros.exact import ExactUnavailableError
+    from glpma_ros.modes import exact
+    from glpma_ros.modes.exact import ExactUnavailableError
 
     def missing():
         raise ExactUnavailableError("the exact mode needs msolve: pip install 'glpma_ros[exact]'")

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, RPR_YAML
-from glpma_ros import exact
-from glpma_ros import solve_all as SA
-from glpma_ros.solve_all import solve_all
+from glpma_ros.modes import exact
+from glpma_ros.modes import multistart as SA
+from glpma_ros.modes.multistart import solve_all
 from glpma_tools import workspace_map as W
 from glpma_tools.workspace_map.cli import DEFAULT_RESOLUTION, Z_DEFAULT, default_limits
 from glpma_tools.workspace_map.grid import point_seed

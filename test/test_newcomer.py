@@ -15,11 +15,11 @@ import yaml
 
 from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML, interrupt
 from glpma_ros import __version__
-from glpma_ros.cli import build_parser, main
-from glpma_ros.compat import check_numba
+from glpma_ros.cli.main import build_parser, main
 from glpma_ros.config import load_manipulator, model_from_dict, unit_mistake
 from glpma_ros.errors import ConfigError, GlpmaError, InputError
 from glpma_ros.node.ros_args import check_params_files, load_params_file
+from glpma_ros.runtime.compat import check_numba
 
 CONTRACT_SOLVE_KEYS = {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"}
 
@@ -355,7 +355,7 @@ PRINTED_LEG_TOL = {"planar_3rpr": 1e-4, "hexapod_66": 1e-2}
 
 @pytest.mark.parametrize("config, legs", [(RPR_YAML, [100, 120, 150]), (HEX_YAML, [1250] * 6)])
 def test_solve_all_text_names_its_columns(config, legs, capsys):
-    from glpma_ros.cli import mode_columns
+    from glpma_ros.cli.main import mode_columns
     model = load_manipulator(config)
     assert main(["solve-all", str(config), "--legs", *map(str, legs), "--max-starts", "2000"]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -428,7 +428,7 @@ def test_precompile_counts_what_it_compiled_or_loaded():
 
 
 def test_cache_counts_words():
-    from glpma_ros.precompile import describe_cache_use
+    from glpma_ros.runtime.precompile import describe_cache_use
     assert describe_cache_use(0, 3) == "compiled 3 functions"
     assert describe_cache_use(2, 1) == "compiled 1 function, loaded 2"
     assert describe_cache_use(5, 0) == "loaded 5 compiled functions from the cache"

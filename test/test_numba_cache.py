@@ -1,4 +1,4 @@
-"""Numba's cache when two processes save entries of one function at once (glpma_ros.numba_cache).
+"""Numba's cache when two processes save entries of one function at once (glpma_ros.runtime.numba_cache).
 
 Two cache-file objects on one directory (as two processes have) save two signatures' entries,
 with hooks on the steps of the save forcing the order that corrupts Numba's unlocked save: both
@@ -14,7 +14,7 @@ pytest.importorskip("fcntl")
 
 from numba.core.caching import IndexDataCacheFile  # noqa: E402
 
-from glpma_ros import numba_cache  # noqa: E402
+from glpma_ros.runtime import numba_cache  # noqa: E402
 
 #: how long a hook waits for the other save's step (with the lock, the wait runs out)
 HOOK_WAIT_S = 1.0

@@ -10,7 +10,7 @@ import pytest
 from conftest import CONFIG, ROOT
 from glpma_ros.errors import InputError
 from glpma_ros.node import qos
-from glpma_ros.node.security import check_dds_transport, security_enabled
+from glpma_ros.node.dds.security import check_dds_transport, security_enabled
 
 POLICIES = CONFIG / "security"
 

@@ -6,7 +6,7 @@ import pytest
 from scipy.optimize import brentq
 
 from conftest import GENEROUS_BUDGET_S
-from glpma_ros.estimator import NEAR_SINGULAR, Estimator
+from glpma_ros.estimation.estimator import NEAR_SINGULAR, Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solvers.refine import polish
 

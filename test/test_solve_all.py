@@ -1,7 +1,7 @@
 """solve-all finds exactly the real assembly modes of both benchmark manipulators."""
 import numpy as np
 
-from glpma_ros.solve_all import solve_all
+from glpma_ros.modes.multistart import solve_all
 
 
 def test_rpr_two_solutions(rpr, rpr_solutions):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.hexapod_66 import rotation_from_vector
 
 #: budgets from "nothing fits" to "everything fits" (seconds)

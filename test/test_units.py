@@ -6,7 +6,7 @@ import yaml
 
 from conftest import HEX_YAML, RPR_YAML
 from glpma_ros.config import model_from_dict
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.solvers import local
 from glpma_tools.sim.trajectories import variables_along
 

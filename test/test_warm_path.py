@@ -7,9 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from glpma_ros import linalg
-from glpma_ros.estimator import Estimator
-from glpma_ros.models import pose_kernels
+from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.models import linalg, pose_kernels
 from glpma_ros.models.hexapod_66 import kabsch, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solvers import lm, local, refine
 from glpma_tools.sim.trajectories import variables_along

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from glpma_ros.models.random_geometry import GENERATORS  # noqa: E402
-from glpma_ros.solve_all import solve_all  # noqa: E402
+from glpma_ros.modes.multistart import solve_all  # noqa: E402
 
 DEFAULT_OUT = ROOT / "test" / "data" / "assembly_modes_cases.json"
 

@@ -31,8 +31,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from glpma_ros.config import load_document, model_from_dict, resolve_config
-from glpma_ros.covariance import PoseJacobian
-from glpma_ros.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
+from glpma_ros.estimation.covariance import PoseJacobian
+from glpma_ros.estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
 from glpma_ros.models.random_geometry import random_hexapod, random_hexapod_33, random_hexapod_63
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from glpma_tools.sim.trajectories import PERIOD_S, start_pose, trajectory, variables_along

@@ -1,5 +1,5 @@
 """Manipulator models: geometry, residuals, inverse kinematics, poses."""
-from .. import numba_cache
+from ..runtime import numba_cache
 
 # before anything is defined or compiled: processes compiling at once share the cache safely, and a
 # change to any kernel recompiles the functions that carry its code

@@ -15,7 +15,7 @@ import math
 
 from numba import njit
 
-from ..linalg import jacobi_svd
+from .linalg import jacobi_svd
 from .residuals import KIND_PLANAR_3RPR
 
 #: rotation angle below which Rodrigues' formula uses its second-order Taylor expansion

@@ -1,7 +1,7 @@
 """Redundant legs on ``/diagnostics``: inputs whose legs were inconsistent, the leg left out of the
 published pose, and the legs that have failed.
 
-A leg named at fault (``inconsistent_legs``, :mod:`glpma_ros.redundancy`) on :data:`FAILED_AFTER`
+A leg named at fault (``inconsistent_legs``, :mod:`glpma_ros.estimation.redundancy`) on :data:`FAILED_AFTER`
 inputs in a row is reported as failed (level WARN) until it agrees again: an input whose legs are all
 consistent (status ``converged``) clears every failure.  Only for a config with redundant legs: with
 exactly as many legs as degrees of freedom nothing is added to the report.
@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections import Counter
 
-from ..estimator import STATUS_CONVERGED, STATUS_INCONSISTENT
+from ..estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT
 
 #: consecutive inputs naming the same leg at fault before it is reported as failed (a single
 #: inconsistent input is a false alarm in 1 - CONSISTENCY_LEVEL of a healthy manipulator's inputs)

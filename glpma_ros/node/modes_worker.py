@@ -54,7 +54,7 @@ def modes_of(result) -> Modes:
 def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
     """What a request computes: the multistart, at most ``runs`` starts; ``leg_noise_std`` (config
     unit): redundant legs, the noise a mode's leg residuals are tested against (the node's parameter)."""
-    from ..solve_all import solve_all
+    from ..modes.multistart import solve_all
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
                               leg_noise_std=leg_noise_std))
 

@@ -26,10 +26,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..covariance import PoseJacobian
 from ..description.mechanism import Mechanism
+from ..estimation.covariance import PoseJacobian
+from ..estimation.velocity import finite_difference_twist
 from ..models.rotations import matrix_from_quaternion
-from ..velocity import finite_difference_twist
 
 #: ``twist_estimate`` sources, as /diagnostics names them
 TWIST_FROM_VELOCITIES = "joint_states velocities (forward velocity kinematics)"

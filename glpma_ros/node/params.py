@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import InputError
-from ..redundancy import DEFAULT_LEG_NOISE_M
+from ..estimation.redundancy import DEFAULT_LEG_NOISE_M
 from ..solvers import SOLVERS
 from .qos import PREFIX as QOS_PREFIX
 

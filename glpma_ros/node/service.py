@@ -34,11 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..compat import check_numba
 from ..config import check_units, load_manipulator, plausible_band, resolve_config
 from ..errors import InputError
-from ..estimator import Estimator
-from ..precompile import cache_counts, describe_cache_use
+from ..estimation.estimator import Estimator
+from ..runtime.compat import check_numba
+from ..runtime.precompile import cache_counts, describe_cache_use
 from . import params as P
 from .assembly_modes import AssemblyModes
 from .diagnostics import DiagnosticReport, Diagnostics
@@ -238,7 +238,7 @@ class FkService:
             self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, loaded, compiled)
         # everything loaded so far lives as long as the node: keep it out of the cyclic
         # collector's scans, whose pauses would otherwise land in the real-time path
-        from ..covariance import warm_up as warm_up_covariance
+        from ..estimation.covariance import warm_up as warm_up_covariance
         warm_up_covariance()
         gc.collect()
         gc.freeze()

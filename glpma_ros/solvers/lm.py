@@ -66,8 +66,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ..linalg import damped_solve, jacobi_svd, normal_equations
 from ..models.kernels import KIND_PLANAR_3RPR, residuals_into
+from ..models.linalg import damped_solve, jacobi_svd, normal_equations
 from ..models.pose_kernels import (
     STATE_SIZE,
     joint_distance,

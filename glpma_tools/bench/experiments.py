@@ -11,7 +11,7 @@ from collections import namedtuple
 import numpy as np
 
 from glpma_ros import solvers
-from glpma_ros.solve_all import solve_all, wide_range
+from glpma_ros.modes.multistart import solve_all, wide_range
 from glpma_tools.stats import Z_95, mean_ci
 from glpma_tools.tables import MISSING, fmt, fmt_ci, ratio, table
 from glpma_tools.timing import progress_bar as _bar

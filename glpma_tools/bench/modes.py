@@ -10,7 +10,7 @@ import numpy as np
 
 from glpma_ros.errors import GlpmaError
 from glpma_ros.models import MODELS
-from glpma_ros.solve_all import G3PCX_RUNS, solve_all
+from glpma_ros.modes.multistart import G3PCX_RUNS, solve_all
 from glpma_tools.tables import MISSING, fmt, table
 from glpma_tools.timing import REPO_ROOT, progress_bar
 
@@ -49,7 +49,7 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
     """A row (dict) per case; ``per_kind``: random cases per manipulator (None = all); G3-PCX runs on every 3-RPR
     case and on the first ``g3pcx_hexapods`` hexapod cases.  Certified counts are msolve's, else the stored ones."""
     try:
-        from glpma_ros.exact import msolve_executable
+        from glpma_ros.modes.exact import msolve_executable
         msolve_executable()
         exact_status = "run"
     except GlpmaError as exc:

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from glpma_ros.config import config_dir, load_document, model_from_dict
-from glpma_ros.estimator import Estimator
-from glpma_ros.exact import ExactUnavailableError, msolve_executable
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
 from glpma_ros.node.ros_args import parse_ros_args

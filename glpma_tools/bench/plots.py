@@ -9,7 +9,7 @@ from matplotlib import __version__ as MATPLOTLIB_VERSION
 from matplotlib.figure import Figure
 
 from glpma_ros import solvers
-from glpma_ros.compat import version_tuple
+from glpma_ros.runtime.compat import version_tuple
 from glpma_tools.timing import DEADLINE_MARGIN_MS
 
 from .common import SUCCESS_TOLERANCE

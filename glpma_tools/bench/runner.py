@@ -12,7 +12,7 @@ from pathlib import Path
 
 import psutil
 
-from glpma_ros.cli import OneLineParser, command_main
+from glpma_ros.cli.main import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
 from glpma_tools.timing import REPO_ROOT, git_revision, machine
 

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from glpma_ros.estimator import Estimator
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.solvers.lm import LEG_RTOL
 from glpma_tools import timing
 from glpma_tools.sim import trajectories as traj

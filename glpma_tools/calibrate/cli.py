@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.cli import OneLineParser, command_main, seed_type
+from glpma_ros.cli.main import OneLineParser, command_main, seed_type
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
 

@@ -74,7 +74,7 @@ def start_pose(model, doc: dict, solution: int | None = None) -> tuple[np.ndarra
 def _solved_start_pose(model) -> tuple[np.ndarray, np.ndarray]:
     """A user's own config without known solutions: start where its ``example_leg_lengths`` put
     the platform (one cold solve, no time limit)."""
-    from glpma_ros.estimator import Estimator
+    from glpma_ros.estimation.estimator import Estimator
     from glpma_ros.models.rotations import matrix_from_quaternion
     if model.example_leg_lengths is None:
         raise GlpmaError("the config has no known solutions and no example_leg_lengths to start from; "

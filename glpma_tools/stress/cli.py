@@ -9,7 +9,7 @@ import sys
 import time
 from pathlib import Path
 
-from glpma_ros.cli import OneLineParser, command_main
+from glpma_ros.cli.main import OneLineParser, command_main
 
 from . import flood, restarts
 from .deadline import DEADLINE_BUDGETS_MS, deadlines

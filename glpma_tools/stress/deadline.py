@@ -1,4 +1,4 @@
-"""Deadlines in process: :class:`~glpma_ros.estimator.Estimator` solves on legs without a real
+"""Deadlines in process: :class:`~glpma_ros.estimation.estimator.Estimator` solves on legs without a real
 assembly and without an evaluation cap, so that only the deadline stops each one -- cold (state
 reset before each solve) and warm (a warm state that the failures keep, so that the warm, widened
 and cold stages all run).  The timed calls are the ones every measuring tool shares (:mod:`glpma_tools.timing`)."""
@@ -15,7 +15,7 @@ CASES = ("cold", "warm")
 
 def deadline_cell(model, case: str, budget_ms: float, n: int, seed_x=None) -> dict:
     """``n`` timed solves of one case and budget, after a warm-up until the solves run on time."""
-    from glpma_ros.estimator import Estimator
+    from glpma_ros.estimation.estimator import Estimator
     legs = infeasible_legs(model)
     est = Estimator(model, time_budget_s=budget_ms * 1e-3, initial_pose=seed_x if case == "warm" else None,
                     max_evals=NO_CAP)

@@ -18,8 +18,8 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
 from ..qos import TF_DEPTH, QosSpec  # noqa: F401 - TF_DEPTH: the depth of /tf, re-exported
-from ..security import check_dds_transport
 from .messages import type_hash
+from .security import check_dds_transport
 
 LEG_LENGTHS = "leg_lengths"
 JOINT_STATES = "joint_states"

@@ -41,7 +41,6 @@ from .. import params as P
 from .. import qos
 from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop, pause_report
 from ..ros_args import node_values, parse_ros_args, remapped, split_transport
-from ..security import check_dds_transport
 from ..service import FkService, JointStateInput
 from . import cdr, endpoints
 from .messages import (
@@ -61,6 +60,7 @@ from .messages import (
     Time,
     TwistStamped,
 )
+from .security import check_dds_transport
 
 LOG_FORMAT = "[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s"
 #: samples taken per read; the newest is solved, the others count as dropped

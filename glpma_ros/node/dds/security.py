@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 
-from ..errors import InputError
+from ...errors import InputError
 
 #: the environment variable and the value with which ROS 2 enables security (rcl: exact match)
 SECURITY_ENABLE_VAR, SECURITY_ENABLED = "ROS_SECURITY_ENABLE", "true"

@@ -87,14 +87,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from . import solvers
-from .errors import GlpmaError
-from .models.pose_kernels import joint_distance
-from .redundancy import chi2_limit, leg_noise
-from .solvers import refine
-from .solvers.common import CONVERGED, SolveResult
-from .solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
-from .solvers.local import LocalSolver, make_settings
+from .. import solvers
+from ..errors import GlpmaError
+from ..estimation.redundancy import chi2_limit, leg_noise
+from ..models.pose_kernels import joint_distance
+from ..solvers import refine
+from ..solvers.common import CONVERGED, SolveResult
+from ..solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
+from ..solvers.local import LocalSolver, make_settings
 
 METHODS = ("multistart", "g3pcx", "exact")
 

@@ -43,7 +43,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .linalg import jacobi_svd
+from ..models.linalg import jacobi_svd
 
 #: variance (m^2, rad^2) of a pose component the manipulator does not measure (the planar
 #: 3-RPR's z, roll and pitch): robot_localization's convention for "not measured"

@@ -15,9 +15,11 @@ import time
 
 import numpy as np
 
-from . import solvers
-from .config import load_manipulator, resolve_config
+from .. import solvers
+from ..config import load_manipulator, resolve_config
 
+#: the package whose compiled functions :func:`cache_counts` counts
+PACKAGE = __name__.partition(".")[0]
 #: the shipped configs, one per manipulator kind
 SHIPPED_CONFIGS = ("planar_3rpr_seed", "hexapod_66_rolland")
 #: evaluation cap of each warm-up solve: every code path runs, and once compiled it is quick
@@ -56,7 +58,7 @@ def exercise(model, solver: str) -> float:
     at once reaches the code a quick one never does, e.g. GLPMA's local search) -- so that every
     compiled function it uses is loaded (or compiled).  The results are thrown away; returns
     the seconds spent."""
-    from .estimator import Estimator
+    from ..estimation.estimator import Estimator
     t0 = time.perf_counter()
     feasible = warm_up_legs(model)
     infeasible = np.full(model.n_legs, INFEASIBLE_SCALE * model.scale)
@@ -71,9 +73,9 @@ def exercise(model, solver: str) -> float:
 
 
 def exercise_solve_all(model, methods=("multistart", "g3pcx")) -> float:
-    """Load what :func:`~glpma_ros.solve_all.solve_all` uses for ``methods`` (default both the
+    """Load what :func:`~glpma_ros.modes.multistart.solve_all` uses for ``methods`` (default both the
     multistart and the G3-PCX runs); returns the seconds spent."""
-    from .solve_all import solve_all
+    from ..modes.multistart import solve_all
     t0 = time.perf_counter()
     legs = warm_up_legs(model)
     if "multistart" in methods:
@@ -94,7 +96,7 @@ def cache_counts() -> tuple[int, int]:
     from numba.core.registry import CPUDispatcher
     seen, loaded, compiled = set(), 0, 0
     for name, module in list(sys.modules.items()):
-        if not name.startswith(__package__) or module is None:
+        if not name.startswith(PACKAGE) or module is None:
             continue
         for obj in list(vars(module).values()):
             if isinstance(obj, CPUDispatcher) and id(obj) not in seen:

@@ -24,8 +24,8 @@ import sys
 
 import numpy as np
 
-from . import __version__
-from .errors import GlpmaError
+from .. import __version__
+from ..errors import GlpmaError
 
 EXIT_BAD_INPUT = 2
 #: exit status when stdout was closed early (``glpma-fk ... | head -1``): 128 + SIGPIPE, as a shell tool
@@ -147,7 +147,7 @@ positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "a positiv
 
 
 def _load(config):
-    from .config import load_manipulator, resolve_config
+    from ..config import load_manipulator, resolve_config
     return load_manipulator(resolve_config(config))
 
 
@@ -158,7 +158,7 @@ def _pose_json(model, x):
 def _legs(model, legs):
     """Validated leg lengths (config unit) from the sensors' readings ``legs`` (the config's
     ``leg_offsets`` added); legs off by a unit factor get a one-line hint."""
-    from .config import check_units
+    from ..config import check_units
     if np.asarray(legs).size == model.n_legs:
         check_units(model, legs)
     return model.check_legs(model.legs_from_sensors(legs))
@@ -172,9 +172,9 @@ def _finite(value):
 def cmd_solve(args) -> int:
     """One set of leg lengths through the estimator the node uses (cold start, or warm from
     ``--near``), timed after the one-time load of the compiled code (reported as ``load_s``)."""
-    from . import precompile
-    from .estimator import STATUS_BUDGET, Estimator
-    from .solvers import MAX_EVALS
+    from ..estimation.estimator import STATUS_BUDGET, Estimator
+    from ..runtime import precompile
+    from ..solvers import MAX_EVALS
     model = _load(args.config)
     if args.init_range is not None:
         low, high = args.init_range
@@ -219,8 +219,8 @@ def cmd_solve(args) -> int:
 def cmd_solve_all(args) -> int:
     """Every real assembly mode; the one-time load of the compiled code is done first and reported
     apart (``load_s``), so that ``elapsed_s`` is the search alone."""
-    from . import precompile
-    from .solve_all import solve_all
+    from ..modes.multistart import solve_all
+    from ..runtime import precompile
     model = _load(args.config)
     legs = _legs(model, args.legs)
     if args.exact and args.method is not None:
@@ -356,7 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_solve(sub) -> None:
-    from .solvers import SOLVERS
+    from ..solvers import SOLVERS
     s = sub.add_parser("solve", help="solve one set of leg lengths",
                        description="Solve one set of leg lengths with the estimator the node uses: a cold "
                        "start, or a warm start from --near. The time budget counts the solve only; the "
@@ -398,8 +398,8 @@ def _add_precompile(sub) -> None:
 
 
 def cmd_precompile(args) -> int:
-    from .precompile import precompile
-    from .solvers import SOLVERS
+    from ..runtime.precompile import precompile
+    from ..solvers import SOLVERS
     unknown = [n for n in args.solvers or () if n not in SOLVERS]
     if unknown:
         raise GlpmaError(f"unknown solver {unknown[0]!r}; choose among {', '.join(SOLVERS)}")
@@ -421,7 +421,7 @@ def _add_modes(sub) -> None:
 
 
 def cmd_modes(args) -> int:
-    from .node.dds.modes_client import main as modes_main
+    from ..node.dds.modes_client import main as modes_main
     return modes_main(args)
 
 
@@ -449,9 +449,9 @@ def _add_urdf(sub) -> None:
 def cmd_urdf(args) -> int:
     from pathlib import Path
 
-    from .config import resolve_config
-    from .description.urdf import urdf_text
-    from .node.params import URDF_PREFIX
+    from ..config import resolve_config
+    from ..description.urdf import urdf_text
+    from ..node.params import URDF_PREFIX
     if not URDF_PREFIX.fullmatch(args.prefix):
         raise GlpmaError(f"--prefix {args.prefix!r}: use letters, digits, '_' and '/' only")
     if args.meshes is not None and not Path(args.meshes).expanduser().is_dir():
@@ -477,14 +477,14 @@ def cmd_urdf(args) -> int:
 
 def _run(argv) -> int:
     if argv and argv[0] == "node":
-        from .node.entry import main as node_main
+        from ..node.entry import main as node_main
         return node_main(argv[1:])
     plugin = plugins().get(argv[0]) if argv else None
     if plugin is not None:
         return _run_plugin(plugin, argv[1:])
     args = build_parser().parse_args(argv)
     if args.command not in ("modes", "urdf"):     # everything else runs the compiled kernels
-        from .compat import check_numba
+        from ..runtime.compat import check_numba
         check_numba()
     return args.func(args)
 

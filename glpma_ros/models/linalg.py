@@ -10,7 +10,7 @@ import math
 
 from numba import njit
 
-from . import numba_cache
+from ..runtime import numba_cache
 
 numba_cache.install()      # before the first compiled function (see numba_cache): this module may be imported first
 

@@ -20,8 +20,8 @@ in ``models/kernels.py`` inlines the residuals of ``models/residuals.py``; every
 computing the old residuals.  :func:`install` therefore adds to the source stamp of every function of
 this package a digest of the sources of all its compiled modules (:func:`package_digest`): any change
 to a kernel recompiles them all (``glpma-fk precompile``).  It must run before the first compiled
-function of the package is defined (``models/__init__.py`` and ``linalg.py``, the two entries to the
-compiled modules, call it first).
+function of the package is defined (``models/__init__.py``, the entry to the
+compiled modules, calls it first).
 """
 from __future__ import annotations
 
@@ -68,7 +68,7 @@ numba_save = None
 #: Numba's own ``get_source_stamp`` of file-backed functions (None until :func:`install` replaced it)
 numba_stamp = None
 #: the package whose compiled functions share the digest
-PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE_DIR = Path(__file__).resolve().parent.parent
 #: a module is compiled when its source has this (Numba's decorator)
 COMPILED_MARK = "njit"
 _digest = None

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import re
 
-from .errors import GlpmaError
+from ..errors import GlpmaError
 
 #: oldest Numba the kernels compile with (also in setup.py and package.xml)
 NUMBA_FLOOR = (0, 58)

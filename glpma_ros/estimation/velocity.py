@@ -5,7 +5,7 @@ origin is ``(p1 - p0) / dt`` and the mean angular velocity, about the fixed base
 rotation vector of ``R1 R0^T`` (quaternion ``q1 q0*``) divided by ``dt``: the backward
 difference, exact for a motion at constant twist and first-order accurate otherwise (its error
 is at most ``dt / 2`` times the largest acceleration over the interval).  The exact alternative,
-from measured leg rates, is :meth:`glpma_ros.covariance.PoseJacobian.solve`.  Plain Python floats
+from measured leg rates, is :meth:`glpma_ros.estimation.covariance.PoseJacobian.solve`.  Plain Python floats
 (a few microseconds per call).  No ROS import.
 """
 from __future__ import annotations

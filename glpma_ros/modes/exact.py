@@ -86,8 +86,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import GlpmaError
-from .models.hexapod_66 import matrix_from_quaternion
+from ..errors import GlpmaError
+from ..models.hexapod_66 import matrix_from_quaternion
 
 #: bits of precision of msolve's isolating boxes (its ``-p``; its default)
 ISOLATION_BITS = 128

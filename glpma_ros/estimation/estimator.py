@@ -51,12 +51,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import redundancy, solvers
-from .config import UNIT_TO_METRES
-from .errors import InputError
-from .models.base import Pose
-from .solvers import lm, local
-from .solvers.driver import POLISH_MAX_ITER
+from .. import solvers
+from ..config import UNIT_TO_METRES
+from ..errors import InputError
+from ..models.base import Pose
+from ..solvers import lm, local
+from ..solvers.driver import POLISH_MAX_ITER
+from . import redundancy
 
 #: spread of the widened stage relative to the warm one
 WIDEN_FACTOR = 10.0

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import UNIT_TO_METRES
-from .errors import InputError
-from .solvers.local import LocalSolver
+from ..config import UNIT_TO_METRES
+from ..errors import InputError
+from ..solvers.local import LocalSolver
 
 #: confidence of the consistency test: a healthy manipulator gets ``inconsistent_legs`` for one
 #: input in a thousand (a false alarm costs little: the pose without the "faulty" leg is published)

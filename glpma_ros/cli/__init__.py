@@ -1,0 +1,1 @@
+"""The ``glpma-fk`` command line: :mod:`.main` (the entry point, the built-in commands)."""
