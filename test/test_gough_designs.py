@@ -28,7 +28,7 @@ from glpma_tools.sim.trajectories import Plan
 ISSUE_63 = {"manipulator": "hexapod_66", "unit": "mm",
             "base": [[100, 0, 0], [50, 86.6, 0], [-50, 86.6, 0], [-100, 0, 0], [-50, -86.6, 0], [50, -86.6, 0]],
             "platform": [[50, 0, 0], [50, 0, 0], [-25, 43.3, 0], [-25, 43.3, 0], [-25, -43.3, 0], [-25, -43.3, 0]]}
-SHIPPED = ("hexapod_63_stewart", "hexapod_33_octahedral", "hexapod_7legs")
+SHIPPED = ("hexapod_63_stewart", "hexapod_33_octahedral", "hexapod_7legs", "hexapod_8legs")
 #: evaluation cap of each search stage in these tests (the statuses come from work done)
 MAX_EVALS = 20_000
 #: leg residuals "at round-off": a few hundred units in the last place of the longest leg (lm.LEG_RTOL)

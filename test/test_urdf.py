@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from conftest import CONFIG, GENEROUS_BUDGET_MS, RPR_YAML
-from glpma_ros.cli import main
+from glpma_ros.cli.main import main
 from glpma_ros.config import load_manipulator, resolve_config, shipped_configs
 from glpma_ros.description.mechanism import Mechanism
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector

@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import logging
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -48,6 +49,10 @@ PERIOD_NS = 1_000_000
 CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
 CALIBRATION_FK_POSES = 20
+#: a tracker campaign in the robot's working range (the README's example, the tests' campaign): poses within
+#: +- (position, config unit; angle, radians) of the known pose, where some directions are only weakly
+#: identifiable and stay at nominal; measured at the first of the sizes
+CALIBRATION_WORKING_RANGE = {"planar_3rpr_seed": (10.0, 0.2), "hexapod_66_rolland": (20.0, math.radians(8.0))}
 PARAMS_3RPR = ["--ros-args", "--params-file", str(params_file("planar_3rpr"))]
 #: what the breakdown writes per input, as glpma-fk bag does: the input's copy, the pose, /tf and a status (a
 #: stand-in of this many bytes)
@@ -267,17 +272,19 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
     """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
     3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
-    NEW.yaml) and of the identification alone, the leg residual RMS on the held-out measurements, and the forward
-    kinematics' pose error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses: rows
-    under the report's column names."""
+    NEW.yaml, the held-out forward kinematics) and of the identification alone, the leg residual RMS and the forward
+    kinematics' position error on the held-out measurements, the observability O1, and the forward kinematics' pose
+    error (:func:`_fk_error`) with the nominal and with the calibrated config at fresh poses; poses over the
+    workspace at every size, and in the working range (:data:`CALIBRATION_WORKING_RANGE`) at the first: rows under
+    the report's column names."""
     rows = []
     for name in ("planar_3rpr_seed", "hexapod_66_rolland"):
         path = config_dir() / f"{name}.yaml"
         doc = load_document(path)
         model = model_from_dict(doc, str(path))
         center, mm = start_pose(model, doc), model.metres_per_unit * 1e3
-        for size in sizes:
-            sim = simulate(model, center, np.random.default_rng(0), size)
+        for size, spread in [(size, None) for size in sizes] + [(sizes[0], CALIBRATION_WORKING_RANGE[name])]:
+            sim = simulate(model, center, np.random.default_rng(0), size, spread=spread)
             with tempfile.TemporaryDirectory(prefix="glpma_bench_calibrate_") as tmp:
                 data, new = Path(tmp) / "data.csv", Path(tmp) / "new.yaml"
                 write_csv(data, sim.measured)
@@ -285,20 +292,26 @@ def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                                           for _ in range(repeats)))
                 calibrated = model_from_dict(load_document(new), str(new))
             out = outs[-1]
-            fresh = simulate(model, center, np.random.default_rng(1), fk_poses).true_poses
+            fresh = simulate(model, center, np.random.default_rng(1), fk_poses, spread=spread).true_poses
             readings = true_readings(sim.truth, fresh.position, fresh.rotation)
             errors = {label: [_fk_error(m, sim, *args) * mm for args in zip(readings, fresh.position, fresh.rotation)]
                       for label, m in (("nominal", model), ("calibrated", calibrated))}
-            rows.append({"config": name, "measurements": size, "fitted": out["fitted"],
+            campaign = "workspace" if spread is None else \
+                f"+- {spread[0]:g} {model.unit}, {math.degrees(spread[1]):.3g} deg"
+            pose = out["holdout_pose"]
+            rows.append({"config": name, "campaign": campaign, "measurements": size, "fitted": out["fitted"],
                          "command wall s (median / min)": (float(np.median(walls)), float(min(walls))),
                          "command CPU s": float(np.median(cpus)),
                          "identification ms": float(np.median([o["identify_s"] for o in outs])) * 1e3,
                          "Gauss-Newton iterations": out["iterations"],
                          "held-out leg RMS mm (before / after)": (out["holdout_rms_before"] * mm,
                                                                   out["holdout_rms_after"] * mm),
+                         "held-out FK position RMS mm (before / after)": (pose["before"]["position_rms"] * mm,
+                                                                          pose["after"]["position_rms"] * mm),
+                         "O1": out["observability"]["o1"],
                          **{f"FK error {k} mm (median / max)": (float(np.median(v)), max(v))
                             for k, v in errors.items()},
-                         "weak directions": len(out["weak"])})
+                         "weak directions": len(out["weak"]), "left at nominal": len(out["unidentifiable"])})
     return rows
 
 

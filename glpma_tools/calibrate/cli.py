@@ -1,5 +1,6 @@
 """Command line of ``glpma-fk calibrate`` (:func:`main`): read CONFIG and DATA, hold out a share of
-the measurements, identify (:func:`.identify.identify`), report, write NEW.yaml (:mod:`.yaml_edit`)."""
+the measurements, identify (:func:`.identify.identify`), check the forward kinematics on the held-out
+measurements (:func:`holdout_pose_errors`), report, write NEW.yaml (:mod:`.yaml_edit`)."""
 from __future__ import annotations
 
 import argparse
@@ -17,10 +18,13 @@ import numpy as np
 from glpma_ros.cli.main import OneLineParser, command_main, seed_type
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
+from glpma_ros.estimation.estimator import STATIONARY
+from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from glpma_ros.solvers.local import LocalSolver
 
 from ..extras import require
 from . import data as D
-from .identify import GROUPS, UNIDENTIFIABLE_SE_SHARE, WEAK_SE_SHARE, Geometry, identify, leg_residuals
+from .identify import GROUPS, NAMED_COMPONENT, WEAK_SE_SHARE, Geometry, Measurements, identify, leg_residuals
 from .yaml_edit import check_edit, edit_config
 
 PROG = "glpma-fk calibrate"
@@ -37,22 +41,28 @@ MISMATCH_SHARE = 0.05
 KEYS = {"base": "base", "platform": "platform", "offsets": "leg_offsets"}
 #: width of the --help texts
 HELP_WIDTH = 100
+#: iterations of each held-out forward-kinematics solve (the local solve's Levenberg-Marquardt, from
+#: the measured pose: a few iterations reach the pose, the cap bounds the work whatever the data)
+HOLDOUT_FK_MAX_ITER = 50
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f"{PROG} CONFIG DATA --out NEW.yaml [--identify base platform offsets] [--holdout SHARE] "
-              f"[--legs-topic T --pose-topic T --max-dt S] [--seed N] [--json]",
+              f"[--legs-topic T --pose-topic T --max-dt S] [--seed N] [--strict] [--json]",
         description=textwrap.fill(
             "Identify the manipulator's real geometry -- base joints, platform joints and the zero offsets of "
             "the leg sensors -- from leg readings paired with externally measured platform poses (laser tracker, "
             "motion capture), by least squares on the legs' inverse-kinematic residuals "
             "measured_i + offset_i = |p + R B_i - A_i|, and write NEW.yaml: CONFIG with the identified base, "
-            "platform and leg_offsets (CONFIG is never modified). Reports the leg residual RMS before and after, "
-            "on the fitted and on held-out measurements, each parameter with its standard error, the condition "
-            "number and the parameter directions the data cannot identify. Exit 2 with one line for too few "
-            "measurements, a rank-deficient identification or a malformed file.", HELP_WIDTH,
+            "platform and leg_offsets (CONFIG is never modified). Parameter directions the data do not identify "
+            "(standard error above 0.1 % of the manipulator's size, or not seen at all) stay at nominal and are "
+            "named in warnings with the poses that would identify them (truncated SVD). Reports the leg residual "
+            "RMS before and after, on the fitted and on held-out measurements, the forward kinematics' position "
+            "and rotation error on the held-out measurements, each parameter with its standard error, the "
+            "campaign's observability and the directions the data see badly. Exit 2 with one line for too few "
+            "measurements or a malformed file, and with --strict for a direction left at nominal.", HELP_WIDTH,
             break_on_hyphens=False))
     p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
     p.add_argument("data", metavar="DATA",
@@ -73,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-dt", type=float, default=None, metavar="S",
                    help=f"rosbag2: largest time between a pose and its leg reading, seconds (default {D.MAX_DT_S:g})")
     p.add_argument("--seed", type=seed_type, default=0, help="seed of the held-out choice (default 0)")
+    p.add_argument("--strict", action="store_true",
+                   help="refuse (exit 2, one line naming them, nothing written) when a parameter direction would be "
+                        "left at nominal, instead of warning")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     return p
 
@@ -158,11 +171,11 @@ def run(args) -> dict:
     t0 = time.perf_counter()
     result = identify(nominal, fit, groups, scale=model.scale)
     identify_s = time.perf_counter() - t0
-    if result.unidentifiable:
+    if result.unidentifiable and args.strict:
         texts = "; ".join(d.text for d in result.unidentifiable)
-        raise InputError(f"rank-deficient identification: {len(result.unidentifiable)} parameter direction(s) the "
-                         f"data cannot identify (standard error above {UNIDENTIFIABLE_SE_SHARE * model.scale:.3g} "
-                         f"{model.unit}): {texts}")
+        raise InputError(f"rank-deficient identification (--strict): {len(result.unidentifiable)} parameter "
+                         f"direction(s) the data cannot identify (not seen at all, or standard error above "
+                         f"{result.se_limit:.3g} {model.unit}): {texts}")
     if not result.converged:
         raise InputError(f"the identification did not converge in {result.iterations} Gauss-Newton iterations")
     values = {KEYS[g]: getattr(result.geometry, g) for g in groups}
@@ -170,14 +183,46 @@ def run(args) -> dict:
               f"fitted, {held} held out): {', '.join(KEYS[g] for g in groups)} identified; leg residual RMS "
               f"{rms_before:.4g} -> {_rms(leg_residuals(result.geometry, fit)):.4g} {model.unit}.",
               f"# Everything else as in {config_path.name}, whose comments describe the nominal geometry.", "#"]
+    if result.unidentifiable:
+        header[-1:-1] = [f"# {len(result.unidentifiable)} parameter direction(s) the data did not identify stay as in "
+                         f"{config_path.name} (the command's warnings name them)."]
     offsets_comment = [f"# Zero offsets of the leg sensors ({model.unit}), identified by glpma-fk calibrate: added to "
                        f"every", "# measured leg length before the forward kinematics."]
     new_text = edit_config(config_path.read_text(), values, header, offsets_comment)
     new_doc = check_edit(new_text, values, doc, model.scale)
-    model_from_dict(new_doc, str(out))             # NEW.yaml loads as a config (raises otherwise)
+    new_model = model_from_dict(new_doc, str(out))             # NEW.yaml loads as a config (raises otherwise)
     _write(out, new_text)
-    return _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, identify_s,
-                   time.perf_counter() - t_start)
+    t0 = time.perf_counter()
+    pose_errors = {"before": holdout_pose_errors(model, hold), "after": holdout_pose_errors(new_model, hold)} \
+        if len(hold) else None
+    holdout_fk_s = time.perf_counter() - t0
+    return _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, pose_errors,
+                   (identify_s, holdout_fk_s, time.perf_counter() - t_start))
+
+
+def holdout_pose_errors(model, hold: Measurements) -> dict:
+    """The forward kinematics of ``model`` on the held-out leg readings against their measured poses:
+    each solve is the compiled local solve (Levenberg-Marquardt, at most :data:`HOLDOUT_FK_MAX_ITER`
+    iterations: decided by the work done) from the measured pose, so it finds the assembly mode the
+    platform was in.  A solve counts when it converges, or, with redundant legs, ends at a stationary
+    point of the leg residuals (the least-squares pose of legs that the geometry and the noise leave
+    slightly inconsistent).  Position error: distance between the platform origins (config unit);
+    rotation error: angle of ``R_fk R_measured^T`` (degrees)."""
+    solver, dim = LocalSolver(model), hold.position.shape[1]
+    positions, angles = [], []
+    for legs, p, R in zip(hold.legs, hold.position, hold.rotation):
+        p3, R3 = np.zeros(3), np.eye(3)
+        p3[:dim], R3[:dim, :dim] = p, R
+        x0 = model.variables_from_pose(p3, quaternion_from_matrix(R3))
+        res = solver.solve(x0, model.legs_from_sensors(legs), max_iter=HOLDOUT_FK_MAX_ITER)
+        if res is None or not (res.converged or (model.redundancy > 0 and res.stationarity <= STATIONARY)):
+            continue
+        positions.append(float(np.linalg.norm(res.position[:dim] - p)))
+        cos = (np.trace(matrix_from_quaternion(res.orientation) @ R3.T) - 1.0) / 2.0
+        angles.append(math.degrees(math.acos(min(1.0, max(-1.0, cos)))))
+    return {"solved": len(positions), "position_rms": _rms(positions), "position_max": max(positions, default=None),
+            "rotation_rms_deg": _rms(angles), "rotation_max_deg": max(angles, default=None)}
+
 
 
 def _write(path: Path, text_: str) -> None:
@@ -191,13 +236,25 @@ def _write(path: Path, text_: str) -> None:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
+def _finite(v):
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
 def _direction(d) -> dict:
-    return {"legs": list(d.legs), "text": d.text, "se": d.se, "components": d.components}
+    return {"legs": list(d.legs), "text": d.text, "se": _finite(d.se), "singular_value": d.singular_value,
+            "rank_deficient": d.rank_deficient, "components": d.components}
 
 
-def _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, identify_s, total_s) -> dict:
-    def finite(v):
-        return float(v) if v is not None and math.isfinite(v) else None
+def _warning(d, unit: str, se_limit: float) -> str:
+    why = ("not seen by the data at all" if d.rank_deficient else
+           f"standard error {d.se:.3g} {unit}, above {se_limit:.3g} {unit}")
+    return f"left at nominal ({why}): {d.text}"
+
+
+def _report(args, model, config_path, meas, fit, hold, nominal, result, groups, bag, pose_errors, times) -> dict:
+    finite = _finite
+    identify_s, holdout_fk_s, total_s = times
+    obs = result.observability
     return {
         "config": str(config_path), "data": str(args.data), "out": str(args.out), "kind": model.kind,
         "unit": model.unit, "identify": [KEYS[g] for g in groups],
@@ -205,14 +262,21 @@ def _report(args, model, config_path, meas, fit, hold, nominal, result, groups, 
         "rms_before": _rms(leg_residuals(nominal, fit)), "rms_after": _rms(leg_residuals(result.geometry, fit)),
         "holdout_rms_before": _rms(leg_residuals(nominal, hold)) if len(hold) else None,
         "holdout_rms_after": _rms(leg_residuals(result.geometry, hold)) if len(hold) else None,
+        "holdout_pose": pose_errors,
         "condition_number": finite(result.condition_number),
+        "observability": {"o1": obs.o1, "o3": obs.o3, "condition_number": finite(obs.condition_number),
+                          "singular_values": [float(v) for v in obs.singular_values]},
         "parameters": [{"name": p.name, "leg": p.leg, "legs": list(p.legs), "group": KEYS[p.group], "axis": p.axis,
-                        "nominal": p.nominal, "value": p.value, "se": p.se} for p in result.parameters],
+                        "nominal": p.nominal, "value": p.value, "se": finite(p.se), "fixed_share": p.fixed_share}
+                       for p in result.parameters],
         "residual_std": [float(s) for s in result.residual_std],
         "unidentifiable": [_direction(d) for d in result.unidentifiable],
+        "warnings": [_warning(d, model.unit, result.se_limit) for d in result.unidentifiable],
+        "se_limit": result.se_limit,
         "weak": [_direction(d) for d in result.weak],
         "weak_se_threshold": WEAK_SE_SHARE * model.scale,
-        "iterations": result.iterations, "identify_s": identify_s, "elapsed_s": total_s,
+        "iterations": result.iterations, "identify_s": identify_s, "holdout_fk_s": holdout_fk_s,
+        "elapsed_s": total_s,
         "bag": None if bag is None else bag.as_dict()}
 
 
@@ -231,16 +295,40 @@ def text(r: dict) -> str:
               f"  fitted measurements  {r['rms_before']:11.5f} {r['rms_after']:11.5f}"]
     if r["held_out"]:
         lines.append(f"  held out             {r['holdout_rms_before']:11.5f} {r['holdout_rms_after']:11.5f}")
-    lines += [f"condition number of the identification: {r['condition_number']:.4g}",
+        lines += _pose_lines(r["holdout_pose"], u, r["held_out"])
+    o = r["observability"]
+    lines += [f"observability (singular values per pose): O1 {o['o1']:.4g} (Borm & Menq), O3 {o['o3']:.4g} "
+              f"(smallest), condition number {r['condition_number']:.4g}",
               f"parameters ({u}): nominal -> identified +- standard error"]
     width = max(len(p["name"]) for p in r["parameters"])
     for p in r["parameters"]:
-        lines.append(f"  {p['name']:<{width}} {p['nominal']:14.6f} -> {p['value']:14.6f} +- {p['se']:.4f}")
+        note = ""
+        if p["fixed_share"] >= 1.0 - NAMED_COMPONENT ** 2:
+            note = "  (left at nominal)"
+        elif p["fixed_share"] >= NAMED_COMPONENT ** 2:
+            note = f"  ({p['fixed_share']:.0%} in directions left at nominal)"
+        lines.append(f"  {p['name']:<{width}} {p['nominal']:14.6f} -> {p['value']:14.6f} +- {p['se']:.4f}{note}")
     if r["weak"]:
         lines.append(f"weakly identified directions (standard error above {r['weak_se_threshold']:.3g} {u}):")
         lines += [f"  +- {d['se']:.3g} {u}: {d['text']}" for d in r["weak"]]
+    elif r["unidentifiable"]:
+        lines.append(f"no estimated direction has a standard error above {r['weak_se_threshold']:.3g} {u}")
     else:
         lines.append("every parameter direction identified (no standard error above "
                      f"{r['weak_se_threshold']:.3g} {u})")
+    lines += [f"warning: {w}" for w in r["warnings"]]
     lines.append(f"wrote {r['out']}")
     return "\n".join(lines)
+
+
+def _pose_lines(pose: dict, unit: str, held: int) -> list:
+    """The held-out forward kinematics' errors, before and after, as report lines."""
+    def cell(side, key, digits):
+        v = pose[side][key]
+        return f"{'-':>11}" if v is None else f"{v:11.{digits}f}"
+    rows = [(f"position error RMS ({unit})", "position_rms", 5), (f"position error max ({unit})", "position_max", 5),
+            ("rotation error RMS (deg)", "rotation_rms_deg", 6), ("rotation error max (deg)", "rotation_max_deg", 6)]
+    width = max(len(label) for label, _, _ in rows)
+    return ([f"held-out forward kinematics, from the measured pose ({pose['before']['solved']} and "
+             f"{pose['after']['solved']} of {held} solved):"] +
+            [f"  {label:<{width}} {cell('before', key, d)} {cell('after', key, d)}" for label, key, d in rows])

@@ -31,23 +31,68 @@ standard error of each parameter) and the errors-in-variables bias, of order sig
 length (1e-7 mm for 0.01 mm on a 1 m hexapod), far below the standard errors.
 
 **Identifiability** (Hollerbach & Wampler 1996).  The SVD of each leg's block, ``J_i = U S V^T`` (S
-and V from the eigen-decomposition of ``J_i^T J_i``), gives the directions in parameter space (columns of V) and how
-well the data see them: the standard error along direction v_k is ``s_i / sigma_k``.  A direction is
-*unidentifiable* when sigma_k is at round-off relative to the largest singular value, or when its
-standard error exceeds :data:`UNIDENTIFIABLE_SE_SHARE` of the geometry's size -- the data then cannot
-determine it to the order of the errors a calibration corrects; it is *weak* above
-:data:`WEAK_SE_SHARE`.  Such a direction is named in words from its largest components (e.g. the
-offset of a leg and the coordinate of its base joint along the leg move together when the leg never
-changes direction), with the kind of pose that would separate them.  The condition number of the
-identification is that of the whole (block-diagonal) Jacobian, ``max sigma / min sigma`` over all legs.
+and V from the eigen-decomposition of ``J_i^T J_i``), gives the directions in parameter space (columns
+of V) and how well the data see them: the standard error along direction v_k is ``s_i / sigma_k``.
+A direction is
+
+- *rank-deficient* when sigma_k is at round-off relative to the largest singular value (a parameter
+  with no effect, poses that never turn the platform): the data do not see it at all;
+- *unidentifiable from these data* when its standard error exceeds :data:`UNIDENTIFIABLE_SE_SHARE` of
+  the geometry's size, the size of the joint and offset errors a calibration corrects;
+- *weak* when its standard error exceeds :data:`WEAK_SE_SHARE` of the size (estimated, reported).
+
+Each is named in words from its largest components (e.g. the offset of a leg and the coordinate of its
+base joint along the leg move together when the leg never changes direction), with the kind of pose
+that would separate them.
+
+**What is estimated: the truncated SVD** (Hansen 1998, the truncated SVD of a rank-deficient
+least-squares problem; in kinematic calibration Hollerbach & Wampler 1996 identify through the SVD
+of the identification Jacobian and remove the parameter combinations it shows unidentifiable).
+Rank-deficient and unidentifiable directions are not estimated: every Gauss-Newton step is the
+minimum-norm least-squares step over the other directions, ``d = -sum_{k kept} v_k v_k^T J^T r /
+sigma_k^2``, so the identification moves only along directions the data determine and leaves the
+geometry at nominal along the rest.  The threshold is the bias-variance balance of a truncated
+estimate: a direction estimated from the data carries its standard error ``se_k``, one left at nominal
+carries the geometry's error along it, ``|v_k . (theta_true - theta_nominal)|``, of the order of the
+errors calibrated; estimating is the better choice when ``se_k`` is below that size,
+:data:`UNIDENTIFIABLE_SE_SHARE` of the scale (a millimetre on a metre-sized hexapod).  A direction
+left at nominal costs little inside the range the data cover, by construction: the leg residual it
+leaves is sigma_k times the error along it, which is what makes it unidentifiable.  The noise ``s_i``
+behind ``se_k`` is that of the current residuals (the nominal geometry's in the first step, so more
+directions are left out of the first step than of the last), and a direction once estimated stays
+estimated: every direction reported as left at nominal was left out of every step.  The parameters'
+standard errors are those of their estimated part (the covariance over the kept directions); each
+parameter's share in the directions left at nominal, ``sum_{k left} v_kj^2`` (0: fully identified,
+1: fully at nominal), says how much of it is nominal.  Not modelled: the geometry's error along the
+directions left at nominal also reaches the estimated ones through the residuals' curvature (of order
+error^2 / leg length), a bias that matters on a small manipulator: in simulated campaigns near home
+(3-RPR within 10 mm and 0.2 rad, hexapods within 20 mm and 8 degrees; 10 seeds each) the errors in the
+estimated directions over their standard errors spread 1.19 on the seed 3-RPR (legs of 100-150 mm), 1.02
+on Rolland's hexapod and 1.08 on its 7-leg variant.
+
+**Observability** of the campaign (the indices compared by Sun & Hollerbach 2008): the singular
+values of the whole (block-diagonal) identification Jacobian per pose, ``sigma_k / sqrt(m)`` -- the
+leg residual RMS a unit move along direction k causes over the m measurements, dimensionless because
+every parameter is a length (the columns are commensurate and need no further scaling) and
+independent of how many poses were taken.  Reported: O1 = ``(prod sigma_k)^(1/L) / sqrt(m)`` over the
+L parameters (Borm & Menq 1991; near 0 when a direction is rank-deficient), O3 = ``min sigma_k /
+sqrt(m)`` (the minimum singular value, Nahvi, Hollerbach & Hayward 1994: the worst direction, whose
+standard error is the noise over ``sqrt(m)`` O3), and the condition number ``max sigma / min sigma``
+(Driels & Pathre 1990; O2).
 
 References: H. Zhuang, J. Yan, O. Masory, *Calibration of Stewart platforms and other parallel
 manipulators by minimizing inverse kinematic residuals*, J. Robotic Systems 15(7), 1998; C. W. Wampler,
 J. M. Hollerbach, T. Arai, *An implicit loop method for kinematic calibration and its application to
-closed-chain mechanisms*, IEEE Trans. Robotics and Automation 11(5), 1995; J. M. Hollerbach,
-C. W. Wampler, *The calibration index and taxonomy for robot kinematic calibration methods*, IJRR 15(6),
-1996; G. A. F. Seber, C. J. Wild, *Nonlinear Regression*, Wiley 1989; A. Bjorck, *Numerical Methods for
-Least Squares Problems*, SIAM 1996.
+closed-chain mechanisms*, IEEE Trans. Robotics and Automation 11(5), 1995; J. M. Hollerbach, C. W.
+Wampler, *The calibration index and taxonomy for robot kinematic calibration methods*, IJRR 15(6), 1996;
+G. A. F. Seber, C. J. Wild, *Nonlinear Regression*, Wiley 1989; A. Bjorck, *Numerical Methods for Least
+Squares Problems*, SIAM 1996; P. C. Hansen, *Rank-Deficient and Discrete Ill-Posed Problems*, SIAM 1998;
+J.-H. Borm, C.-H. Menq, *Determination of optimal measurement configurations for robot calibration based
+on observability measure*, IJRR 10(1), 1991; A. Nahvi, J. M. Hollerbach, V. Hayward, *Calibration of a
+parallel robot using multiple kinematic closed loops*, ICRA 1994; M. R. Driels, U. S. Pathre,
+*Significance of observation strategy on the design of robot calibration experiments*, J. Robotic
+Systems 7(2), 1990; Y. Sun, J. M. Hollerbach, *Observability index selection for robot calibration*,
+ICRA 2008.
 """
 from __future__ import annotations
 
@@ -81,9 +126,10 @@ MAX_HALVINGS = 30
 #: not seen by the data at all.  They come from the eigenvalues of J^T J, which are exact to ~1e-16 of
 #: the largest, so singular values are resolved down to ~1e-8 of the largest; 1e-7 is above that floor
 RANK_RTOL = 1e-7
-#: a direction whose standard error exceeds this share of the geometry's scale is unidentifiable:
-#: 0.1 %, about the size of the joint and offset errors a calibration corrects (a millimetre on a
-#: metre-sized hexapod), so the data say nothing useful about it
+#: a direction whose standard error exceeds this share of the geometry's scale is unidentifiable from
+#: the data and left at nominal (truncated SVD): 0.1 %, about the size of the joint and offset errors a
+#: calibration corrects (a millimetre on a metre-sized hexapod), the error along the direction that
+#: leaving it at nominal keeps: estimating it would add more error than it removes
 UNIDENTIFIABLE_SE_SHARE = 1e-3
 #: a direction whose standard error exceeds this share of the scale is reported as weakly identified
 WEAK_SE_SHARE = 1e-4
@@ -139,6 +185,9 @@ class Parameter:
     nominal: float
     value: float
     se: float
+    #: the parameter's share in the directions left at nominal, sum_k v_kj^2 over them: 0 = fully
+    #: identified (``se`` is its whole standard error), 1 = fully at nominal
+    fixed_share: float = 0.0
 
     @property
     def leg(self) -> int:
@@ -154,17 +203,31 @@ class Parameter:
 @dataclass
 class Direction:
     """A direction of parameter space the data see badly: the legs it concerns, its unit vector over
-    their identified parameters (names -> component), the standard error along it, in words."""
+    their identified parameters (names -> component), its singular value per pose (``sigma_k /
+    sqrt(m)``), the standard error along it (inf when ``rank_deficient``: sigma at round-off), in words."""
 
     legs: tuple
     components: dict
     singular_value: float
     se: float
     text: str
+    rank_deficient: bool = False
 
     @property
     def leg(self) -> int:
         return self.legs[0]
+
+
+@dataclass
+class Observability:
+    """How well the campaign sees the parameters: the singular values of the identification Jacobian
+    per pose (``sigma_k / sqrt(m)``, ascending), O1 (Borm & Menq), O3 (the smallest), the condition
+    number (O2)."""
+
+    singular_values: np.ndarray
+    o1: float
+    o3: float
+    condition_number: float
 
 
 @dataclass
@@ -173,10 +236,12 @@ class Identification:
     parameters: list                     # Parameter, in GROUPS order, joints in leg order
     residual_std: np.ndarray             # s_i per leg (config unit)
     condition_number: float
-    unidentifiable: list = field(default_factory=list)   # Direction
-    weak: list = field(default_factory=list)             # Direction
+    unidentifiable: list = field(default_factory=list)   # Direction left at nominal (rank-deficient or se > limit)
+    weak: list = field(default_factory=list)             # Direction estimated, se above WEAK_SE_SHARE
     iterations: int = 0
     converged: bool = False
+    observability: Observability | None = None
+    se_limit: float = math.inf           # standard error above which a direction is left at nominal
 
 
 def _legs_text(legs) -> str:
@@ -320,15 +385,34 @@ def _spectra(N: np.ndarray, lay: Layout) -> list:
     return out
 
 
-def _pinv(spectra: list, p: int, s_max: float) -> tuple[np.ndarray, list]:
-    """N^+ over the directions the data see (singular values above ``RANK_RTOL s_max``), and the
-    unseen directions as (parameters, vector)."""
-    out, unseen = np.zeros((p, p)), []
-    for sub, s, V in spectra:
+def _kept(spectra: list, M: np.ndarray, s_max: float, se_limit: float, cap=None) -> list:
+    """Per component: (standard error of each direction, which directions are estimated).  A direction
+    is left at nominal when its singular value is at round-off (``RANK_RTOL s_max``; its standard
+    error is then inf) or its standard error ``sqrt(v^T M v) / sigma^2`` exceeds ``se_limit``; at most
+    ``cap[c]`` directions of component c are left (the largest standard errors first), never fewer than
+    those at round-off."""
+    out = []
+    for c, (sub, s, V) in enumerate(spectra):
         seen = s > RANK_RTOL * s_max
-        out[np.ix_(sub, sub)] = (V[:, seen] / s[seen] ** 2) @ V[:, seen].T
-        unseen += [(sub, V[:, c]) for c in np.flatnonzero(~seen)]
-    return out, unseen
+        se = np.full(len(s), math.inf)
+        Vs = V[:, seen]
+        se[seen] = np.sqrt(np.maximum(np.einsum("ik,ij,jk->k", Vs, M[np.ix_(sub, sub)], Vs), 0.0)) / s[seen] ** 2
+        left = int(np.sum(se > se_limit))
+        if cap is not None:
+            left = min(left, cap[c])
+        left = max(left, int(np.sum(~seen)))
+        kept = np.ones(len(s), dtype=bool)
+        kept[np.argsort(-se, kind="stable")[:left]] = False
+        out.append((se, kept))
+    return out
+
+
+def _pinv(spectra: list, p: int, kept: list) -> np.ndarray:
+    """N^+ over the kept directions: ``sum_k v_k v_k^T / sigma_k^2`` (the truncated SVD's)."""
+    out = np.zeros((p, p))
+    for (sub, s, V), (_, keep) in zip(spectra, kept):
+        out[np.ix_(sub, sub)] = (V[:, keep] / s[keep] ** 2) @ V[:, keep].T
+    return out
 
 
 def _cost_roundoff(r: np.ndarray, meas: Measurements, scale: float) -> np.ndarray:
@@ -341,20 +425,24 @@ def _cost_roundoff(r: np.ndarray, meas: Measurements, scale: float) -> np.ndarra
 
 
 def _normal(J: np.ndarray, r: np.ndarray, lay: Layout):
-    """The normal matrix J^T J (p, p) and gradient J^T r (p,) of the distinct parameters."""
+    """Each leg's J_i^T J_i (n, k, k), the normal matrix J^T J (p, p) and the gradient J^T r (p,) of the
+    distinct parameters."""
     JtJ = J.transpose(0, 2, 1) @ J
-    return _assemble(JtJ, lay.index, lay.size), _assemble(np.einsum("nmk,nm->nk", J, r), lay.index, lay.size)
+    return (JtJ, _assemble(JtJ, lay.index, lay.size),
+            _assemble(np.einsum("nmk,nm->nk", J, r), lay.index, lay.size))
 
 
 def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float | None = None) -> Identification:
     """Least-squares geometry from ``meas``, starting from ``nominal``; only ``groups`` (a subset of
     :data:`GROUPS`) are estimated, the others stay as in ``nominal``; joints that coincide in
-    ``nominal`` stay one joint.  ``scale``: the geometry's size (config unit) for the thresholds
+    ``nominal`` stay one joint; directions the data do not identify stay at nominal (truncated SVD,
+    see the module's docstring).  ``scale``: the geometry's size (config unit) for the thresholds
     (default: the largest extent of the base joints)."""
     groups = tuple(g for g in GROUPS if g in groups)
     if not groups:
         raise ValueError("nothing to identify")
     scale = float(scale if scale is not None else np.ptp(nominal.base, axis=0).max())
+    se_limit = UNIDENTIFIABLE_SE_SHARE * scale
     lay = layout(nominal, groups, scale)
     theta = np.empty(lay.size)
     theta[lay.index] = _vector(nominal, groups)
@@ -364,17 +452,22 @@ def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float 
     k = lay.index.shape[1]
     r, J = _residuals_jacobian(geometry, meas, groups)
     cost = np.einsum("nm,nm->n", r, r)
-    converged, iterations = False, 0
+    dof = max(len(meas) - k, 1)
+    converged, iterations, left = False, 0, None
     for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 - the count is reported after the loop
-        N, G = _normal(J, r, lay)
+        JtJ, N, G = _normal(J, r, lay)
         spectra = _spectra(N, lay)
-        Np, _ = _pinv(spectra, lay.size, max(float(s.max()) for _, s, _ in spectra))
-        step = -Np @ G                                       # Gauss-Newton: -(J^T J)^+ J^T r
+        M = _assemble((cost / dof)[:, None, None] * JtJ, lay.index, lay.size)     # the current noise s_i^2
+        kept = _kept(spectra, M, max(float(s.max()) for _, s, _ in spectra), se_limit, left)
+        now = [int(np.sum(~keep)) for _, keep in kept]
+        step = -_pinv(spectra, lay.size, kept) @ G          # Gauss-Newton, truncated: -(J^T J)_k^+ J^T r
         predicted = np.einsum("nmk,nk->nm", J, step[lay.index])     # J d: the step's change of the residuals
-        in_se = np.einsum("nm,nm->n", predicted, predicted) * max(len(meas) - k, 1)
-        if float(np.abs(step).max()) <= STEP_RTOL * scale or np.all(in_se <= STEP_SE_SHARE ** 2 * cost):
+        in_se = np.einsum("nm,nm->n", predicted, predicted) * dof
+        small = float(np.abs(step).max()) <= STEP_RTOL * scale or np.all(in_se <= STEP_SE_SHARE ** 2 * cost)
+        if small and now == left:                           # and the same directions left at nominal
             converged = True
             break
+        left = now
         allowed = cost + _cost_roundoff(r, meas, scale)
         allowed_c = np.array([allowed[leg_component == c].sum() for c in components])
         trial = theta + step
@@ -393,48 +486,48 @@ def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float 
         geometry = _with_vector(geometry, theta[lay.index], groups)
         r, J = _residuals_jacobian(geometry, meas, groups)
         cost = np.einsum("nm,nm->n", r, r)
-    return _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged)
+    return _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left)
 
 
-def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged) -> Identification:
-    """Standard errors (sandwich ``N^+ M N^+`` with ``M = sum_i s_i^2 J_i^T J_i``: each leg with its
-    own noise; for legs that share nothing this is ``s_i^2 (J_i^T J_i)^-1``), the identifiability of
-    every direction, the condition number."""
+def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left) -> Identification:
+    """Standard errors (sandwich ``N_k^+ M N_k^+`` over the kept directions, with ``M = sum_i s_i^2
+    J_i^T J_i``: each leg with its own noise; for legs that share nothing and nothing left at nominal
+    this is ``s_i^2 (J_i^T J_i)^-1``), the identifiability of every direction, the observability."""
     n, m, k = J.shape
     dof = m - k
     resid_std = np.sqrt(np.einsum("nm,nm->n", r, r) / dof) if dof > 0 else np.full(n, math.nan)
-    JtJ = J.transpose(0, 2, 1) @ J
-    N = _assemble(JtJ, lay.index, lay.size)
+    JtJ, N, _ = _normal(J, r, lay)
     M = _assemble(resid_std[:, None, None] ** 2 * JtJ, lay.index, lay.size)
     spectra = _spectra(N, lay)
-    s_all = np.concatenate([s for _, s, _ in spectra])
-    s_max = float(s_all.max())
-    Np, unseen = _pinv(spectra, lay.size, s_max)
-    cov = Np @ M @ Np
-    var = np.diag(cov).copy()
-    for sub, v in unseen:                    # a parameter in a direction the data do not see at all
-        var[sub[np.abs(v) > math.sqrt(EPS)]] = math.inf
-    se = np.sqrt(np.maximum(var, 0.0))
+    s_all = np.sort(np.concatenate([s for _, s, _ in spectra]))
+    s_max = float(s_all[-1])
+    se_limit = UNIDENTIFIABLE_SE_SHARE * scale
+    kept = _kept(spectra, M, s_max, se_limit, left)
+    Np = _pinv(spectra, lay.size, kept)
+    se = np.sqrt(np.maximum(np.diag(Np @ M @ Np), 0.0))
+    fixed_share = np.zeros(lay.size)
+    for (sub, _, V), (_, keep) in zip(spectra, kept):
+        fixed_share[sub] = np.sum(V[:, ~keep] ** 2, axis=1)
     theta0 = np.empty(lay.size)
     theta0[lay.index] = _vector(nominal, groups)
-    params = [Parameter(legs, g, a, float(theta0[j]), float(theta[j]), float(se[j]))
+    params = [Parameter(legs, g, a, float(theta0[j]), float(theta[j]), float(se[j]), float(fixed_share[j]))
               for j, (legs, g, a) in enumerate(lay.labels)]
-    s_min = float(s_all.min())
+    s_min = float(s_all[0])
     cond = s_max / s_min if s_min > 0 else math.inf
+    per_pose = s_all / math.sqrt(m)
+    o1 = float(np.exp(np.mean(np.log(per_pose)))) if per_pose[0] > 0 else 0.0
     unident, weak = [], []
-    for sub, s, V in spectra:
+    for (sub, s, V), (dir_se, keep) in zip(spectra, kept):
         for c in range(len(s)):
-            v, sigma = V[:, c], float(s[c])
-            seen = sigma > RANK_RTOL * s_max
-            dir_se = math.sqrt(max(float(v @ M[np.ix_(sub, sub)] @ v), 0.0)) / sigma ** 2 if seen else math.inf
-            if not seen or dir_se > UNIDENTIFIABLE_SE_SHARE * scale:
-                unident.append(_direction(v, [lay.labels[j] for j in sub], sigma, dir_se, geometry.dim))
-            elif dir_se > WEAK_SE_SHARE * scale:
-                weak.append(_direction(v, [lay.labels[j] for j in sub], sigma, dir_se, geometry.dim))
-    return Identification(geometry, params, resid_std, cond, unident, weak, iterations, converged)
+            if not keep[c] or dir_se[c] > WEAK_SE_SHARE * scale:
+                d = _direction(V[:, c], [lay.labels[j] for j in sub], float(s[c]) / math.sqrt(m), float(dir_se[c]),
+                               geometry.dim, rank_deficient=not s[c] > RANK_RTOL * s_max)
+                (weak if keep[c] else unident).append(d)
+    return Identification(geometry, params, resid_std, cond, unident, weak, iterations, converged,
+                          Observability(per_pose, o1, float(per_pose[0]), cond), se_limit)
 
 
-def _direction(v, labels, sigma, se, dim) -> Direction:
+def _direction(v, labels, sigma, se, dim, rank_deficient=False) -> Direction:
     """Name direction ``v`` (unit vector over the distinct parameters ``labels``: (legs, group, axis))
     in words, with the kind of pose that would separate what moves together."""
     v = v if v[int(np.argmax(np.abs(v)))] > 0 else -v
@@ -454,7 +547,8 @@ def _direction(v, labels, sigma, se, dim) -> Direction:
         else:
             words.append(f"the {a} of the {g} joint of {_legs_text(legs)}")
     involved = {g for _, g, _ in big}
-    what = f"{words[0]} is not seen" if len(words) == 1 else ", ".join(words[:-1]) + f" and {words[-1]} move together"
+    alone = f"{words[0]} is {'not seen' if rank_deficient else 'seen badly'}"
+    what = alone if len(words) == 1 else ", ".join(words[:-1]) + f" and {words[-1]} move together"
     legs_text = _legs_text(tuple(sorted({leg for legs, _, _ in big for leg in legs})))
     if {"base", "platform"} <= involved and "offsets" not in involved:
         advice = "add poses that rotate the platform"
@@ -464,4 +558,4 @@ def _direction(v, labels, sigma, se, dim) -> Direction:
                                    f"direction")
     else:
         advice = "add poses spread wider over the workspace"
-    return Direction(all_legs, comps, sigma, se, f"{what}: {advice}")
+    return Direction(all_legs, comps, sigma, se, f"{what}: {advice}", rank_deficient)
