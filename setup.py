@@ -42,7 +42,7 @@ setup(
         # pytest < 9: ROS 2 Jazzy's launch_testing plugin (the launch tests under colcon test) fails to load
         # under pytest 9 (README, "Testing your integration"); Ubuntu 24.04 ships 7.4.4
         "test": TOOLS + ["pytest>=7,<9", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
-                         "dask[distributed]>=2024.1", "ruff>=0.4",     # ruff: .ci/run's lint
+                         "dask[distributed]>=2024.1", "ruff==0.17.6",     # ruff: .ci/run's lint, one version: one rule set
                          "yourdfpy>=0.0.56"],     # yourdfpy: parses the generated URDF, its forward kinematics
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
@@ -64,15 +64,21 @@ setup(
             "mock_controller = glpma_tools.mock_controller:main",
             "mock_publisher = glpma_tools.mock_publisher:main",
         ],
-        # glpma-fk's tool subcommands (glpma_ros/cli/, doc/interface.md): "NAME = module:main [extra]",
-        # main(argv) -> exit status; the first line of the module's docstring is its --help line
+        # every glpma-fk command, the built-in ones and the tools' (glpma_ros/cli/, doc/interface.md):
+        # "NAME = module:COMMAND [extra]", COMMAND a glpma_ros.cli.api.Command (its --help line and its main)
         "glpma_fk.commands": [
-            "bag = glpma_tools.bag:main [bag]",
-            "bench = glpma_tools.bench:main [tools]",        # the peers (bench extra) are optional rows
-            "calibrate = glpma_tools.calibrate:main",
-            "demo = glpma_tools.demo:main [tools]",
-            "map = glpma_tools.workspace_map:main [map]",
-            "stress = glpma_tools.stress:main [tools]",
+            "solve = glpma_ros.cli.commands:SOLVE",
+            "solve-all = glpma_ros.cli.commands:SOLVE_ALL",
+            "precompile = glpma_ros.cli.commands:PRECOMPILE",
+            "modes = glpma_ros.cli.commands:MODES",
+            "node = glpma_ros.cli.commands:NODE",
+            "calibrate = glpma_ros.cli.commands:CALIBRATE",
+            "urdf = glpma_ros.cli.commands:URDF",
+            "bag = glpma_tools.commands:BAG [bag]",
+            "bench = glpma_tools.commands:BENCH [tools]",        # the peers (bench extra) are optional rows
+            "demo = glpma_tools.commands:DEMO [tools]",
+            "map = glpma_tools.commands:MAP [map]",
+            "stress = glpma_tools.commands:STRESS [tools]",
         ],
     },
 )

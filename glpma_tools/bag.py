@@ -55,7 +55,7 @@ import textwrap
 import time
 from pathlib import Path
 
-from glpma_ros.cli.main import OneLineParser
+from glpma_ros.cli.api import OneLineParser
 from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.node import params as P
 from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args

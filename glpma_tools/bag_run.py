@@ -24,18 +24,20 @@ from glpma_ros.estimation.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS
 from glpma_ros.models.pose_kernels import joint_distance
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
+from glpma_ros.node.dds.rosbag import (
+    FLOAT64_MULTI_ARRAY,
+    JOINT_STATE,
+    POSE_STAMPED,
+    decode_float64_multi_array,
+    decode_joint_state,
+    open_bag,
+)
 from glpma_ros.node.diagnostics import ERROR, OK, WARN
 
-#: the ROS 2 types the tool reads and writes
-FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
-JOINT_STATE = "sensor_msgs/msg/JointState"
-POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+#: the ROS 2 types the tool writes besides those it reads (glpma_ros.node.dds.rosbag)
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 DIAGNOSTIC_STATUS = "diagnostic_msgs/msg/DiagnosticStatus"
 INPUT_MSGTYPES = {P.INPUT_FLOAT64_MULTI_ARRAY: FLOAT64_MULTI_ARRAY, P.INPUT_JOINT_STATE: JOINT_STATE}
-#: nanoseconds per second (builtin_interfaces/msg/Time)
-NS_PER_S = 1_000_000_000
-
 #: statuses of inputs the estimator never saw
 STATUS_INVALID, STATUS_UNDECODABLE, STATUS_INTERNAL = "invalid_input", "undecodable", "internal_error"
 #: history depth of /tf, as tf2_ros' TransformBroadcaster offers it
@@ -56,24 +58,6 @@ def _leg_values(est, service) -> tuple:
     names = service.joint_names
     legs = (("suspect_leg", est.suspect_leg), ("excluded_leg", est.excluded_leg))
     return tuple((key, names[leg]) for key, leg in legs if leg is not None)
-
-
-def decode_float64_multi_array(raw, typestore) -> np.ndarray:
-    """``data`` of a std_msgs/msg/Float64MultiArray: read by the node's codec (:mod:`glpma_ros.node.dds.cdr`)
-    when little-endian CDR, as rosbag2 records it; otherwise by ``rosbags``."""
-    if cdr.little_endian_cdr(raw):
-        return np.asarray(cdr.float64_multi_array_data(raw), dtype=float)
-    return np.asarray(typestore.deserialize_cdr(raw, FLOAT64_MULTI_ARRAY).data, dtype=float)
-
-
-def decode_joint_state(raw, typestore) -> tuple:
-    """``(names, positions, header.stamp in ns)`` of a sensor_msgs/msg/JointState (as above)."""
-    if cdr.little_endian_cdr(raw):
-        stamp_ns, names, positions, _ = cdr.joint_state_fields(raw)
-        return list(names), np.asarray(positions, dtype=float), stamp_ns
-    msg = typestore.deserialize_cdr(raw, JOINT_STATE)
-    stamp = msg.header.stamp
-    return list(msg.name), np.asarray(msg.position, dtype=float), stamp.sec * NS_PER_S + stamp.nanosec
 
 
 @dataclass
@@ -168,20 +152,6 @@ def _storage_of(reader) -> str:
     from rosbags.rosbag2.storage_mcap import McapReader
     storages = getattr(reader.storage, "storages", None) or [reader.storage]
     return "mcap" if isinstance(storages[0], McapReader) else "sqlite3"
-
-
-def open_bag(path: Path):
-    """An open rosbags Reader (read-only), or :class:`InputError`."""
-    from rosbags.rosbag2 import Reader
-    if not path.exists():
-        raise InputError(f"input bag {path} does not exist")
-    try:
-        reader = Reader(path)
-        reader.open()
-    except Exception as exc:  # noqa: BLE001 - ReaderError, OSError, or a malformed file
-        raise InputError(f"cannot read bag {path}: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
-                         ) from None
-    return reader
 
 
 class BagRun:

@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from glpma_ros.cli.main import OneLineParser, command_main
+from glpma_ros.cli.api import OneLineParser, command_main
 from glpma_ros.config import config_dir
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import SOLVER_CHOICES
@@ -70,7 +70,8 @@ def _parser() -> OneLineParser:
                    help="a faulty sensor: from the middle of the run on, leg LEG (from 1) is sent METRES too long; "
                         "with redundant legs (e.g. --manipulator hexapod_7legs) the node leaves it out")
     p.add_argument("--out", default="demo_out", help="directory of the figure and the JSON summary")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: one this demo claims, that no other run on the host uses)")
+    p.add_argument("--domain-id", type=int, default=None,
+                   help="ROS_DOMAIN_ID (default: one this demo claims, that no other run on the host uses)")
     return p
 
 

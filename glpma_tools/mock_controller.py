@@ -4,7 +4,7 @@ It moves the platform along the loop of :mod:`glpma_tools.sim.trajectories` arou
 config's known solutions, publishes the leg lengths of each pose on ``leg_lengths`` at a fixed
 rate (or, with ``--input joint_state``, on ``joint_states`` among other joints, shuffled, for a node
 run with ``input_type:=joint_state``), listens to ``pose_estimate``, pairs every pose with the
-input it answers (:mod:`glpma_tools.sim.matching`) and compares it with the true pose.
+input it answers (:mod:`glpma_ros.testing.matching`) and compares it with the true pose.
 
 Verdict: a pose is wrong when it answers no input sent (it reproduces no input's legs) or is
 farther than 1e-6 m / 1e-6 rad from its input's true pose; the node's counters must add up
@@ -32,11 +32,11 @@ import time
 
 import numpy as np
 
-from glpma_ros.cli.main import OneLineParser, command_main
+from glpma_ros.cli.api import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
+from glpma_ros.testing.matching import ORIENTATION_TOL_RAD, POSITION_TOL_M, compare
 from glpma_tools.sim.controller import Controller, counters, diff
-from glpma_tools.sim.matching import ORIENTATION_TOL_RAD, POSITION_TOL_M, compare
 from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution
 from glpma_tools.tables import spread

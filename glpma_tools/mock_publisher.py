@@ -13,7 +13,8 @@ every ``1 / rate_hz`` seconds, publishes
 Sample k is the trajectory at ``k / rate_hz`` (the motion does not depend on timer jitter).  With
 ``wait_for_subscriber`` (default) it starts once something subscribes to the legs (the estimator
 node subscribes after its warm-up), with ``wait_for_monitor`` also once something subscribes to
-``~/true_pose`` (a test's :class:`glpma_ros.testing.TrackingMonitor`, which then misses no true pose); with ``duration_s`` > 0 it ends after that many seconds of
+``~/true_pose`` (a test's :class:`glpma_ros.testing.TrackingMonitor`, which then misses no true pose); with
+``duration_s`` > 0 it ends after that many seconds of
 trajectory with status 0, else at SIGINT.  :mod:`glpma_ros.testing` pairs the node's poses with
 these true poses.  Parameters are declared with descriptions and ranges (``ros2 param describe``);
 a bad value is one line on stderr and status 2.

@@ -23,7 +23,7 @@ from glpma_ros.node.service import FkService
 DATA = ROOT / "test" / "data" / "assembly_modes_cases.json"
 CASES = json.loads(DATA.read_text())["cases"]
 MODELS = {"planar_3rpr": Planar3RPR, "hexapod_66": Hexapod66}
-#: modes match when their platform joints are within this share of the scale (issue 13)
+#: modes match when their platform joints are within this share of the scale
 MATCH_RELATIVE = 1e-6
 #: a regenerated geometry or leg length agrees with the stored one to this share of the scale: a few
 #: units of round-off of the generator's arithmetic, whose last bits differ from CPU to CPU (BLAS

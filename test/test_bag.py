@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 pytest.importorskip("rosbags")
-from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime  # noqa: E402
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
 
-from conftest import CONFIG, ROOT  # noqa: E402
-from glpma_ros.node.dds import cdr  # noqa: E402
-from glpma_tools import bag as B  # noqa: E402
-from glpma_tools import bag_run as C  # noqa: E402
-from glpma_tools.sim.trajectories import variables_along  # noqa: E402
+from conftest import CONFIG, ROOT
+from glpma_ros.node.dds import cdr
+from glpma_tools import bag as B
+from glpma_tools import bag_run as C
+from glpma_tools.sim.trajectories import variables_along
 
 TS = get_typestore(Stores.ROS2_JAZZY)
 PARAMS = CONFIG / "params_3rpr.yaml"     # initial_pose = the published real_solutions[0]

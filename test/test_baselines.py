@@ -12,7 +12,7 @@ import pytest
 
 from conftest import RPR_YAML, check_deadline
 from glpma_ros import solvers
-from glpma_ros.cli import main as cli
+from glpma_ros.cli import solve as solve_command
 from glpma_ros.solvers import de, gasa, sa
 from glpma_ros.solvers.common import Termination
 from glpma_ros.solvers.driver import Problem
@@ -225,9 +225,9 @@ def test_registry_gives_each_baseline_its_papers_population(rpr, hexapod, monkey
 
 
 def test_cli_offers_every_registered_solver():
-    parser = cli.build_parser()
+    parser = solve_command.build_parser()
     for name in solvers.SOLVERS:
-        args = parser.parse_args(["solve", str(RPR_YAML), "--legs", "100", "120", "150", "--solver", name])
+        args = parser.parse_args([str(RPR_YAML), "--legs", "100", "120", "150", "--solver", name])
         assert args.solver == name
 
 

@@ -19,7 +19,8 @@ def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
     md = out / "BENCH.md"
     rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
-               "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma", "--solve-all-runs", "20",
+               "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma",
+               "--solve-all-runs", "20",
                "--dds-steps", "20", "--outputs-inputs", "5", "--outputs-seconds", "0.3", "--outputs-profile", "20",
                "--outputs-rclpy-seconds", "0", "--waits-rounds", "1", "--waits-inputs", "300",
                "--no-progress", "--out", str(out), "--markdown", str(md),

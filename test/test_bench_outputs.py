@@ -8,11 +8,11 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from glpma_ros.node.dds import cdr  # noqa: E402
-from glpma_ros.node.dds.messages import Header, Point, Pose, PoseStamped, Quaternion, Time  # noqa: E402
-from glpma_tools.bench import outputs  # noqa: E402
-from glpma_tools.bench.scenarios import END_TO_END_TARGET_MS  # noqa: E402
-from glpma_tools.sim.controller import pose_stamped_fields  # noqa: E402
+from glpma_ros.node.dds import cdr
+from glpma_ros.node.dds.messages import Header, Point, Pose, PoseStamped, Quaternion, Time
+from glpma_tools.bench import outputs
+from glpma_tools.bench.scenarios import END_TO_END_TARGET_MS
+from glpma_tools.sim.controller import pose_stamped_fields
 
 
 @pytest.mark.parametrize("frame_id", ["", "a", "base", "world_frame_x", "ünïcode"])
@@ -26,13 +26,13 @@ def test_the_controller_reads_a_pose_as_the_binding_does(frame_id):
     assert pose_stamped_fields(cdr.Encoder().pose_stamped(stamp, frame_id, position, quaternion))[0] == stamp
 
 
-def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, tmp_path):   # noqa: F811
+def test_the_echo_answers_every_input_with_its_legs_stamped_on_arrival(dds_env, tmp_path):
     """The floor's stand-in over real DDS: each pose carries the legs of the input it answers and
     is stamped between that input's write and the pose's receipt."""
     from glpma_ros.node.dds import endpoints
+    from glpma_ros.testing.matching import pair, split_at_stamp
     from glpma_tools.sim.controller import Controller
     from glpma_tools.sim.echo_node import legs_of
-    from glpma_tools.sim.matching import pair, split_at_stamp
     from glpma_tools.sim.node_process import NodeProcess
     from glpma_tools.sim.trajectories import Plan
 

@@ -1,5 +1,5 @@
-"""glpma-fk calibrate on simulated data (issue 22's protocol: a shipped geometry with every joint
-moved by up to 1 mm, leg offsets up to 0.5 mm, 200 poses over the workspace, 0.01 mm noise on legs
+"""glpma-fk calibrate on simulated data (the protocol of glpma_tools/sim/calibration_data.py: a shipped geometry
+with every joint moved by up to 1 mm, leg offsets up to 0.5 mm, 200 poses over the workspace, 0.01 mm noise on legs
 and poses): parameters within 3 standard errors of the truth, honest standard errors over many
 seeds, forward kinematics with NEW.yaml within 0.05 mm of the true poses, a rosbag2 calibrating as
 the CSV does, every option, bad input; and the config key ``leg_offsets`` where measured legs enter.
@@ -18,15 +18,15 @@ import pytest
 import yaml
 
 from conftest import CONFIG, GENEROUS_BUDGET_MS, GENEROUS_BUDGET_S, HEX_YAML, ROOT, RPR_YAML
+from glpma_ros.calibration import data as D
+from glpma_ros.calibration import identify as I
+from glpma_ros.calibration.data import nearest_pairs
 from glpma_ros.cli.main import main
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
-from glpma_tools.calibrate import data as D
-from glpma_tools.calibrate import identify as I
-from glpma_tools.calibrate import simulate as S
-from glpma_tools.calibrate.data import nearest_pairs
+from glpma_tools.sim import calibration_data as S
 from glpma_tools.sim.trajectories import legs_for, start_pose
 
 CONFIGS = {"3rpr": RPR_YAML, "hexapod": HEX_YAML, "hexapod_8legs": CONFIG / "hexapod_8legs.yaml"}
@@ -731,7 +731,7 @@ def test_benchmark_section_measures_and_renders():
 
 
 def test_simulate_helper_writes_a_csv_the_command_reads(tmp_path, capsys):
-    """``python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED]`` (the README's example)."""
+    """``python -m glpma_tools.sim.calibration_data CONFIG OUT.csv [POSES] [SEED]`` (the README's example)."""
     out = tmp_path / "sim.csv"
     assert S.main(["planar_3rpr_seed", str(out), "120", "3"]) == 0
     assert "true offsets (mm)" in capsys.readouterr().err

@@ -10,6 +10,7 @@ import sys
 import pytest
 
 from glpma_ros.cli import main as cli
+from glpma_ros.cli.api import Command
 
 
 def _python(code: str) -> str:
@@ -17,17 +18,25 @@ def _python(code: str) -> str:
                           timeout=120).stdout
 
 
-def test_the_product_cli_imports_no_tool():
-    """``import glpma_ros.cli`` and ``glpma-fk --help`` load no glpma_tools module (the help lines
-    are read from the tools' docstrings without importing them)."""
+def test_help_imports_no_command_code():
+    """``import glpma_ros.cli.main`` loads no glpma_tools module and no command; ``glpma-fk --help`` loads the
+    commands' lines (glpma_ros.cli.commands, glpma_tools.commands) and none of their code."""
     out = _python("import contextlib, io, sys\n"
                   "import glpma_ros.cli.main as c\n"
-                  "before = sorted(m for m in sys.modules if m.startswith('glpma_tools'))\n"
+                  "ours = lambda: sorted(m for m in sys.modules if m.startswith(('glpma_tools', 'glpma_ros.cli.')))\n"
+                  "before = ours()\n"
                   "with contextlib.redirect_stdout(io.StringIO()) as help_text:\n"
                   "    code = c.main(['--help'])\n"
-                  "after = sorted(m for m in sys.modules if m.startswith('glpma_tools'))\n"
-                  "print(before, after, code, 'bench' in help_text.getvalue())")
-    assert out.split() == ["[]", "[]", "0", "True"], out
+                  "print(','.join(before), ','.join(ours()), code, 'bench' in help_text.getvalue())")
+    assert out.split() == ["glpma_ros.cli.api,glpma_ros.cli.main",
+                           "glpma_ros.cli.api,glpma_ros.cli.commands,glpma_ros.cli.main,glpma_tools,glpma_tools.commands",
+                           "0", "True"], out
+
+
+def test_the_built_in_commands_are_entry_points_as_the_tools_are():
+    installed = {ep.name: ep.value for ep in importlib.metadata.entry_points(group=cli.COMMANDS)}
+    assert {"solve", "solve-all", "precompile", "modes", "node"} <= set(installed)
+    assert all(isinstance(ep.load(), Command) for ep in cli.commands().values())
 
 
 def test_help_lists_every_installed_command(capsys):
@@ -37,7 +46,7 @@ def test_help_lists_every_installed_command(capsys):
     text = capsys.readouterr().out
     choices = text.split("{", 1)[1].split("}", 1)[0].split(",")
     assert installed <= set(choices), (installed, choices)
-    for name in installed:           # each with its docstring's summary line
+    for name in installed:           # each with its Command's line
         line = next(ln for ln in text.splitlines() if ln.strip().startswith(name + " "))
         assert len(line.split(None, 1)) == 2, line
 

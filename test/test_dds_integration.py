@@ -21,16 +21,16 @@ import yaml
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from cyclonedds.core import Policy, Qos  # noqa: E402
-from cyclonedds.domain import DomainParticipant  # noqa: E402
-from cyclonedds.idl import IdlStruct  # noqa: E402
-from cyclonedds.idl.types import float64, int32, sequence, uint32  # noqa: E402
-from cyclonedds.pub import DataWriter  # noqa: E402
-from cyclonedds.sub import DataReader  # noqa: E402
-from cyclonedds.topic import Topic  # noqa: E402
-from cyclonedds.util import duration  # noqa: E402
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import float64, int32, sequence, uint32
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
 
-from conftest import CONFIG, GENEROUS_BUDGET_MS, ROOT, RPR_YAML, interrupt  # noqa: E402
+from conftest import CONFIG, GENEROUS_BUDGET_MS, ROOT, RPR_YAML, interrupt
 
 READY_TIMEOUT_S = 600.0        # a first run compiles the solvers (Numba): minutes on a busy machine
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]

@@ -20,8 +20,8 @@ from glpma_ros.config import load_manipulator
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML  # noqa: E402
-from test_dds_integration import SEED_X, DiagnosticsWatcher, check_tracking, start_node  # noqa: E402,F401 - fixture
+from conftest import CONFIG, GENEROUS_BUDGET_MS, HEX_YAML, RPR_YAML
+from test_dds_integration import SEED_X, DiagnosticsWatcher, check_tracking, start_node  # noqa: F401 - fixture
 
 RPR_NAMES = ["rpr_a1", "rpr_a2", "rpr_a3"]
 OTHER_JOINTS = [("gripper", 0.03), ("camera_tilt", -0.4), ("conveyor", 12.5)]

@@ -15,26 +15,26 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from cyclonedds.core import Policy, Qos  # noqa: E402
-from cyclonedds.domain import DomainParticipant  # noqa: E402
-from cyclonedds.idl import IdlStruct  # noqa: E402
-from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32  # noqa: E402
-from cyclonedds.pub import DataWriter  # noqa: E402
-from cyclonedds.sub import DataReader  # noqa: E402
-from cyclonedds.topic import Topic  # noqa: E402
-from cyclonedds.util import duration  # noqa: E402
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
 
-from conftest import CONFIG  # noqa: E402
+from conftest import CONFIG
 
 # the independent client's types it shares with the contract participant there (no glpma_ros import)
-from test_dds_integration import (  # noqa: E402
+from test_dds_integration import (
     Float64MultiArray,
     Header,
     Point,
     Pose,
     PoseStamped,
     Quaternion,
-    start_node,  # noqa: E402,F401 - fixture
+    start_node,  # noqa: F401 - fixture
 )
 
 SEED_X = [52.860968946, 84.886500470, math.radians(-33.461467708)]

@@ -1,5 +1,5 @@
 """Every Gough-Stewart design (joints coinciding in pairs: 6-3, 3-6, 3-3) and redundant legs with the
-isolation of a faulty one (issue 21): validation, solves, solve-all, the node's service and diagnostics,
+isolation of a faulty one: validation, solves, solve-all, the node's service and diagnostics,
 the CLI and the shipped configs.  Every solve has an evaluation cap or a generous budget; nothing here
 depends on how busy the machine is."""
 import json
@@ -24,7 +24,7 @@ from glpma_ros.node.leg_health import FAILED_AFTER
 from glpma_ros.node.service import FkService
 from glpma_tools.sim.trajectories import Plan
 
-#: the 6-3 of issue 21, verbatim
+#: a 6-3 design (two legs on each platform joint) as a user reported it, verbatim
 ISSUE_63 = {"manipulator": "hexapod_66", "unit": "mm",
             "base": [[100, 0, 0], [50, 86.6, 0], [-50, 86.6, 0], [-100, 0, 0], [-50, -86.6, 0], [50, -86.6, 0]],
             "platform": [[50, 0, 0], [50, 0, 0], [-25, 43.3, 0], [-25, 43.3, 0], [-25, -43.3, 0], [-25, -43.3, 0]]}
@@ -48,8 +48,8 @@ def _round_off(model, e, legs):
                                                          ((0, 0, 1, 1, 2, 2), (0, 1, 2, 3, 4, 5)),    # 3-6
                                                          ((0, 1, 1, 2, 2, 0), (0, 0, 1, 1, 2, 2))])   # 3-3
 def test_coincident_joints_are_accepted(base_pairs, platform_pairs):
-    ring = lambda r, phase: [[r * math.cos(phase + k * math.pi / 3), r * math.sin(phase + k * math.pi / 3), 0.0]
-                             for k in range(6)]
+    def ring(r, phase):
+        return [[r * math.cos(phase + k * math.pi / 3), r * math.sin(phase + k * math.pi / 3), 0.0] for k in range(6)]
     base, platform = ring(200.0, 0.1), ring(100.0, 0.4)
     doc = {"manipulator": "hexapod_66", "unit": "mm", "base": [base[i] for i in base_pairs],
            "platform": [platform[i] for i in platform_pairs]}
@@ -118,10 +118,10 @@ def _needs_msolve():
         pytest.skip("the exact extra (msolve) is not installed")
 
 
-@pytest.mark.parametrize("case", ["issue 6-3", "random 3-3"])
+@pytest.mark.parametrize("case", ["reported 6-3", "random 3-3"])
 def test_exact_agrees_with_the_multistart_on_shared_joints(case):
     _needs_msolve()
-    if case == "issue 6-3":
+    if case == "reported 6-3":
         model = model_from_dict(ISSUE_63)
         legs = np.array([130.0, 148.0, 130.0, 148.0, 130.0, 148.0])
     else:

@@ -1,6 +1,7 @@
 """Launch test (launch_testing, run by ``colcon test`` on a real ROS 2 Jazzy): ``fk.launch.py`` for the
 3-RPR (``leg_lengths`` input), for the hexapod (``joint_states`` input) and for the 3-RPR's managed
-node (``managed:=true autostart:=true``) beside ``ros2 run glpma_ros mock_publisher``.  Every pose is on its input's true pose (1e-9 m, 1e-9 rad),
+node (``managed:=true autostart:=true``) beside ``ros2 run glpma_ros mock_publisher``.  Every pose is on its input's
+true pose (1e-9 m, 1e-9 rad),
 ``/tf`` resolves through a tf2 ``Buffer`` at the poses' stamps, ``/diagnostics`` reports OK, and the
 node and the mock exit 0 when the launch shuts down.  Skipped where launch_testing is not importable
 (no ROS 2 sourced)."""
@@ -12,12 +13,12 @@ import pytest
 pytest.importorskip(
     "launch_testing", reason="launch_testing is not importable (ROS 2 Jazzy not sourced): the launch tests run "
                              "under colcon test on a real Jazzy; the node's logic is tested over Cyclone DDS")
-import launch_testing.actions  # noqa: E402
-import launch_testing.asserts  # noqa: E402
+import launch_testing.actions
+import launch_testing.asserts
 
-from glpma_ros.testing import MANIPULATOR_CONFIGS, TrackingMonitor, fk_with_mock  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
-from launch_support import HANG_S, Diagnostics, TestNode, params_file  # noqa: E402
+from glpma_ros.testing import MANIPULATOR_CONFIGS, TrackingMonitor, fk_with_mock
+from launch import LaunchDescription
+from launch_support import HANG_S, Diagnostics, TestNode, params_file
 
 #: inputs per second of the mock: well within what a busy 2-core machine answers
 RATE_HZ = 20.0
@@ -56,7 +57,8 @@ class TestTracking(unittest.TestCase):
             for _, stamp_ns, frame_id, position, q in c.poses[:POSES]:
                 self.assertEqual(frame_id, "base")
                 stamp = Time(nanoseconds=stamp_ns)
-                self.assertTrue(t.spin_until(lambda stamp=stamp: buffer.can_transform("base", "platform", stamp), HANG_S))
+                self.assertTrue(t.spin_until(lambda stamp=stamp: buffer.can_transform("base", "platform", stamp),
+                                             HANG_S))
                 tf = buffer.lookup_transform("base", "platform", stamp).transform
                 got = (tf.translation.x, tf.translation.y, tf.translation.z,
                        tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w)

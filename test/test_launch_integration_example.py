@@ -6,14 +6,14 @@ import pytest
 
 pytest.importorskip("launch_testing", reason="launch_testing is not importable (ROS 2 not sourced)")
 # --- README example from here ---------------------------------------------------------------------
-import launch_testing.actions  # noqa: E402
-import launch_testing.asserts  # noqa: E402
-import rclpy  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+import launch_testing.actions
+import launch_testing.asserts
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
 
-import launch_support  # noqa: E402,F401 - this repository only: a claimed ROS domain, loopback discovery
-from glpma_ros.testing import TrackingMonitor, fk_with_mock  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
+import launch_support  # noqa: F401 - this repository only: a claimed ROS domain, loopback discovery
+from glpma_ros.testing import TrackingMonitor, fk_with_mock
+from launch import LaunchDescription
 
 
 @pytest.mark.launch_test

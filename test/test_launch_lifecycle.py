@@ -14,12 +14,12 @@ import pytest
 pytest.importorskip(
     "launch_testing", reason="launch_testing is not importable (ROS 2 Jazzy not sourced): the launch tests run "
                              "under colcon test on a real Jazzy; the node's logic is tested over Cyclone DDS")
-import launch_testing.actions  # noqa: E402
-import launch_testing.asserts  # noqa: E402
+import launch_testing.actions
+import launch_testing.asserts
 
-from glpma_ros.testing import TrackingMonitor, fk_with_mock  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
-from launch_support import HANG_S, Diagnostics, TestNode, counters, params_file, ros2  # noqa: E402
+from glpma_ros.testing import TrackingMonitor, fk_with_mock
+from launch import LaunchDescription
+from launch_support import HANG_S, Diagnostics, TestNode, counters, params_file, ros2
 
 RATE_HZ = 20.0
 #: poses checked in each active phase

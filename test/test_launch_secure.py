@@ -19,13 +19,13 @@ pytest.importorskip(
                              "under colcon test on a real Jazzy")
 pytest.importorskip("sros2", reason="sros2 is not importable: the secured launch test needs a ROS 2 with security "
                                     "(ros2 security)")
-import launch_testing.actions  # noqa: E402
-import launch_testing.asserts  # noqa: E402
+import launch_testing.actions
+import launch_testing.asserts
 
-from conftest import CONFIG  # noqa: E402
-from glpma_ros.testing import TrackingMonitor, fk_with_mock  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
-from launch_support import CLI_TIMEOUT_S, HANG_S, SCRATCH, Diagnostics, TestNode, counters, params_file  # noqa: E402
+from conftest import CONFIG
+from glpma_ros.testing import TrackingMonitor, fk_with_mock
+from launch import LaunchDescription
+from launch_support import CLI_TIMEOUT_S, HANG_S, SCRATCH, Diagnostics, TestNode, counters, params_file
 
 RATE_HZ = 20.0
 #: seconds of the mock's trajectory: it then stops, so that the node's counters settle

@@ -13,21 +13,21 @@ import pytest
 pytest.importorskip(
     "launch_testing", reason="launch_testing is not importable (ROS 2 Jazzy not sourced): the launch tests run "
                              "under colcon test on a real Jazzy")
-from ament_index_python.packages import PackageNotFoundError, get_package_prefix  # noqa: E402
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
 try:
     get_package_prefix("robot_state_publisher")
 except PackageNotFoundError:
     pytest.skip("robot_state_publisher is not installed (ROS 2 Jazzy without it)", allow_module_level=True)
 
-import launch_testing.actions  # noqa: E402
-import launch_testing.asserts  # noqa: E402
+import launch_testing.actions
+import launch_testing.asserts
 
-from glpma_ros.config import load_manipulator, resolve_config  # noqa: E402
-from glpma_ros.models.rotations import matrix_from_quaternion  # noqa: E402
-from glpma_ros.testing import MANIPULATOR_CONFIGS, fk_with_mock  # noqa: E402
-from launch import LaunchDescription  # noqa: E402
-from launch_support import HANG_S, TestNode, params_file  # noqa: E402
+from glpma_ros.config import load_manipulator, resolve_config
+from glpma_ros.models.rotations import matrix_from_quaternion
+from glpma_ros.testing import MANIPULATOR_CONFIGS, fk_with_mock
+from launch import LaunchDescription
+from launch_support import HANG_S, TestNode, params_file
 
 #: inputs per second of the mock (a busy 2-core machine answers them all)
 RATE_HZ = 20.0

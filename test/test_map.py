@@ -179,8 +179,8 @@ def test_cli_writes_the_map(tmp_path):
 def test_cli_on_a_dask_scheduler(tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as c:
-        p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 2, "--max-starts", 200, "--scheduler", c.scheduler_address,
-                 "--json")
+        p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 2, "--max-starts", 200,
+                 "--scheduler", c.scheduler_address, "--json")
     assert p.returncode == 0, p.stderr
     assert json.loads(p.stdout)["engine"].startswith("Dask")
 

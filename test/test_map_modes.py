@@ -1,4 +1,4 @@
-"""Issue 23: the map counts assembly modes right.  Points taken from the default maps (seed 3-RPR at
+"""The map counts assembly modes right.  Points taken from the default maps (seed 3-RPR at
 theta = 0, seed 6-6 slice at z = its size, angles 0; 101 x 101, seed 0) where the multistart's count
 was odd: on the 6-6 a mode missed by the stopping rule (the count now the certified one), on the 3-RPR a
 grid pose exactly on a singularity line, a double mode (now said so, not printed as an odd count)."""

@@ -1,10 +1,10 @@
-"""Pairing each pose of the node with the input it answers (glpma_tools.sim.matching), without a
+"""Pairing each pose of the node with the input it answers (glpma_ros.testing.matching), without a
 node: inputs along the simulated loop, poses as a node would publish them."""
 import numpy as np
 import pytest
 
+from glpma_ros.testing.matching import compare, pair
 from glpma_tools.sim.controller import Sent
-from glpma_tools.sim.matching import compare, pair
 from glpma_tools.sim.trajectories import PERIOD_S, Plan, variables_along
 
 RATE_HZ = 200.0
@@ -82,7 +82,7 @@ def test_the_tests_loop_starts_at_the_given_variables(run):
 def test_poses_that_carry_their_legs_pair_by_them_and_split_at_the_stamp(run):
     """The echo node's poses (legs instead of a pose), paired with ``legs_of``; the latency
     split at the stamp adds up to written -> received."""
-    from glpma_tools.sim.matching import split_at_stamp
+    from glpma_ros.testing.matching import split_at_stamp
     plan, sent = run
     n = plan.model.n_legs
 

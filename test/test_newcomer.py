@@ -15,7 +15,7 @@ import yaml
 
 from conftest import CONFIG, HEX_YAML, ROOT, RPR_YAML, interrupt
 from glpma_ros import __version__
-from glpma_ros.cli.main import build_parser, main
+from glpma_ros.cli.main import commands, main
 from glpma_ros.config import load_manipulator, model_from_dict, unit_mistake
 from glpma_ros.errors import ConfigError, GlpmaError, InputError
 from glpma_ros.node.ros_args import check_params_files, load_params_file
@@ -176,8 +176,9 @@ def test_version_matches_the_package():
     assert code == 0 and out.strip() == f"glpma-fk {__version__}"
     assert ET.parse(ROOT / "package.xml").getroot().findtext("version") == __version__
     changelog = (ROOT / "README.md").read_text().split("## Changelog", 1)[1]
-    first = next(line for line in changelog.splitlines() if line.startswith("- "))
-    assert first.startswith(f"- {__version__} -- "), first       # the newest release is this version
+    # the newest release is this version (the changes of the next one gather under "- X.Y.Z -- unreleased:")
+    first = next(line for line in changelog.splitlines() if line.startswith("- ") and "-- unreleased" not in line)
+    assert first.startswith(f"- {__version__} -- "), first
 
 
 def test_a_closed_pipe_ends_quietly():
@@ -198,9 +199,7 @@ def test_a_closed_pipe_ends_quietly():
 
 
 def _subcommands():
-    # argparse lists its subcommands only in its (private) actions
-    sub = next(a for a in build_parser()._actions if a.dest == "command")  # noqa: SLF001
-    return sorted(sub.choices)
+    return sorted(commands())
 
 
 def _options_of(help_text: str) -> tuple[set, set]:
@@ -312,7 +311,7 @@ def test_modes_asks_a_running_node(tmp_path, dds_env):
         interrupt(node)
 
 
-# -- the demo's verdict says only what happened (issue 23, item 1) ---------------------------------------
+# -- the demo's verdict says only what happened ---------------------------------------------------------
 
 def _demo_summary(**kw):
     s = {"inputs_sent": 500, "poses_received": 500, "poses_matched": 500, "poses_unpaired": 0, "poses_wrong": 0,
@@ -346,7 +345,7 @@ def test_demo_verdict_names_the_inputs_without_a_pose():
     assert lines[-1] == "1 of 500 inputs got no pose" and not any("busy" in line for line in lines)
 
 
-# -- solve-all names its columns (issue 23, item 3) --------------------------------------------------------
+# -- solve-all names its columns --------------------------------------------------------------------------
 
 #: a printed value has 6 decimals: legs recomputed from the printed pose agree to a few units of the
 #: last printed digit times the geometry's lever arms (the hexapod's platform joints sit ~1000 mm out)
@@ -355,7 +354,7 @@ PRINTED_LEG_TOL = {"planar_3rpr": 1e-4, "hexapod_66": 1e-2}
 
 @pytest.mark.parametrize("config, legs", [(RPR_YAML, [100, 120, 150]), (HEX_YAML, [1250] * 6)])
 def test_solve_all_text_names_its_columns(config, legs, capsys):
-    from glpma_ros.cli.main import mode_columns
+    from glpma_ros.cli.solve_all import mode_columns
     model = load_manipulator(config)
     assert main(["solve-all", str(config), "--legs", *map(str, legs), "--max-starts", "2000"]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -377,7 +376,7 @@ def test_solve_all_text_names_its_columns(config, legs, capsys):
     assert "px py pz" in help_text and "qx qy qz qw" in help_text and "theta [rad]" in help_text
 
 
-# -- config errors name every problem, the parser's own words, the shipped names (issue 23, item 6) ------
+# -- config errors name every problem, the parser's own words, the shipped names ------------------------
 
 def test_a_config_with_several_problems_names_them_all():
     doc = seed_doc()
@@ -410,7 +409,7 @@ def test_an_unknown_config_name_lists_the_shipped_ones():
     assert "planar_3rpr_seed" in line and "hexapod_66_rolland" in line
 
 
-# -- precompile says what it did, without guessing the time left (issue 23, item 9) -----------------------
+# -- precompile says what it did, without guessing the time left -----------------------------------------
 
 def test_precompile_counts_what_it_compiled_or_loaded():
     """One line per step, saying what Numba compiled or loaded (counted), and no guessed time left."""

@@ -12,9 +12,9 @@ import pytest
 
 pytest.importorskip("fcntl")
 
-from numba.core.caching import IndexDataCacheFile  # noqa: E402
+from numba.core.caching import IndexDataCacheFile
 
-from glpma_ros.runtime import numba_cache  # noqa: E402
+from glpma_ros.runtime import numba_cache
 
 #: how long a hook waits for the other save's step (with the lock, the wait runs out)
 HOOK_WAIT_S = 1.0

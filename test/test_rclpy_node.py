@@ -85,7 +85,7 @@ def test_leg_lengths_in_pose_out(fk_node):
         client.destroy_node()
 
 
-# -- the further outputs (issue 12) ------------------------------------------------------------------------
+# -- the further outputs ---------------------------------------------------------------------------------
 
 def _spin_until(executor, done, timeout_s=20.0, publish=None):
     deadline = time.monotonic() + timeout_s
@@ -218,7 +218,7 @@ def test_ctrl_c_stops_cleanly(tmp_path, dds_env):
         assert bad not in log, log
 
 
-# -- the managed node, QoS overrides, the mock publisher (issue 20) --------------------------------------
+# -- the managed node, QoS overrides, the mock publisher -----------------------------------------------
 
 def test_lifecycle_node_walk_in_process(ros):
     """configure builds the service and the endpoints (with the QoS override), activate lets inputs
@@ -352,7 +352,8 @@ def test_the_encoders_bytes_are_the_messages_rclpy_reads():
     legs = Float64MultiArray(data=[0.1, 0.12, 0.15])
     assert cdr.float64_multi_array_data(serialize_message(legs)) == (0.1, 0.12, 0.15)
     ex = ExtraOutputs(stamp_ns=stamp_ns, frame_id="base", position=p, orientation=q,
-                      joint_names=("leg1_u1", "leg1_actuator"), joint_positions=(0.25, 1.5), joint_velocities=(-1.0, 2.0))
+                      joint_names=("leg1_u1", "leg1_actuator"), joint_positions=(0.25, 1.5),
+                      joint_velocities=(-1.0, 2.0))
     (name, data), = enc.extras(ex)
     mjs = deserialize_message(data, JointState)
     assert (name, mjs.header.frame_id, list(mjs.name), list(mjs.position), list(mjs.velocity), list(mjs.effort)) == \

@@ -11,9 +11,9 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from conftest import CONFIG  # noqa: E402
-from glpma_tools import stress  # noqa: E402
-from glpma_tools.stress.report import json_default  # noqa: E402
+from conftest import CONFIG
+from glpma_tools import stress
+from glpma_tools.stress.report import json_default
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Figures of issue 21 for BENCHMARKS.md: the warm solve of the hexapod designs with shared joints
+"""Figures for BENCHMARKS.md: the warm solve of the hexapod designs with shared joints
 (6-3, 3-3) and of a 7-leg hexapod next to the general 6-6, and the detection and isolation of a faulty
 leg on the 7-leg hexapod along the demo's trajectory.
 

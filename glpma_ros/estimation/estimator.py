@@ -105,7 +105,7 @@ STATUS_NO_SOLUTION = "no_solution"
 STATUS_BUDGET = "budget_exhausted"
 STATUS_NEAR_SINGULAR = "near_singular"
 STATUS_MAX_EVALS = "max_evals"
-#: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.redundancy`)
+#: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.estimation.redundancy`)
 STATUS_INCONSISTENT = "inconsistent_legs"
 
 
@@ -122,7 +122,7 @@ class Estimate:
     solver: str
     message: str = ""
     max_residual: float = math.nan   # max |IK(x) - legs| over the legs (config unit)
-    # redundant legs (glpma_ros.redundancy), set after construction; legs are numbered from 0 here.  Class
+    # redundant legs (glpma_ros.estimation.redundancy), set after construction; legs are numbered from 0 here.  Class
     # attributes, not fields: the everyday estimate (exactly determined legs) does not pay for them
     consistency = math.nan           # chi-square statistic sum r_i^2 / sigma^2 at the least-squares pose
     consistency_limit = math.nan     # its limit (inconsistent above)
@@ -165,9 +165,10 @@ class Estimator:
 
     Redundant legs (more than the degrees of freedom): the pose is the least-squares one, converged
     when its residuals pass the chi-square test against ``leg_noise_std`` (config unit; default
-    :data:`~glpma_ros.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is ``inconsistent_legs``
+    :data:`~glpma_ros.estimation.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is
+    ``inconsistent_legs``
     with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other legs determine
-    the pose consistently, the pose without it (:mod:`glpma_ros.redundancy`)."""
+    the pose consistently, the pose without it (:mod:`glpma_ros.estimation.redundancy`)."""
 
     def __init__(self, model, solver="glpma", time_budget_s=0.002, tolerance=solvers.common.DEFAULT_TOLERANCE,
                  seed=0, polish=True, initial_pose=None, population=None, local_population=None,
@@ -280,7 +281,7 @@ class Estimator:
 
     def _accept(self, e: Estimate, legs, leg_fitness: float, t0: float) -> Estimate:
         """A converged estimate: the next warm start; with redundant legs, after the consistency test
-        (:mod:`glpma_ros.redundancy`), which may turn it into ``inconsistent_legs``."""
+        (:mod:`glpma_ros.estimation.redundancy`), which may turn it into ``inconsistent_legs``."""
         if self._isolator is None:
             self._advance(e.x, legs)
             return e

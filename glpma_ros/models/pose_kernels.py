@@ -116,7 +116,7 @@ def retract(kind, state, step, trial, M):
                                     + M[i, 2] * state[9 + j])
 
 
-# -- rotations: matrix <-> quaternion ------------------------------------------------------------------------------------
+# -- rotations: matrix <-> quaternion ----------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def quaternion_from_rows(R, q):
     """Unit quaternion ``q = [qx, qy, qz, qw]`` (qw >= 0) of the row-major rotation ``R`` (9 values);
@@ -166,7 +166,8 @@ def rows_from_quaternion(q, R):
 @njit(cache=True, error_model="numpy")
 def kabsch_state(platform, x, state, H, V, s):
     """``state`` = (p, R) of the rigid motion that best maps the frame joints ``platform`` (3 rows:
-    the model's ``frame``) onto the solver variables (Kabsch 1976): H = sum (CB_k - cs)(B_k - cd)^T = U S V^T, R = V diag(1, 1, d) U^T.
+    the model's ``frame``) onto the solver variables (Kabsch 1976): H = sum (CB_k - cs)(B_k - cd)^T = U S V^T, R = V
+    diag(1, 1, d) U^T.
     Three points span a plane, so the third singular pair is replaced by the cross products of the
     first two (which makes det R = +1, Kabsch's d).  False when B_1..B_3 are collinear."""
     cs0 = (platform[0, 0] + platform[1, 0] + platform[2, 0]) / 3.0

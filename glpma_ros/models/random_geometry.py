@@ -23,8 +23,8 @@ PLANAR_POSITION_HALF_WIDTH = 100.0
 #: a triangle whose smallest angle is below this is rejected (a nearly degenerate geometry)
 MIN_TRIANGLE_ANGLE_RAD = math.radians(15.0)
 
-#: 6-6 (issue 13's protocol): base joints x, y uniform in [-600, 600] mm, platform joints x, y in
-#: [-300, 300] mm, both with z offsets uniform in [-Z, Z]; the pose at height ~800 mm
+#: 6-6 (the random cases of the assembly-mode tests): base joints x, y uniform in [-600, 600] mm, platform
+#: joints x, y in [-300, 300] mm, both with z offsets uniform in [-Z, Z]; the pose at height ~800 mm
 HEXAPOD_BASE_HALF_WIDTH = 600.0
 HEXAPOD_PLATFORM_HALF_WIDTH = 300.0
 HEXAPOD_Z_OFFSET = 30.0

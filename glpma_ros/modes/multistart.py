@@ -39,12 +39,11 @@ Three methods (``solve_all(model, legs, method=...)``):
   *Parallel Robots*, 2nd ed., 2006, section 4.5).  Near a fold the two modes of the pair lie on
   either side of the midpoint along the nearly-null direction of ``J`` (its right singular
   vector of the smallest singular value), and the one nearer the fold often has a basin too
-  small for the random starts (on the seed 6-6's default map slice the stopping rule ended with
-  one mode of such a pair missing at 2 % of the points).  So, once the random starts stop, every
-  mode whose reciprocal condition number is below ``PARTNER_CONDITIONING`` gets one local solve
-  from each of ``PARTNER_STEPS`` (shares of the scale) both ways along that direction; a new mode
-  found so gets its own partner search.  These starts are counted in ``partner_starts``, apart
-  from the random ``starts`` that the estimates above are about.
+  small for the random starts (the stopping rule then ends with one mode of the pair missing).  So,
+  once the random starts stop, every mode whose reciprocal condition number is below
+  ``PARTNER_CONDITIONING`` gets one local solve from each of ``PARTNER_STEPS`` (shares of the scale)
+  both ways along that direction; a new mode found so gets its own partner search.  These starts are
+  counted in ``partner_starts``, apart from the random ``starts`` that the estimates above are about.
 
   Parity rule: the forward kinematics is a polynomial system with real coefficients (3-RPR: a
   sextic, Gosselin, Sefrioui & Richard 1992; 6-6: 40 complex solutions, Husty 1996; 16 for the
@@ -66,7 +65,7 @@ Three methods (``solve_all(model, legs, method=...)``):
   initial range ``U[-2R, 2R]^n`` (Rolland & Chandra 2016, section 5.5.2 collect the 16 hexapod
   solutions with 100 runs from U[-2000, 2000]^9), de-duplicated the same way.
 
-``"exact"`` -- the certified count (:mod:`glpma_ros.exact`, msolve's real root isolation of
+``"exact"`` -- the certified count (:mod:`glpma_ros.modes.exact`, msolve's real root isolation of
   the rational polynomial system; the optional ``exact`` extra): every real solution,
   polished, and the number of complex solutions.
 
@@ -93,7 +92,7 @@ from ..estimation.redundancy import chi2_limit, leg_noise
 from ..models.pose_kernels import joint_distance
 from ..solvers import refine
 from ..solvers.common import CONVERGED, SolveResult
-from ..solvers.lm import I_LEG_FITNESS, I_NFEV, _solve_one
+from ..solvers.lm import I_LEG_FITNESS, I_NFEV, solve_one
 from ..solvers.local import LocalSolver, make_settings
 
 METHODS = ("multistart", "g3pcx", "exact")
@@ -196,7 +195,7 @@ class AllSolutions:
 def consistent_fitness(model, leg_noise_std=None) -> float:
     """Redundant legs: the largest sum of squared leg residuals (config unit squared) of a mode, the
     estimator's consistency limit for the leg noise ``leg_noise_std`` (config unit; default the
-    node's default, :func:`~glpma_ros.redundancy.leg_noise`); 0 without redundant legs."""
+    node's default, :func:`~glpma_ros.estimation.redundancy.leg_noise`); 0 without redundant legs."""
     if not model.redundancy:
         return 0.0
     return chi2_limit(model.redundancy) * leg_noise(model, leg_noise_std) ** 2
@@ -288,7 +287,8 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
     nearest one found so far when their platform joints are within ``dedup``
     (``Manipulator.distance``), else a new one appended to ``modes``; then the stopping rule of the
     module docstring, checked after every start (unless ``stall_rule`` is false: the partner
-    search's starts).  ``counters`` (``C_*``) carry the state from batch to batch.  Returns the number of starts used; ``counters[C_STOP]`` says why it returned
+    search's starts).  ``counters`` (``C_*``) carry the state from batch to batch.  Returns the number of starts used;
+    ``counters[C_STOP]`` says why it returned
     (``GOING``: the batch is used up; ``STALL_RULE``; ``FULL``: ``modes`` has no room left)."""
     n_vars = modes.shape[1]
     info = n_vars + 7
@@ -297,7 +297,7 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
         if counters[C_MODES] == modes.shape[0]:
             counters[C_STOP] = FULL
             return k
-        _solve_one(kind, data, platform, frame, legs, ref, starts[k], starts[k], settings, out, work, False)
+        solve_one(kind, data, platform, frame, legs, ref, starts[k], starts[k], settings, out, work, False)
         counters[C_STARTS] += 1
         counters[C_NFEV] += int(out[info + I_NFEV])
         if out[info + I_LEG_FITNESS] < tolerance:
@@ -423,7 +423,8 @@ def _spatial_starts(P, q, arms):
 
 
 class _Search:
-    """The multistart's state (``leg_noise_std``: redundant legs, as :func:`consistent_fitness`): the modes found (grown when full), the hits of the random starts, the
+    """The multistart's state (``leg_noise_std``: redundant legs, as :func:`consistent_fitness`): the modes found
+    (grown when full), the hits of the random starts, the
     conditioning of the modes seen by the partner search, and the compiled kernel's arguments; :meth:`run`
     solves a batch of starts with :func:`_multistart_batch`."""
 
@@ -577,7 +578,7 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
 
 # -- certified ----------------------------------------------------------------------------------
 def exact_modes(model, legs, *, seed=0) -> AllSolutions:
-    """Every real mode certified by msolve (:mod:`glpma_ros.exact`), each polished."""
+    """Every real mode certified by msolve (:mod:`glpma_ros.modes.exact`), each polished."""
     from . import exact
     t0 = time.perf_counter()
     sol = exact.solve_exact(model, legs)

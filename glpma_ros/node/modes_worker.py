@@ -1,6 +1,6 @@
 """Every real assembly mode, computed in a child process.
 
-:func:`~glpma_ros.solve_all.solve_all` (its multistart: hundreds of local solves, until many
+:func:`~glpma_ros.modes.multistart.solve_all` (its multistart: hundreds of local solves, until many
 starts in a row find nothing new; ``runs`` = parameter ``assembly_modes_runs`` caps the starts)
 takes up to a second.  Compiled code holds the GIL while it runs, so in a thread of the node it
 would hold up the real-time solve loop (BENCHMARKS.md, "Design measurements").
@@ -46,7 +46,7 @@ class Modes(list):
 
 
 def modes_of(result) -> Modes:
-    """:class:`Modes` of a :class:`~glpma_ros.solve_all.AllSolutions`."""
+    """:class:`Modes` of a :class:`~glpma_ros.modes.multistart.AllSolutions`."""
     return Modes([np.asarray(s.x, dtype=float) for s in result.solutions], result.starts, result.stop_reason,
                  result.miss_probability)
 
@@ -66,7 +66,8 @@ def _reply(out, kind: str, payload) -> None:
 
 def child_main(argv=None) -> int:
     """The child: ``python -m glpma_ros.node.modes_worker CONFIG NICE [WARM_LEGS_JSON]``; one JSON request
-    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line on stdout
+    per line on stdin (``[legs, runs, seed, leg_noise_std]``, the last null for the default), one JSON reply per line
+    on stdout
     (``["ok", {"modes": [x, ...], "starts": n, "stop_reason": r, "miss_probability": p}]``,
     ``["input_error", reason]`` or ``["error", reason]``); exits at EOF."""
     argv = sys.argv[1:] if argv is None else argv

@@ -5,10 +5,10 @@ For every pose published on ``pose_estimate`` (each switchable by a parameter):
 * ``publish_tf``: the transform ``frame_id`` -> ``child_frame_id`` on ``/tf`` -- the pose itself,
   same stamp, same numbers;
 * ``publish_covariance``: ``pose_estimate_cov``, the pose with the 6x6 covariance of
-  :class:`~glpma_ros.covariance.PoseJacobian` for leg noise ``leg_noise_std``;
+  :class:`~glpma_ros.estimation.covariance.PoseJacobian` for leg noise ``leg_noise_std``;
 * ``publish_twist``: ``twist_estimate``, from the ``joint_states`` velocities by the forward
   velocity kinematics when the input carries them, else the finite difference
-  (:mod:`glpma_ros.velocity`) of this pose and the previous one;
+  (:mod:`glpma_ros.estimation.velocity`) of this pose and the previous one;
 * ``publish_markers``: ``~/markers``, at most one every ``markers_period_s`` (by the stamps);
 * ``publish_joint_states``: ``~/mechanism_joint_states``, every joint of the manipulator's URDF
   (:mod:`glpma_ros.description`) at the pose, with the joints' rates when the twist is computed

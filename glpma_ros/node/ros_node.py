@@ -15,11 +15,10 @@ newest-input rule) and solves it right there (:meth:`SolveLoop.offer
 thread (:class:`~glpma_ros.node.loops.ExtrasLoop`), which publishes TF, covariance, twist and
 markers on the topics that have subscribers; a solve holds up the diagnostics timer and the
 parameter services for at most the time budget.
-Handing each input to a solver thread instead costs a thread switch per input, and the Python
-executor, busy taking the next messages, competes with that thread for the GIL, so it is
-slower end to end (BENCHMARKS.md, "Extra outputs and the transport path"); a
-``MultiThreadedExecutor`` with a reentrant group adds a thread pool and futures to every
-callback and is slower still.  Messages: the input is taken as bytes (``raw=True``) and read with
+Solving in the callback saves the thread switch per input that a solver thread would cost, and the
+executor does not compete with such a thread for the GIL; a ``MultiThreadedExecutor`` would add a
+thread pool and futures to every callback (BENCHMARKS.md, "Extra outputs and the transport path",
+measures the three).  Messages: the input is taken as bytes (``raw=True``) and read with
 ``struct``, the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from
 the DDS twin's :class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per
 input (test_rclpy_node checks that rclpy reads those bytes as the same messages); diagnostics and

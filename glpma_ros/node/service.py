@@ -1,6 +1,6 @@
 """The ``glpma_fk`` node without a transport.
 
-:class:`FkService` owns the :class:`~glpma_ros.estimator.Estimator` and does
+:class:`FkService` owns the :class:`~glpma_ros.estimation.estimator.Estimator` and does
 everything a transport should not have to know about: parameters and their
 runtime changes, unit conversion (metres on topics, the config's unit inside),
 input validation with a one-line reason, the publish decision (converged, or -- redundant legs --
@@ -16,9 +16,10 @@ A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
 ``publish(PoseOutput)`` out -- then, from the extras thread,
 ``publish_extras(service.extras(outcome, ...))``: TF, covariance, twist and markers
 (:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s`` from a
-:class:`~glpma_ros.node.loops.ReportLoop`, and ``AssemblyModesLoop.request(arrival_ns)`` on ``~/request_assembly_modes`` with
+:class:`~glpma_ros.node.loops.ReportLoop`, and ``AssemblyModesLoop.request(arrival_ns)`` on
+``~/request_assembly_modes`` with
 ``publish(PoseArrayOutput)`` on ``~/assembly_modes``.  Every assembly mode of the last input
-received is computed by :func:`~glpma_ros.solve_all.solve_all` in a worker process
+received is computed by :func:`~glpma_ros.modes.multistart.solve_all` in a worker process
 (:mod:`glpma_ros.node.modes_worker`), so that the real-time solve loop keeps its latency.
 """
 from __future__ import annotations
@@ -246,7 +247,7 @@ class FkService:
 
     def _log_warm_up(self, name: str, k: int, n: int, took_s: float, loaded: int, compiled: int) -> None:
         """One line per solver warmed up: what Numba compiled (first start after an install) or
-        loaded from its cache, counted (:func:`~glpma_ros.precompile.cache_counts`), not guessed."""
+        loaded from its cache, counted (:func:`~glpma_ros.runtime.precompile.cache_counts`), not guessed."""
         how = describe_cache_use(loaded, compiled)
         if compiled:
             how += " (first start; `glpma-fk precompile` does this ahead)"

@@ -58,8 +58,8 @@ def _quantile_sorted(s: np.ndarray, q: float) -> float:
 
 def percentiles_ms(samples) -> tuple[float, float, float]:
     """p50, p99 and maximum of ``samples`` (seconds) in milliseconds; NaN when there are none.
-    One sort (NumPy's, a few microseconds for a window, without the interpreter's lock) and
-    three look-ups, rather than ``numpy.percentile``'s generic path (~100 us of Python)."""
+    One sort (NumPy's, without the interpreter's lock) and three look-ups, rather than
+    ``numpy.percentile``'s generic path, which is mostly Python."""
     s = np.sort(np.asarray(samples, dtype=float))
     if s.size == 0:
         return (math.nan, math.nan, math.nan)

@@ -124,7 +124,8 @@ def solve(model, legs, *, population=None, rng=None, init_range=(-50.0, 50.0), c
     unless ``polish=False``).  ``population`` defaults to ``10 D``.
     ``params``: ``f_low``, ``f_high``, ``cr_low``, ``cr_high``."""
     size = default_population(model) if population is None else int(population)
-    return solve_population("de", model, legs, lambda problem, pop, fit, rng, term: DEPopulation(problem, pop, fit, rng, **params),
+    return solve_population("de", model, legs,
+                            lambda problem, pop, fit, rng, term: DEPopulation(problem, pop, fit, rng, **params),
                             population=size, sample=initial_de_population,
                             rng=rng, init_range=init_range, center=center, spread=spread,
                             tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)

@@ -54,7 +54,7 @@ from numba import njit
 from ..models.kernels import fitness_one
 from . import sa
 from .driver import EvolutionaryState, solve_population
-from .rcga import CROSSOVER_RATE, _roulette, mutation_width, start_generation, wright_crossover
+from .rcga import CROSSOVER_RATE, mutation_width, roulette, start_generation, wright_crossover
 
 #: 004 section IV.A item 4: "initial temperature of 10"
 T0 = 10.0
@@ -120,8 +120,8 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, child, child_best, chi
                 if not start_generation(pop, fit, cum, new, new_f, tolerance):
                     break
                 progress[0] = 1
-            a = _roulette(cum, rng)
-            b = _roulette(cum, rng)
+            a = roulette(cum, rng)
+            b = roulette(cum, rng)
             if rng.random() < crossover_rate and a != b:
                 wright_crossover(pop, fit, a, b, rng, child)
                 cf = fitness_one(child, kind, data, legs, r)
@@ -173,7 +173,8 @@ class GASAPopulation(EvolutionaryState):
         self.term = term
         self.temperature = float(t0)
         self.sa_iterations, self.chain_length = int(sa_iterations), int(chain_length)
-        self.cooling_rate, self.crossover_rate, self.sa_rate = float(cooling_rate), float(crossover_rate), float(sa_rate)
+        self.cooling_rate, self.crossover_rate = float(cooling_rate), float(crossover_rate)
+        self.sa_rate = float(sa_rate)
         width = np.broadcast_to(np.asarray(width, dtype=float), (pop.shape[1],))
         self.b_ref = np.ascontiguousarray(float(neighbour_fraction) * width)
         if not (self.temperature > 0 and self.sa_iterations >= 1 and self.chain_length >= 1
@@ -213,7 +214,8 @@ class GASAPopulation(EvolutionaryState):
         gens, evals, self.temperature = gasa_generations(
             self.pop, self.fit, self.new, self.new_f, self.cum, self.progress, self.child, self.child_best,
             self.child_state, self.rng, n_generations, max_chains, max_evals, tolerance, self.temperature, sa.T0,
-            self.b_ref, self.sa_iterations, self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate, p.kind, p.data, p.legs,
+            self.b_ref, self.sa_iterations, self.chain_length, self.cooling_rate, self.crossover_rate, self.sa_rate,
+            p.kind, p.data, p.legs,
             p.n_res)
         return gens, evals
 

@@ -26,7 +26,7 @@ Convergence is judged on the leg residuals, relative to the geometry::
 
 or, with redundant legs (more than the degrees of freedom; ``S_GTOL`` > 0), at the least-squares pose
 (``LSQ_GTOL``: the gradient ``J^T r`` at round-off relative to ``|J| |r|``) -- whether those residuals
-are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.redundancy`), which
+are consistent with the leg noise is the estimator's chi-square test (:mod:`glpma_ros.estimation.redundancy`), which
 it may hand in as ``ftol``
 
 (``scale``: the model's characteristic length; the legs enter ``L`` because a computed leg length is
@@ -55,7 +55,7 @@ fitness).
 
 Layout: the pose-space pieces of the two models (residuals and Jacobians, retraction, rotations, Kabsch
 fit, joint distance) are in :mod:`glpma_ros.models.pose_kernels`, the small dense linear algebra in
-:mod:`glpma_ros.linalg`, the Python side (:class:`~glpma_ros.solvers.local.LocalSolver`,
+:mod:`glpma_ros.models.linalg`, the Python side (:class:`~glpma_ros.solvers.local.LocalSolver`,
 :func:`~glpma_ros.solvers.local.local_solve`) in :mod:`glpma_ros.solvers.local`; this module is the
 iteration itself.
 """
@@ -176,14 +176,15 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
     ``kind``/``data``: the model's ``kind_id`` and data tuple (:mod:`glpma_ros.models.kernels`);
     ``platform``: its platform joints (one per leg); ``frame``: its frame joints (``Manipulator.frame``);
     ``settings``: see :func:`make_settings`; ``x_ref``: the variables the distance is measured from;
-    ``legs_ref``: the legs the movement is measured from (empty: none).  Fills ``out`` = [solver variables (n_vars), position (3), quaternion [qx, qy, qz,
+    ``legs_ref``: the legs the movement is measured from (empty: none).  Fills ``out`` = [solver variables (n_vars),
+    position (3), quaternion [qx, qy, qz,
     qw], info (``N_INFO``, layout: the ``I_*`` constants)]; ``work``: :func:`workspace_size` floats.
     Nothing is allocated."""
     ref = _reference_length(legs, settings)
     if ref < 0.0:
         out[:] = 0.0                          # I_INPUT_OK = 0: nothing solved
         return
-    _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, True)
+    solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, True)
     if legs_ref.shape[0] == legs.shape[0]:
         mv = 0.0
         for i in range(legs.shape[0]):
@@ -211,7 +212,7 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
     nfev = 0.0
     nit = 0.0
     for k in range(starts.shape[0]):
-        _solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core, True)
+        solve_one(kind, data, platform, frame, legs, ref, starts[k], x_ref, settings, trial_out, core, True)
         nfev += trial_out[base_info + I_NFEV]
         nit += trial_out[base_info + I_NIT]
         converged = trial_out[base_info + I_CONVERGED] == 1.0
@@ -226,7 +227,7 @@ def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, figures):
+def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, work, figures):
     """The iteration of :func:`lm_kernel` for legs that passed the check (``ref``: reference length).
     ``figures=False`` leaves out what only a decision on the pose needs -- the papers' fitness,
     stationarity, conditioning and distance (left 0) -- for callers that keep the leg fitness alone

@@ -39,7 +39,9 @@ MUTATION_B = 5.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _roulette(cum, rng):
+def roulette(cum, rng):
+    """Roulette-wheel selection: the first index whose cumulative weight ``cum`` exceeds a uniform draw
+    in [0, ``cum[-1]``), by bisection."""
     u = rng.random() * cum[-1]
     lo, hi = 0, cum.shape[0] - 1
     while lo < hi:
@@ -100,8 +102,8 @@ def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generat
         changed[0] = False
         t = min((generation + gens) / max(last_generation, 1.0), 1.0)
         for i in range(1, N):
-            a = _roulette(cum, rng)
-            b = _roulette(cum, rng)
+            a = roulette(cum, rng)
+            b = roulette(cum, rng)
             changed[i] = False
             if rng.random() < crossover_rate and a != b:
                 wright_crossover(pop, fit, a, b, rng, new[i])

@@ -129,7 +129,8 @@ class TrackingMonitor:
         """Every pose answers an input of the mock and lies on that input's true pose within the
         tolerances; at least ``min_poses`` of them.  Returns the comparison."""
         c = self.comparison()
-        assert not c.unpaired, f"{len(c.unpaired)} of {len(c.unpaired) + len(c.index)} poses answer no input of the mock"
+        total = len(c.unpaired) + len(c.index)
+        assert not c.unpaired, f"{len(c.unpaired)} of {total} poses answer no input of the mock"
         assert len(c.index) >= min_poses, f"{len(c.index)} poses paired with an input, expected >= {min_poses}"
         worst_p, worst_a = float(c.position_error_m.max()), float(c.orientation_error_rad.max())
         assert worst_p <= position_tol_m, f"position error {worst_p:.3g} m > {position_tol_m:g} m"

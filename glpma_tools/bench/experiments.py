@@ -17,9 +17,9 @@ from glpma_tools.tables import MISSING, fmt, fmt_ci, ratio, table
 from glpma_tools.timing import progress_bar as _bar
 
 from .common import Run, summarize
+from .markdown import SOLVER_LABEL, figure_link, md_blocks, pct, prose
 from .papers import ALL_SOLUTIONS, FAITHFUL_3RPR, PUBLISHED, TABLE2, TABLE2_PROTOCOL, TABLE_NAME
 from .peers import PEER_LABEL, PEER_SOLVERS, PYMOO_BOUND_FACTOR, available
-from .report import SOLVER_LABEL, figure_link, md_blocks, pct, prose
 
 #: the success thresholds of the peers' table: the papers' and looser ones
 THRESHOLDS = (1e-20, 1e-16, 1e-12, 1e-8)

@@ -1,4 +1,4 @@
-"""Every real assembly mode, three ways (issue 13): the fast multistart (``solve_all``'s default), the certified count
+"""Every real assembly mode, three ways: the fast multistart (``solve_all``'s default), the certified count
 (msolve, ``method="exact"``) and the papers' method (200 polished G3-PCX runs), per case: the seed examples and the
 random cases of test/data/assembly_modes_cases.json (their certified modes are stored there)."""
 from __future__ import annotations
@@ -10,9 +10,12 @@ import numpy as np
 
 from glpma_ros.errors import GlpmaError
 from glpma_ros.models import MODELS
+from glpma_ros.modes.exact import msolve_executable
 from glpma_ros.modes.multistart import G3PCX_RUNS, solve_all
 from glpma_tools.tables import MISSING, fmt, table
 from glpma_tools.timing import REPO_ROOT, progress_bar
+
+from .markdown import md_blocks, prose
 
 CASES_PATH = REPO_ROOT / "test" / "data" / "assembly_modes_cases.json"
 #: the manipulators' short names, in the report's order
@@ -49,7 +52,6 @@ def compare(scenarios, per_kind, g3pcx_hexapods, progress=False) -> dict:
     """A row (dict) per case; ``per_kind``: random cases per manipulator (None = all); G3-PCX runs on every 3-RPR
     case and on the first ``g3pcx_hexapods`` hexapod cases.  Certified counts are msolve's, else the stored ones."""
     try:
-        from glpma_ros.modes.exact import msolve_executable
         msolve_executable()
         exact_status = "run"
     except GlpmaError as exc:
@@ -104,7 +106,6 @@ def _kind_summary(name, rows) -> str:
 def section(res, md_path=None) -> list[str]:
     """The BENCHMARKS.md section (``res["modes_comparison"]``: :func:`compare`'s result), prose from
     templates/modes.md."""
-    from .report import md_blocks, prose
     data = res["modes_comparison"]
     body = [[r["label"], fmt(r["certified"]), fmt(r["complex"]), r["fast_found"],
              MISSING if r["same"] is None else ("yes" if r["same"] else "**no**"), r["starts"],

@@ -13,23 +13,24 @@ from pathlib import Path
 
 import numpy as np
 
+from glpma_ros.calibration import main as calibrate_main
 from glpma_ros.config import config_dir, load_document, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
+from glpma_ros.node.dds.rosbag import FLOAT64_MULTI_ARRAY, decode_float64_multi_array
 from glpma_ros.node.ros_args import parse_ros_args
 from glpma_ros.node.service import FkService
 from glpma_tools import bag, workspace_map
-from glpma_tools.bag_run import FLOAT64_MULTI_ARRAY, OFFLINE_BUDGET_MS, BranchWatch, decode_float64_multi_array
-from glpma_tools.calibrate import main as calibrate_main
-from glpma_tools.calibrate.simulate import simulate, true_readings, write_csv
+from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch
+from glpma_tools.sim.calibration_data import simulate, true_readings, write_csv
 from glpma_tools.sim.trajectories import start_pose
 
-from .dds import params_file
-from .report import dict_table, key_values, md_blocks, prose
+from .markdown import dict_table, key_values, md_blocks, prose
 from .scenarios import load
+from .transport import params_file
 
 #: the process counts the maps are timed with
 MAP_WORKERS = (1, 2)
@@ -44,7 +45,7 @@ FLEET_BAGS = 4
 #: log time of the first message of the recorded legs, and their period (1 kHz)
 T0_NS = 1_700_000_000_000_000_000
 PERIOD_NS = 1_000_000
-#: ``glpma-fk calibrate`` is timed on these numbers of measurements (issue 22), each this many times (the median and
+#: ``glpma-fk calibrate`` is timed on these numbers of measurements, each this many times (the median and
 #: the smallest are reported: a shared machine only adds time); its forward kinematics checked at fresh true poses
 CALIBRATION_SIZES = (200, 10_000)
 CALIBRATION_REPEATS = 5
@@ -68,7 +69,7 @@ def _recorded_legs(n: int) -> np.ndarray:
 
 def _write_bag(path: Path, records, typestore) -> None:
     """An MCAP rosbag2 of ``(topic, log time ns, CDR bytes)`` records, each topic a Float64MultiArray."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer  # the bag extra: optional, imported where used
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
         conns = {}
         for topic, t, raw in records:
@@ -88,14 +89,14 @@ def _write_legs_bag(path: Path, legs_m, typestore) -> None:
 
 def _read_bag(path: Path, topic: str | None = None) -> list:
     """``(log time ns, CDR bytes)`` of the messages of the bag at ``path`` (on ``topic``; None: all)."""
-    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2 import Reader  # the bag extra: optional, imported where used
     with Reader(path) as reader:
         return [(t, bytes(raw)) for c, t, raw in reader.messages() if topic in (None, c.topic)]
 
 
 def _typestore():
     """The ROS 2 Jazzy message types of ``rosbags``."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # the bag extra: optional, imported where used
     return get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -165,7 +166,7 @@ def _engines(workers=MAP_WORKERS):
     ``max(workers)`` single-threaded worker processes (``--scheduler``) with the extra."""
     engines = [(f"{n} process(es)", ["--workers", str(n)]) for n in workers]
     try:
-        import distributed
+        import distributed  # the map extra: optional, imported where used
     except ImportError:
         yield engines
         return
@@ -270,7 +271,7 @@ def _fk_error(model, sim, legs, p, R) -> float:
 
 def calibration(sizes=CALIBRATION_SIZES, repeats: int = CALIBRATION_REPEATS,
                 fk_poses: int = CALIBRATION_FK_POSES) -> list:
-    """``glpma-fk calibrate`` on simulated data (issue 22's protocol, :mod:`glpma_tools.calibrate.simulate`) for the
+    """``glpma-fk calibrate`` on simulated data (the protocol of :mod:`glpma_tools.sim.calibration_data`) for the
     3-RPR and the hexapod, through its entry point: wall and CPU time of the whole command (CSV read, identification,
     NEW.yaml, the held-out forward kinematics) and of the identification alone, the leg residual RMS and the forward
     kinematics' position error on the held-out measurements, the observability O1, and the forward kinematics' pose

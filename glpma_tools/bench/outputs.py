@@ -9,18 +9,29 @@ import threading
 import time
 
 import numpy as np
+from cyclonedds.util import duration
 
+from glpma_ros.node.dds import cdr, endpoints
+from glpma_ros.node.dds.messages import MarkerArray, PoseStamped, PoseWithCovarianceStamped, TFMessage, TwistStamped
+from glpma_ros.node.dds.node import DdsNode
+from glpma_ros.node.params import resolve
+from glpma_ros.node.service import FkService, JointStateInput, default_joint_names
+from glpma_tools.sim.controller import Controller
 from glpma_tools.sim.domains import claim_domain
+from glpma_tools.sim.node_process import node_environment
+from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, table
 
-from .dds import END_TO_END, SHIPPED_ON, match, node_process, params_of, shipped_args
+from .markdown import md_blocks, prose
+from .scenarios import END_TO_END_TARGET_MS, LABEL
+from .transport import ECHO, OFF, SHIPPED_ON, TARGETS, match, node_process, params_of, path_latency
 from .waits import timed
 
 HEADING = "## Extra outputs and the transport path"
 #: the outputs the shipped params files switch on: the row judged against :data:`EXTRAS_TARGET_US`
 SHIPPED = "shipped (/tf, covariance, twist)"
-#: per-input cost of the shipped extra outputs at p50 (µs) that issue 12 asks for
+#: the per-input cost at p50 (µs) the shipped extra outputs are held to
 EXTRAS_TARGET_US = 20.0
 #: the output configurations of part 1: name -> parameters; the first, none, is the reference
 CASES = (("none", {}), ("/tf", {"publish_tf": True}), ("pose_estimate_cov", {"publish_covariance": True}),
@@ -28,21 +39,12 @@ CASES = (("none", {}), ("/tf", {"publish_tf": True}), ("pose_estimate_cov", {"pu
          ("twist_estimate (velocities)", {"publish_twist": True, "input_type": "joint_state"}),
          ("~/markers (every pose)", {"publish_markers": True, "markers_period_s": 0.0}), (SHIPPED, SHIPPED_ON),
          ("all (shipped + markers 10 Hz)", {**SHIPPED_ON, "publish_markers": True}))
-OFF = dict.fromkeys((*SHIPPED_ON, "publish_markers"), False)
 #: seconds between two timed calls of parts 1 and 3 (the subscriber keeps up, the inputs stay warm)
 PACE_S = 1e-3
 #: the stamp of part 1's first input (ns)
 FIRST_STAMP_NS = 1_795_000_000 * 10**9
 #: the name of the node's extras thread (``ExtrasLoop``'s default), whose CPU clock part 1 reads
 EXTRAS_THREAD = "glpma_fk-extras"
-#: the processes part 2 drives: label -> (module, extra --ros-args)
-NODE, NODE_OFF, ECHO = "node", "node, extra outputs off", "echo (transport floor)"
-TARGETS = {NODE: ("glpma_ros.node.dds.node", ()),
-           NODE_OFF: ("glpma_ros.node.dds.node", tuple(a for k in OFF for a in ("-p", f"{k}:=false"))),
-           ECHO: ("glpma_tools.sim.echo_node", ())}
-#: seconds to wait for the last poses after the last input, and for the node's report after them
-TAIL_S = 1.0
-DIAGNOSTICS_WAIT_S = 5.0
 
 
 def _cpu_wall(call, items) -> dict:
@@ -53,10 +55,7 @@ def _cpu_wall(call, items) -> dict:
 
 def main() -> None:
     """The subscriber process of part 1: takes every output of the node, raw, until SIGINT."""
-    from cyclonedds.util import duration
 
-    from glpma_ros.node.dds import cdr, endpoints
-    from glpma_ros.node.dds.messages import MarkerArray, PoseStamped, PoseWithCovarianceStamped, TFMessage, TwistStamped
     p = endpoints.Participant()
     readers = [p.reader(t, m, 100) for t, m in ((endpoints.POSE_ESTIMATE, PoseStamped), (endpoints.TF, TFMessage),
                (endpoints.POSE_ESTIMATE_COV, PoseWithCovarianceStamped), (endpoints.TWIST_ESTIMATE, TwistStamped),
@@ -74,11 +73,6 @@ def output_costs(scenarios, n_inputs: int, domain: int) -> list[dict]:
     """Part 1: per manipulator and output configuration, from outside the node: the solving thread's CPU
     and wall time around each ``offer`` (µs), the extras thread's CPU per pose from its own clock (the
     thread starts with the first pose), and the node's own wall figures (solve, hand-off, extras)."""
-    from glpma_ros.node.dds import endpoints
-    from glpma_ros.node.dds.node import DdsNode
-    from glpma_ros.node.params import resolve
-    from glpma_ros.node.service import FkService, JointStateInput, default_joint_names
-    from glpma_tools.sim.trajectories import Plan
 
     rows = []
     with node_process(domain, module=__name__):
@@ -111,65 +105,11 @@ def output_costs(scenarios, n_inputs: int, domain: int) -> list[dict]:
     return rows
 
 
-def answers(plan, sent, poses, echo: bool) -> tuple[list, list, int, float | None]:
-    """(the index of the input each paired pose answers, those poses, the poses that answer no input or lie
-    off its true pose, the largest position error (m; None for an echo, whose poses carry the legs they
-    answer)), for part 2, the dds section and the rclpy client."""
-    from glpma_tools.sim.echo_node import legs_of
-    from glpma_tools.sim.matching import compare, pair
-    if echo:
-        pairs, unpaired = pair(plan.model, sent, poses,
-                               legs_of=lambda pose: np.array(legs_of(pose, plan.model.n_legs)) / plan.mpu)
-        return [i for i, _, _ in pairs], [p for _, p, _ in pairs], len(unpaired), None
-    c = compare(plan.model, sent, poses)
-    error = float(c.position_error_m.max()) if c.position_error_m.size else None
-    return list(c.index), c.poses, len(c.unpaired) + int(np.sum(~c.on_truth)), error
-
-
-def path_latency(sc, target: str, seconds: float, domain: int, then=None) -> dict:
-    """Part 2 and the dds section: the simulated controller drives ``target`` (a key of :data:`TARGETS`) for
-    ``seconds`` at :data:`~.dds.END_TO_END`'s rate; latency split at the pose's stamp (ms), the process's
-    CPU share while driven and RSS before and after, poses that answer no input or a wrong one.  With ``then``:
-    the node's /diagnostics report after the run (``diagnostics``), then ``then(domain)`` against the same
-    process (``then``; the process's stopped line covers both runs)."""
-    from glpma_tools.sim.controller import Controller
-    from glpma_tools.sim.matching import split_at_stamp
-    from glpma_tools.sim.trajectories import Plan
-
-    plan = Plan(sc.path)
-    rate = END_TO_END[plan.model.kind][0]
-    module, extra = TARGETS[target]
-    with node_process(domain, [*shipped_args(plan.model.kind, sc.path), *extra], module) as proc:
-        with contextlib.closing(Controller(plan.model, domain, listen_depth=1000)) as ctl:
-            match([ctl.writer, ctl.listener.reader], target)
-            rss0, cpu0, wall0 = proc.rss_kb(), proc.cpu_s(), time.perf_counter()
-            sent, _ = ctl.send(plan, 0.0, max(1, round(rate * seconds)), rate, 1.0 / rate)
-            cpu_share = (proc.cpu_s() - cpu0) / (time.perf_counter() - wall0)
-            deadline = time.monotonic() + TAIL_S
-            while time.monotonic() < deadline and len(ctl.listener.poses) < len(sent):
-                time.sleep(0.01)
-            poses, rss1 = list(ctl.listener.poses), proc.rss_kb()
-            diagnostics = then and ctl.diagnostics_after(sent[-1].send_ns, DIAGNOSTICS_WAIT_S)
-        after = then and then(domain)
-        proc.stop()
-        summary = proc.stopped_line()
-    index, paired, wrong, error = answers(plan, sent, poses, echo=target == ECHO)
-    to_node, in_node = split_at_stamp(sent, index, paired)
-    return {"manipulator": sc.label, "key": sc.key, "target": target, "rate_hz": rate, "seconds": seconds,
-            "sent": len(sent), "paired": len(paired), "wrong": wrong, "total_ms": distribution(to_node + in_node),
-            "to_node_ms": distribution(to_node), "in_node_ms": distribution(in_node),
-            "cpu_percent": 100.0 * cpu_share, "summary": summary, "position_error_max_m": error,
-            "rss_mb": (rss0 / 1024, rss1 / 1024), "diagnostics": diagnostics, "then": after}
-
-
 def micro_profile(sc, n: int, domain: int) -> dict:
     """Part 3: ``n`` paced writes of one of ``sc``'s inputs without a reader and with the echo's reader in
     another process, and ``n`` thread wake-up round trips (wall µs): this thread puts into a
     ``queue.SimpleQueue`` (what the node's extras thread is woken with) another thread waits on, which puts
     into one this thread waits on."""
-    from glpma_tools.sim.controller import Controller
-    from glpma_tools.sim.node_process import node_environment
-    from glpma_tools.sim.trajectories import Plan
 
     plan = Plan(sc.path)
     node_environment(domain)                    # this process's participant discovers as the echo's does
@@ -211,7 +151,7 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
             res["profile"] = micro_profile(scenarios[0], profile_samples, domain())
         if rclpy_seconds > 0:
             try:
-                from . import rclpy_client
+                from . import rclpy_client  # needs rclpy (a sourced ROS 2): optional, imported here
             except ImportError as exc:
                 res["rclpy"] = f"{exc.name or 'rclpy'} does not import in the Python that ran the bench"
             else:
@@ -234,7 +174,6 @@ def _verdict(measured: float, target: float, unit="ms", digits=3) -> str:
 
 def _costs(rows) -> list:
     """Part 1's table, each row's hand-off judged against the target."""
-    from .report import prose
     none = {r["manipulator"]: r["cpu_us"]["p50"] for r in rows if r["outputs"] == CASES[0][0]}
     body = [[r["manipulator"], r["outputs"], _q(r["cpu_us"], 1), f"{r['cpu_us']['p50'] - none[r['manipulator']]:+.1f}",
              _q(r["wall_us"], 1), _q(r["solve_us"], 1, ("p50",)), _q(r["handoff_us"], 1),
@@ -253,8 +192,6 @@ def _costs(rows) -> list:
 
 def _paths(rows) -> list:
     """Part 2's table, each row against the targets and the floor (the echo's row)."""
-    from .report import prose
-    from .scenarios import END_TO_END_TARGET_MS
     floor = {r["manipulator"]: r["total_ms"] for r in rows if r["target"] == ECHO}
 
     def against(d, targets) -> str:
@@ -278,8 +215,6 @@ def _paths(rows) -> list:
 
 def section(res, md_path=None) -> list[str]:
     """The section of BENCHMARKS.md from ``res["outputs"]`` (nothing when it did not run)."""
-    from .report import md_blocks, prose
-    from .scenarios import END_TO_END_TARGET_MS, LABEL
     o = res.get("outputs")
     if not o:
         return []

@@ -70,7 +70,7 @@ class CountingFitness:
 def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
     """pypop7's ``G3PCX`` (Deb's defaults: 3 parents, 2 offspring, sigma 0.1), unbounded search, initial population
     uniform in ``init_range``."""
-    from pypop7.optimizers.ga.g3pcx import G3PCX
+    from pypop7.optimizers.ga.g3pcx import G3PCX  # the bench extra: optional, imported where used
     fit, n = CountingFitness(model, legs, max_evals), model.n_vars
     problem = {"fitness_function": fit.one, "ndim_problem": n,
                "lower_boundary": np.full(n, float(init_range[0])), "upper_boundary": np.full(n, float(init_range[1]))}
@@ -83,7 +83,7 @@ def pypop7_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run
 def pymoo_g3pcx(model, legs, *, seed, population, init_range, max_evals) -> Run:
     """pymoo's ``G3PCX`` as shipped (PCX plus its polynomial mutation), initial population uniform in ``init_range``,
     bounds ``PYMOO_BOUND_FACTOR`` times wider."""
-    from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX
+    from pymoo.algorithms.soo.nonconvex.g3pcx import G3PCX  # the bench extra: optional, imported where used
     from pymoo.config import Config
     from pymoo.core.problem import Problem
     from pymoo.optimize import minimize

@@ -13,7 +13,7 @@ from glpma_ros.runtime.compat import version_tuple
 from glpma_tools.timing import DEADLINE_MARGIN_MS
 
 from .common import SUCCESS_TOLERANCE
-from .report import SOLVER_LABEL
+from .markdown import SOLVER_LABEL
 from .scenarios import LATENCY_TARGET_MS
 
 COLORS = {"rcga": "tab:blue", "g3pcx": "tab:orange", "glpma": "tab:green", "pypop7": "tab:purple",

@@ -22,8 +22,7 @@ from tf2_msgs.msg import TFMessage
 
 from glpma_ros.node.dds import cdr
 from glpma_ros.node.ros_node import FkNode
-from glpma_tools.bench.dds import END_TO_END, params_of
-from glpma_tools.bench.outputs import answers
+from glpma_tools.bench.transport import END_TO_END, answers, params_of
 from glpma_tools.sim.controller import Sent
 from glpma_tools.sim.echo_node import POSE_NUMBERS
 from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment

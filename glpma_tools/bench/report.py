@@ -1,75 +1,29 @@
 """BENCHMARKS.md from the measurements: the header, the summary and each section from one
 experiment's data, ours beside the papers' and the peers' figures, in the report's order
-(:func:`render`).  The prose lives in ``templates/*.md`` (see :func:`prose`)."""
+(:func:`render`).  The prose lives in ``templates/*.md`` (see :func:`~.markdown.prose`).  The root of the
+bench's modules: only this module imports the sections."""
 from __future__ import annotations
 
-import functools
 import os
-import re
-from importlib.resources import files
 from pathlib import Path
-from string import Template
 
 import numpy as np
 
-from glpma_tools.tables import fmt, table
-from glpma_tools.timing import DEADLINE_MARGIN_MS
+from glpma_tools.stress import report as stress
+from glpma_tools.stress import session as ses
+from glpma_tools.tables import table
+from glpma_tools.timing import DEADLINE_MARGIN_MS, WARM_UP_QUIET
 
+from . import dds, experiments, modes, offline, outputs, timing, waits
 from .common import summarize
+from .markdown import SOLVER_LABEL, md_blocks, prose
 from .papers import TABLE_NAME
 from .scenarios import LATENCY_TARGET_MS
+from .timing import all_overruns, calm_distribution, share_on_time, worst_overrun
 
-SOLVER_LABEL = {"rcga": "RCGA", "g3pcx": "G3-PCX", "glpma": "GLPMA", "de": "DE"}
-_BLOCK = re.compile(r"^<!-- (\w+) -->$", re.M)
 #: sections measured by scripts of their own (``tools/bench_gough.py --markdown doc/bench/gough.md``), kept
 #: in BENCHMARKS.md when the benchmark rewrites it
 APART = ("doc/bench/gough.md",)
-
-
-@functools.lru_cache(maxsize=None)
-def _blocks(section: str) -> dict:
-    parts = _BLOCK.split((files(__package__) / "templates" / f"{section}.md").read_text(encoding="utf-8"))
-    return {name: text.strip() for name, text in zip(parts[1::2], parts[2::2])}
-
-
-def prose(section: str, block: str = "intro", **values) -> str:
-    """The paragraph ``block`` of ``templates/<section>.md`` with its ``$name`` fields filled in."""
-    return Template(_blocks(section)[block]).substitute(values)
-
-
-def md_blocks(*blocks) -> list[str]:
-    """Lines of Markdown: each block (a heading, paragraph or table; empty or None: left out) and a blank line."""
-    return [line for block in blocks if block for line in (block, "")]
-
-
-def figure_link(res, name, md_path, alt=None) -> str | None:
-    """The image link of the figure ``name`` (alt text: its file name), None when it was not drawn."""
-    path = res["figures"].get(name)
-    link = path and os.path.relpath(path, os.path.dirname(os.path.abspath(md_path)))    # from the report's directory
-    return link and f"![{alt or os.path.basename(path)}]({link})"
-
-
-def pct(v, digits: int = 3) -> str:
-    """A percentage for a table."""
-    return fmt(v, digits) + " %"
-
-
-def cell(v) -> str:
-    """A table cell: text as it is, a tuple as ``a / b``, a number through :func:`fmt`."""
-    if isinstance(v, tuple):
-        return " / ".join(map(cell, v))
-    return v if isinstance(v, str) else fmt(v)
-
-
-def dict_table(rows: list[dict], first: str | None = None) -> str:
-    """Rows of one shape as a table under their keys (the first column's header: ``first`` when given)."""
-    head = list(rows[0])
-    return table([first or head[0], *head[1:]], [[cell(v) for v in row.values()] for row in rows])
-
-
-def key_values(title: str, values: dict, unit: str = "value") -> str:
-    """A two-column table: each key and its value (under ``unit``)."""
-    return table([title, unit], [[k, cell(v)] for k, v in values.items()])
 
 
 def header(res) -> list[str]:
@@ -85,7 +39,6 @@ def header(res) -> list[str]:
 def summary_section(res, md_path) -> list[str]:
     """The headline figures of the sections that ran: the papers' success rates, warm tracking, all solutions,
     deadlines."""
-    from .timing import all_overruns, calm_distribution, share_on_time, worst_overrun
     label = {key: sc.label for key, sc in res["scenarios"].items()}
     lines = [f"- {label[key]} ({TABLE_NAME[res['scenarios'][key].model.kind]} protocol): " + "; ".join(
         f"{SOLVER_LABEL[c.solver]} {c.pop_label} {c.mode}: {summarize(r.runs).success_pct:.0f} %"
@@ -109,9 +62,6 @@ def reliability_section(res: dict | None, source=None) -> list[str]:
     """The Reliability section from the figures ``glpma-fk stress`` wrote as JSON (``doc/bench/reliability.json``
     after a full run: the stress test measures, the benchmark writes; :func:`glpma_tools.stress.report.read_json`);
     without them, a note of where ``glpma-fk stress`` puts them."""
-    from glpma_tools.stress import report as stress
-    from glpma_tools.stress import session as ses
-    from glpma_tools.timing import WARM_UP_QUIET
     if res is None:
         return md_blocks("## Reliability", prose("reliability", "missing", path=source or "doc/bench/reliability.json"))
     secs, node, d = res["sections"], res.get("node"), res["sections"].get("deadline")
@@ -148,7 +98,6 @@ def measured_apart(md_path) -> list[str]:
 def render(res, md_path, reliability=None, reliability_source=None) -> str:
     """The whole report; ``reliability``: the figures ``glpma-fk stress`` wrote to the JSON file
     ``reliability_source`` (None: there are none yet)."""
-    from . import dds, experiments, modes, offline, outputs, timing, waits
     # the sections in the report's order, each with the measurements it renders (None: it looks for them itself)
     sections = ((None, summary_section), ("tables", experiments.paper_tables_section),
                 (None, experiments.figures_section), ("peers", experiments.peers_section),

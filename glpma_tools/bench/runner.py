@@ -12,9 +12,15 @@ from pathlib import Path
 
 import psutil
 
-from glpma_ros.cli.main import OneLineParser, command_main
+from glpma_ros import solvers
+from glpma_ros.cli.api import OneLineParser, command_main
 from glpma_ros.errors import GlpmaError
+from glpma_tools.stress.report import read_json
 from glpma_tools.timing import REPO_ROOT, git_revision, machine
+
+from . import dds, modes, offline, outputs, plots, report, timing, waits
+from . import experiments as ex
+from .scenarios import load
 
 SECTIONS = ("tables", "peers", "solve-all", "tracking", "deadline", "baselines", "dds", "outputs", "waits",
             "offline")
@@ -128,16 +134,12 @@ def main(argv=None) -> int:
         argv = argv[1:]
     args = build_parser().parse_args(argv)
     counts = {name: _count(args, name) for name in DEFAULTS}
-    from glpma_ros import solvers
     unknown = sorted(set(args.deadline_solvers or ()) - set(solvers.SOLVERS))
     if unknown:
         raise GlpmaError(f"glpma-fk bench: unknown solver(s) {', '.join(unknown)}; "
                          f"choose from {', '.join(solvers.SOLVERS)}")
     stress_figures = _reliability(args.reliability)       # before hours of measurements: it may not read
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from . import dds, modes, offline, outputs, timing, waits
-    from . import experiments as ex
-    from .scenarios import load
 
     t_start = time.perf_counter()
 
@@ -214,7 +216,6 @@ def main(argv=None) -> int:
 
 def _reliability(path: Path) -> tuple[dict | None, str]:
     """The figures ``glpma-fk stress`` wrote to ``path`` (None: none yet), and where they are, for the report."""
-    from glpma_tools.stress.report import read_json
     try:
         figures = read_json(path)
     except (OSError, ValueError) as exc:
@@ -225,7 +226,6 @@ def _reliability(path: Path) -> tuple[dict | None, str]:
 
 def finish(res, args, out_dir, say, reliability) -> int:
     """Figures and the report from the measurements; ``reliability``: :func:`_reliability`'s."""
-    from . import plots, report
     if not args.no_plots:
         out_dir.mkdir(parents=True, exist_ok=True)
         say("figures")

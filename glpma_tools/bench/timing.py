@@ -14,7 +14,9 @@ from collections import Counter
 from types import SimpleNamespace
 
 import numpy as np
+from scipy.optimize import least_squares
 
+from glpma_ros import solvers
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.solvers.lm import LEG_RTOL
 from glpma_tools import timing
@@ -23,8 +25,8 @@ from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, fmt, ratio, table
 from glpma_tools.timing import DEADLINE_MARGIN_MS, NO_CAP, STOP_AFTER, STOP_OVERRUN_FACTOR, timed_calls, warm_up
 
+from .markdown import figure_link, md_blocks, pct, prose
 from .peers import available
-from .report import figure_link, md_blocks, pct, prose
 from .scenarios import LATENCY_TARGET_MS
 
 #: steps of the loop the tracking warm-up solves (on an Estimator of its own)
@@ -74,7 +76,6 @@ def _peers(sc, starts, legs, budget_ms, progress) -> list[SimpleNamespace]:
     why = available("scipy")
     peers = {"plain NumPy Newton": functools.partial(numpy_newton, sc.model)}
     if why is None:
-        from scipy.optimize import least_squares
         peers.update({f"scipy `{method}`, {jac}": functools.partial(scipy_solve, least_squares, sc.model, method, jac)
                       for method, jac in SCIPY_VARIANTS})
     out, m = [], min(WARM_UP_STEPS, len(legs))
@@ -203,7 +204,6 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[SimpleName
     """The bench's deadline experiment: cold searches that cannot converge, stopped only by their time
     budget (every registered solver, and the Estimator as the node runs it, cold: every stage runs until the
     deadline)."""
-    from glpma_ros import solvers
 
     def search(name, model, legs, polish, budget_ms):
         return lambda seed: solvers.solve(name, model, legs, rng=seed, polish=polish, budget_s=budget_ms / 1e3,

@@ -15,8 +15,9 @@ from glpma_ros.node.loops import ReportLoop, SolveLoop
 from glpma_ros.node.service import FkService
 from glpma_tools.tables import fmt, table
 
-from .dds import SHIPPED_ON
+from .markdown import md_blocks, prose
 from .scenarios import load
+from .transport import SHIPPED_ON
 
 #: period of the reporting thread of ``handle + reports`` (s): 200x the node's default diagnostics rate,
 #: so that a round meets hundreds of reports
@@ -105,7 +106,6 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
 
 def section(res, md_path=None) -> list[str]:
     """The BENCHMARKS.md section (``res["waits"]``: :func:`measure`'s rows), prose from templates/waits.md."""
-    from .report import md_blocks, prose
     rows = res["waits"]
     blocked = {r["setup"]: r for r in rows}["node at 1 kHz"]["blocked p99.9 us"]
     return md_blocks("## Waits of an input for anything but its own solve",

@@ -5,7 +5,8 @@ Lengths go out in metres (REP 103): the only place the tools convert the legs fo
 
 The controller stays out of the latency it measures: an input is serialized before its send time
 is taken and written as bytes, and a pose is taken as bytes, its receive time taken at once and
-its fields read with ``struct`` (the binding's Python (de)serializers take 30-40 us a message)."""
+its fields read with ``struct`` (the binding's Python (de)serializers would add their own time to
+every message's)."""
 from __future__ import annotations
 
 import gc
@@ -15,7 +16,22 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from cyclonedds.core import Entity
+from cyclonedds.util import duration
 
+from glpma_ros.node.dds import cdr, endpoints
+from glpma_ros.node.dds.messages import (
+    DiagnosticArray,
+    Empty,
+    Float64MultiArray,
+    Header,
+    JointState,
+    MultiArrayDimension,
+    MultiArrayLayout,
+    PoseArray,
+    PoseStamped,
+    Time,
+)
 from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
 from glpma_ros.node.service import default_joint_names
 
@@ -43,9 +59,7 @@ _POSE = struct.Struct("<7d")
 def pose_stamped_fields(buf) -> tuple[int, str, np.ndarray, np.ndarray]:
     """``(stamp ns, frame_id, position (3,), quaternion [x, y, z, w] (4,))`` of a
     ``geometry_msgs/PoseStamped`` in its wire form (XCDR1; the binding reads other encodings)."""
-    from glpma_ros.node.dds import cdr
     if not cdr.little_endian_cdr(buf):
-        from glpma_ros.node.dds.messages import PoseStamped
         s = PoseStamped.deserialize(bytes(buf))
         p, q = s.pose.position, s.pose.orientation
         return s.header.stamp.to_ns(), s.header.frame_id, np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
@@ -78,8 +92,6 @@ class PoseListener:
     """Takes ``pose_estimate`` (and the node's ``/diagnostics``) on a thread, with receive times."""
 
     def __init__(self, participant, depth: int):
-        from glpma_ros.node.dds import endpoints
-        from glpma_ros.node.dds.messages import DiagnosticArray, PoseStamped
         self.reader = participant.reader(endpoints.POSE_ESTIMATE, PoseStamped, depth)
         self.diag_reader = participant.reader(endpoints.DIAGNOSTICS, DiagnosticArray, depth)
         self.poses: list = []            # (recv_ns, stamp_ns, frame_id, position (3,), quaternion (4,))
@@ -91,10 +103,7 @@ class PoseListener:
         self._thread.start()
 
     def _run(self):
-        from cyclonedds.util import duration
 
-        from glpma_ros.node.dds import cdr
-        from glpma_ros.node.dds.messages import DiagnosticArray
         while not self._stop:
             self._waitset.wait(duration(milliseconds=100))
             samples = cdr.take_raw(self.reader, 256)
@@ -120,8 +129,6 @@ class ModesClient:
     answered and ``period_s`` has passed) and collects the ``~/assembly_modes`` answers."""
 
     def __init__(self, participant):
-        from glpma_ros.node.dds import endpoints
-        from glpma_ros.node.dds.messages import Empty, PoseArray
         self._empty = Empty
         self.writer = participant.writer(endpoints.REQUEST_ASSEMBLY_MODES, Empty, 1)
         self.reader = participant.reader(endpoints.ASSEMBLY_MODES, PoseArray, 1, transient_local=True)
@@ -157,8 +164,6 @@ class Controller:
 
     def __init__(self, model, domain_id: int | None = None, depth: int = 10, listen_depth: int = 1000,
                  input_type: str = INPUT_FLOAT64_MULTI_ARRAY, joint_names=None, modes: bool = False):
-        from glpma_ros.node.dds import cdr, endpoints
-        from glpma_ros.node.dds.messages import Float64MultiArray, JointState, MultiArrayDimension, MultiArrayLayout
         if input_type not in INPUT_TYPES:
             raise ValueError(f"input_type must be one of {', '.join(INPUT_TYPES)}, got {input_type!r}")
         self.names = list(joint_names) if joint_names else default_joint_names(model.n_legs)
@@ -186,7 +191,6 @@ class Controller:
 
     def wait_for_node(self, timeout: float) -> float:
         """Seconds until the node's endpoints matched ours; :class:`TimeoutError` after ``timeout``."""
-        from glpma_ros.node.dds import endpoints
         t0 = time.monotonic()
         if not endpoints.wait_for_match(self.endpoints, timeout):
             raise TimeoutError(f"no glpma_fk node on ROS domain {self.participant.domain_id} within {timeout:g} s "
@@ -195,7 +199,6 @@ class Controller:
 
     def message(self, legs):
         """(the message carrying ``legs`` (config unit) in metres, its stamp in ns or None)."""
-        from glpma_ros.node.dds.messages import Float64MultiArray, Header, JointState, Time
         legs_m = (np.asarray(legs, dtype=float) * self.mpu).tolist()
         if not self.joint_state:
             return Float64MultiArray(layout=self._layout, data=legs_m), None
@@ -279,7 +282,6 @@ class Controller:
 
     def close(self) -> None:
         """Delete the participant and everything in it (a controller that goes away)."""
-        from cyclonedds.core import Entity
         self.listener.close()
         entities = [self.writer, self.listener.reader, self.listener.diag_reader, self.participant.dp]
         # the binding keeps the handles and its registry of entities private; it deletes an entity only

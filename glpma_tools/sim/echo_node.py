@@ -23,6 +23,14 @@ import sys
 import threading
 import time
 
+from cyclonedds.util import duration
+
+from glpma_ros.errors import InputError
+from glpma_ros.node.dds import cdr, endpoints
+from glpma_ros.node.dds.messages import Float64MultiArray, PoseStamped
+from glpma_ros.node.dds.node import TAKE_BATCH  # the node's batch
+from glpma_ros.node.ros_args import node_values
+
 #: the wait set's timeout (s): how often the loop looks at the stop flag
 WAIT_S = 0.2
 #: numbers of a pose: position (3) and orientation (4)
@@ -39,8 +47,6 @@ class Echo:
     """The reader, the writer and the loop of the echo."""
 
     def __init__(self, participant, depth: int, frame_id: str):
-        from glpma_ros.node.dds import cdr, endpoints
-        from glpma_ros.node.dds.messages import Float64MultiArray, PoseStamped
         self.reader = participant.reader(endpoints.LEG_LENGTHS, Float64MultiArray, depth)
         self.writer = participant.writer(endpoints.POSE_ESTIMATE, PoseStamped, depth)
         self._raw = cdr.RawWriter(self.writer)
@@ -51,10 +57,7 @@ class Echo:
         self.stop = threading.Event()
 
     def run(self) -> None:
-        from cyclonedds.util import duration
 
-        from glpma_ros.node.dds import cdr
-        from glpma_ros.node.dds.node import TAKE_BATCH  # the node's batch
         timeout = duration(seconds=WAIT_S)
         while not self.stop.is_set():
             self.waitset.wait(timeout)
@@ -75,9 +78,6 @@ class Echo:
 
 
 def main(argv=None) -> int:
-    from glpma_ros.errors import InputError
-    from glpma_ros.node.dds import endpoints
-    from glpma_ros.node.ros_args import node_values
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         values, _, _ = node_values(argv)

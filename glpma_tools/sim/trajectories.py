@@ -19,9 +19,11 @@ import math
 
 import numpy as np
 
+from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError
+from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
-from glpma_ros.testing.matching import legs_for  # noqa: F401 - the tools' name for it
+from glpma_ros.testing.matching import legs_for
 
 #: known solution of each manipulator to move around (index in the config's list)
 DEFAULT_SOLUTION = {"planar_3rpr": 0,      # real_solutions[0], the one of 001 Table 1
@@ -74,8 +76,6 @@ def start_pose(model, doc: dict, solution: int | None = None) -> tuple[np.ndarra
 def _solved_start_pose(model) -> tuple[np.ndarray, np.ndarray]:
     """A user's own config without known solutions: start where its ``example_leg_lengths`` put
     the platform (one cold solve, no time limit)."""
-    from glpma_ros.estimation.estimator import Estimator
-    from glpma_ros.models.rotations import matrix_from_quaternion
     if model.example_leg_lengths is None:
         raise GlpmaError("the config has no known solutions and no example_leg_lengths to start from; "
                          "add example_leg_lengths (a pose's leg lengths)")
@@ -120,7 +120,6 @@ class Plan:
     ``step_m`` metres too long (a faulty sensor, :meth:`measured`); the true legs stay the truth."""
 
     def __init__(self, config, solution: int | None = None, amplitude: float = 1.0, fault=None):
-        from glpma_ros.config import load_document, model_from_dict, resolve_config
         self.path = resolve_config(config)
         self.doc = load_document(self.path)
         self.model = model_from_dict(self.doc, str(self.path))

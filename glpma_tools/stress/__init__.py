@@ -16,7 +16,7 @@ Counts come from the node's ``/diagnostics`` (differences of its counters over e
 "lost in transport" is what the controller wrote and the node never received (DDS keep-last
 history of ``qos_depth`` on both sides); latency is end to end, controller write -> pose received,
 for the inputs that got a pose; every pose is paired with the input it answers
-(:mod:`glpma_tools.sim.matching`).  The figures go to a JSON file (``--json-out``) from which
+(:mod:`glpma_ros.testing.matching`).  The figures go to a JSON file (``--json-out``) from which
 ``glpma-fk bench`` renders the Reliability section of BENCHMARKS.md.
 
 Each phase has ``checks``, which hold on any machine (counters add up, every pose answers an

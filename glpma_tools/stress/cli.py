@@ -9,7 +9,8 @@ import sys
 import time
 from pathlib import Path
 
-from glpma_ros.cli.main import OneLineParser, command_main
+from glpma_ros.cli.api import OneLineParser, command_main
+from glpma_tools.timing import git_revision, machine
 
 from . import flood, restarts
 from .deadline import DEADLINE_BUDGETS_MS, deadlines
@@ -37,7 +38,6 @@ def run(sections=SECTIONS, quick: bool = False, duration_s: float | None = None,
         params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None, log_dir=None,
         budgets_ms=DEADLINE_BUDGETS_MS, say=None) -> dict:
     """Every requested section; a JSON-able dict of figures and checks."""
-    from glpma_tools.timing import git_revision, machine
 
     def pick(value, name):
         return DEFAULTS[name][1 if quick else 0] if value is None else value

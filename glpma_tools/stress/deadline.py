@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections import Counter
 
+from glpma_ros.estimation.estimator import Estimator
 from glpma_tools.stats import distribution
 from glpma_tools.timing import NO_CAP, infeasible_legs, timed_calls, warm_up
 
@@ -15,7 +16,6 @@ CASES = ("cold", "warm")
 
 def deadline_cell(model, case: str, budget_ms: float, n: int, seed_x=None) -> dict:
     """``n`` timed solves of one case and budget, after a warm-up until the solves run on time."""
-    from glpma_ros.estimation.estimator import Estimator
     legs = infeasible_legs(model)
     est = Estimator(model, time_budget_s=budget_ms * 1e-3, initial_pose=seed_x if case == "warm" else None,
                     max_evals=NO_CAP)

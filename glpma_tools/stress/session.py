@@ -8,9 +8,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from glpma_ros.node.ros_args import node_values
+from glpma_ros.testing.matching import compare
 from glpma_tools.sim.controller import Controller, counters, diff, starts
 from glpma_tools.sim.domains import claim_domain
-from glpma_tools.sim.matching import compare
 from glpma_tools.sim.node_process import NodeProcess, node_environment
 from glpma_tools.sim.trajectories import Plan
 from glpma_tools.stats import distribution
@@ -38,7 +39,7 @@ SETTLE_TIMEOUT_S = 15.0
 
 
 def analyse(model, sent: list, poses: list, earlier: list = ()) -> dict:
-    """Each pose paired with its input (:mod:`glpma_tools.sim.matching`) among ``earlier + sent``:
+    """Each pose paired with its input (:mod:`glpma_ros.testing.matching`) among ``earlier + sent``:
     latency (write -> pose received, ms), how many answer no input (wrong), how well they reproduce
     the legs (m), how many are on the trajectory's assembly mode, and the first input of ``sent``
     answered.  ``earlier``: the inputs sent before ``sent`` in the session (:attr:`Session.history`);
@@ -72,7 +73,6 @@ class Session:
 
     def __init__(self, params_file=DEFAULT_PARAMS, extra_args=(), domain_id: int | None = None,
                  log_dir: Path | None = None, say=None):
-        from glpma_ros.node.ros_args import node_values
         # a domain of its own unless one is given (held while this process runs)
         self._claim = None if domain_id is not None else claim_domain()
         self.domain_id = int(domain_id) if self._claim is None else self._claim.domain_id

@@ -3,7 +3,7 @@
 The slice is a grid over two pose coordinates, the others fixed (3-RPR: ``x y`` at a
 fixed ``theta``; hexapod: ``x y`` at a fixed ``z roll pitch yaw``, or any two of them).
 At every grid point the pose's legs come from the inverse kinematics, every real
-assembly mode for these legs from :func:`glpma_ros.solve_all.solve_all` -- its multistart
+assembly mode for these legs from :func:`glpma_ros.modes.multistart.solve_all` -- its multistart
 by default, the papers' polished G3-PCX runs with ``method="g3pcx"`` -- (seeded from
 the point's index, so that the map does not depend on which process computed which
 point), and the conditioning of the pose from ``model.conditioning`` (reciprocal
@@ -38,4 +38,5 @@ from .cli import main
 from .engines import MapResult, compute_map
 from .grid import DEFAULT_METHOD, DEFAULT_RUNS, METHODS, OUTSIDE, MapSpec, pose_variables, quaternion_from_rpy
 
-__all__ = ["DEFAULT_METHOD", "DEFAULT_RUNS", "METHODS", "OUTSIDE", "MapResult", "MapSpec", "compute_map", "main", "pose_variables", "quaternion_from_rpy"]
+__all__ = ["DEFAULT_METHOD", "DEFAULT_RUNS", "METHODS", "OUTSIDE", "MapResult", "MapSpec", "compute_map", "main",
+           "pose_variables", "quaternion_from_rpy"]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from glpma_ros.cli.main import OneLineParser
+from glpma_ros.cli.api import OneLineParser
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
 

@@ -173,7 +173,8 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
     modes = Counter(int(c) for c in counts[~double])
     singular = Counter(int(c) for c in counts[double])
     return MapResult(npz, png, spec.n_points, remaining, len(todo), len(chunks) - len(todo), elapsed, engine,
-                     dict(sorted(modes.items())), spec.describe_method(), data["counts"], data["double_modes"], dict(sorted(singular.items())))
+                     dict(sorted(modes.items())), spec.describe_method(), data["counts"], data["double_modes"],
+                     dict(sorted(singular.items())))
 
 
 def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:

@@ -3,10 +3,10 @@
 K grid points with valid legs and without a double mode (a point on a singularity, whose count is
 decided by round-off, see :func:`.grid.double_modes`) are drawn at random (a ``numpy.random.Generator`` seeded by the
 map's seed, so the same map checks the same points) and their real assembly modes are counted
-again by :func:`glpma_ros.solve_all.solve_all` with ``method="exact"`` (msolve's real root
-isolation, :mod:`glpma_ros.exact`).  A point whose map count differs is listed with both counts;
+again by :func:`glpma_ros.modes.multistart.solve_all` with ``method="exact"`` (msolve's real root
+isolation, :mod:`glpma_ros.modes.exact`).  A point whose map count differs is listed with both counts;
 the command then exits 1.  This certifies the sample, not the whole map: the multistart's counts
-are statements about basins of attraction (see :mod:`glpma_ros.solve_all`).
+are statements about basins of attraction (see :mod:`glpma_ros.modes.multistart`).
 """
 from __future__ import annotations
 

@@ -2,10 +2,10 @@
 
 :class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each
 point is solved; :func:`solve_point` gives the number of real assembly modes
-(:func:`glpma_ros.solve_all.solve_all`: by default its multistart, counted without polishing
+(:func:`glpma_ros.modes.multistart.solve_all`: by default its multistart, counted without polishing
 the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX searches; seeded from the
 point's index by :func:`point_seed`), how many of those modes are double (a leg Jacobian singular at
-the solver's tolerance, :data:`glpma_ros.solve_all.DOUBLE_CONDITIONING`: the point is on a
+the solver's tolerance, :data:`glpma_ros.modes.multistart.DOUBLE_CONDITIONING`: the point is on a
 singularity and its count is decided by round-off), the conditioning and the sign of det J of one point;
 :func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
 """
@@ -101,7 +101,7 @@ def point_seed(seed: int, index: int) -> int:
 
 def double_modes(model, found, legs) -> int:
     """How many modes of ``found`` (an ``AllSolutions``) are double at the solver's tolerance: their leg
-    Jacobian's reciprocal condition number is below :data:`~glpma_ros.solve_all.DOUBLE_CONDITIONING`
+    Jacobian's reciprocal condition number is below :data:`~glpma_ros.modes.multistart.DOUBLE_CONDITIONING`
     (the multistart reports it; the G3-PCX runs' modes are measured here).  Such a mode stands for two
     real modes met at a singularity (a double root), for two closer than the tolerance, or for the real
     shadow of a complex pair: the count of distinct modes there is decided by round-off."""

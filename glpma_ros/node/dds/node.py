@@ -231,7 +231,8 @@ class DdsNode:
 
     def _publish_report(self, report) -> None:
         """Encoded by :func:`cdr.diagnostic_array <glpma_ros.node.dds.cdr.diagnostic_array>` in chunks, with the
-        report thread's pauses between them (the binding's serializer takes ~0.1 ms in one piece)."""
+        report thread's pauses between them (the binding's serializer would hold the interpreter's lock for the
+        whole report in one piece)."""
         self._raw_diag.write(cdr.diagnostic_array(time.time_ns(), report, pause=pause_report))
 
     def publish_diagnostics(self) -> None:

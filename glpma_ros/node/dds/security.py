@@ -10,7 +10,8 @@ this package installs) ships a ``libddsc`` built without DDS-Security -- it expo
 ``DDS_Security_*`` functions a security-enabled build has and brings no authentication, access-control
 or cryptography plugin (``libdds_security_{auth,ac,crypto}``) -- so a participant it creates cannot
 authenticate; the binding loads its own ``libddsc``, not the security-enabled one of a ROS 2 Jazzy
-installation (Cyclone DDS 0.10.5).  :func:`check_dds_transport` therefore refuses to start any Cyclone DDS participant of this
+installation (Cyclone DDS 0.10.5).  :func:`check_dds_transport` therefore refuses to start any Cyclone DDS participant
+of this
 package (the node, ``glpma-fk modes``, the tools) when security is enabled, with one line saying so:
 it never joins unsecured a domain whose operator asked for security.
 """

@@ -5,17 +5,10 @@ the zero offsets of the leg sensors, from leg readings paired with externally me
 
 Modules: :mod:`.identify` (the theory: least squares on the inverse-kinematic leg residuals,
 standard errors, identifiability), :mod:`.data` (the CSV and rosbag2 measurements),
-:mod:`.yaml_edit` (NEW.yaml as CONFIG's text with the identified entries rewritten),
-:mod:`.simulate` (simulated calibration data, for the tests, the benchmark and the README's
-example), :mod:`.cli` (the command line, :func:`main`).
+:mod:`.yaml_edit` (NEW.yaml as CONFIG's text with the identified entries rewritten), :mod:`.cli` (the
+command line, :func:`main`).  Simulated calibration data, for the tests, the benchmark and the README's
+example, is a tool's: :mod:`glpma_tools.sim.calibration_data`.
 """
-
-
-def main(argv=None) -> int:
-    """``glpma-fk calibrate`` (imported on call, so that ``python -m glpma_tools.calibrate.simulate``
-    does not import its own module twice)."""
-    from .cli import main as cli_main
-    return cli_main(argv)
-
+from .cli import main
 
 __all__ = ["main"]

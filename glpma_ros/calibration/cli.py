@@ -15,14 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.cli.main import OneLineParser, command_main, seed_type
-from glpma_ros.config import load_document, model_from_dict, resolve_config
-from glpma_ros.errors import GlpmaError, InputError
-from glpma_ros.estimation.estimator import STATIONARY
-from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
-from glpma_ros.solvers.local import LocalSolver
-
-from ..extras import require
+from ..cli.api import OneLineParser, command_main, require, seed_type
+from ..config import load_document, model_from_dict, resolve_config
+from ..errors import GlpmaError, InputError
+from ..estimation.estimator import STATIONARY
+from ..models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from ..solvers.local import LocalSolver
 from . import data as D
 from .identify import GROUPS, NAMED_COMPONENT, WEAK_SE_SHARE, Geometry, Measurements, identify, leg_residuals
 from .yaml_edit import check_edit, edit_config

@@ -2,7 +2,7 @@
 offset, poses spread over the workspace around one of the config's known solutions, and the
 measurements an external instrument and the leg sensors would give, with noise on both.
 
-The protocol of issue 22 (in metres, converted to the config's unit): every joint moved by up to
+The protocol (in metres, converted to the config's unit): every joint moved by up to
 :data:`JOINT_ERROR_M` in a random direction, offsets uniform within :data:`OFFSET_ERROR_M`, Gaussian
 noise :data:`NOISE_M` on each leg reading and on each coordinate of the measured position; the
 measured orientation is off by a rotation whose components have the standard deviation that moves
@@ -19,14 +19,19 @@ from __future__ import annotations
 
 import csv
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
-
-from .identify import Geometry, Measurements
+from glpma_ros.calibration.data import pose_columns, pose_values, rotation_2d
+from glpma_ros.calibration.identify import Geometry, Measurements
+from glpma_ros.cli.api import OneLineParser
+from glpma_ros.config import load_document, model_from_dict, resolve_config
+from glpma_ros.errors import GlpmaError
+from glpma_ros.models.rotations import rotation_from_vector
+from glpma_tools.sim.trajectories import start_pose
 
 #: joints moved by up to this much (m), each in a random direction
 JOINT_ERROR_M = 1e-3
@@ -53,12 +58,6 @@ class Simulated:
     truth: Geometry            # the manipulator's real geometry
     measured: Measurements     # noisy leg readings and noisy measured poses
     true_poses: Measurements   # the true poses and their noise-free readings
-
-
-def rotation_2d(theta) -> np.ndarray:
-    """(m, 2, 2) rotations of angles ``theta`` (m,)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.stack((np.stack((c, -s), -1), np.stack((s, c), -1)), -2)
 
 
 def _rotations_3d(vectors) -> np.ndarray:
@@ -119,26 +118,6 @@ def simulate(model, center, rng: np.random.Generator, poses: int = POSES, joint_
     return Simulated(nominal, truth, measured, Measurements(readings, position, rotation))
 
 
-def pose_columns(dim: int) -> tuple:
-    """The pose columns of a calibration CSV: planar ``x y theta``, spatial ``x y z qx qy qz qw``."""
-    return ("x", "y", "theta") if dim == 2 else ("x", "y", "z", "qx", "qy", "qz", "qw")
-
-
-def pose_values(position, rotation) -> np.ndarray:
-    """Rows of the pose columns for poses (m, d) / (m, d, d)."""
-    if position.shape[1] == 2:
-        return np.column_stack((position, np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])))
-    return np.column_stack((position, np.array([quaternion_from_matrix(R) for R in rotation])))
-
-
-def rotations_from_values(values) -> np.ndarray:
-    """Rotations (m, d, d) from the orientation columns: planar theta (m,), spatial quaternions (m, 4)."""
-    values = np.asarray(values, dtype=float)
-    if values.ndim == 1:
-        return rotation_2d(values)
-    return np.array([matrix_from_quaternion(q) for q in values])
-
-
 def write_csv(path, meas: Measurements) -> None:
     """A calibration CSV (header row, then one measurement per row) of ``meas``."""
     n, d = meas.legs.shape[1], meas.position.shape[1]
@@ -150,20 +129,15 @@ def write_csv(path, meas: Measurements) -> None:
 
 
 def main(argv=None) -> int:
-    """``python -m glpma_tools.calibrate.simulate CONFIG OUT.csv [POSES] [SEED] [--spread POSITION
+    """``python -m glpma_tools.sim.calibration_data CONFIG OUT.csv [POSES] [SEED] [--spread POSITION
     DEGREES]``: simulated data for the README's example (the true geometry printed on stderr)."""
-    import sys
 
-    from glpma_ros.cli.main import OneLineParser
-    from glpma_ros.config import load_document, model_from_dict, resolve_config
-    from glpma_ros.errors import GlpmaError
-    from glpma_tools.sim.trajectories import start_pose
     class Parser(OneLineParser):
         def error(self, message):            # one line, with the usage
             print(f"error: {self.prog}: {message}; {' '.join(self.format_usage().split())}", file=sys.stderr)
             raise SystemExit(2)
 
-    p = Parser(prog="python -m glpma_tools.calibrate.simulate",
+    p = Parser(prog="python -m glpma_tools.sim.calibration_data",
                       description="Simulated calibration data: CONFIG's geometry with every joint moved by up to "
                                   f"{JOINT_ERROR_M * 1e3:g} mm and sensor offsets up to {OFFSET_ERROR_M * 1e3:g} mm, "
                                   f"{NOISE_M * 1e3:g} mm noise on the legs and the poses.")

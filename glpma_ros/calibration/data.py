@@ -1,5 +1,5 @@
 """The measurements of ``glpma-fk calibrate``: a CSV file or a rosbag2 directory, read into
-:class:`~glpma_tools.calibrate.identify.Measurements` (config unit), with one-line errors.
+:class:`~glpma_ros.calibration.identify.Measurements` (config unit), with one-line errors.
 
 CSV: a header row naming the columns, ``leg_1 .. leg_n`` (the sensors' readings, config unit) and
 the measured pose in the base frame, planar ``x y theta`` (config unit, radians), spatial ``x y z
@@ -22,18 +22,18 @@ from pathlib import Path
 
 import numpy as np
 
-from glpma_ros.errors import InputError
-from glpma_tools.bag_run import (
+from ..errors import InputError
+from ..models.rotations import matrix_from_quaternion, quaternion_from_matrix
+from ..node.dds.rosbag import (
     FLOAT64_MULTI_ARRAY,
     JOINT_STATE,
     NS_PER_S,
     POSE_STAMPED,
     decode_float64_multi_array,
     decode_joint_state,
+    open_bag,
 )
-
 from .identify import Measurements
-from .simulate import pose_columns, rotations_from_values
 
 #: a quaternion whose norm is farther than this from 1 is refused (a unit quaternion written with
 #: 6 decimals is within 1e-6; anything far off is a wrong column, not rounding); the rest are normalised
@@ -41,6 +41,32 @@ QUATERNION_NORM_TOL = 1e-3
 #: default --max-dt (s): a pose and a leg reading more than 5 ms apart are no measurement (a
 #: calibration holds the platform still while the instrument measures; 5 ms is half a period at 100 Hz)
 MAX_DT_S = 0.005
+
+
+def rotation_2d(theta) -> np.ndarray:
+    """(m, 2, 2) rotations of angles ``theta`` (m,)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack((np.stack((c, -s), -1), np.stack((s, c), -1)), -2)
+
+
+def pose_columns(dim: int) -> tuple:
+    """The pose columns of a calibration CSV: planar ``x y theta``, spatial ``x y z qx qy qz qw``."""
+    return ("x", "y", "theta") if dim == 2 else ("x", "y", "z", "qx", "qy", "qz", "qw")
+
+
+def pose_values(position, rotation) -> np.ndarray:
+    """Rows of the pose columns for poses (m, d) / (m, d, d)."""
+    if position.shape[1] == 2:
+        return np.column_stack((position, np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])))
+    return np.column_stack((position, np.array([quaternion_from_matrix(R) for R in rotation])))
+
+
+def rotations_from_values(values) -> np.ndarray:
+    """Rotations (m, d, d) from the orientation columns: planar theta (m,), spatial quaternions (m, 4)."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 1:
+        return rotation_2d(values)
+    return np.array([matrix_from_quaternion(q) for q in values])
 
 
 def leg_columns(n_legs: int) -> list:
@@ -164,7 +190,6 @@ def read_bag(path: Path, n_legs: int, dim: int, metres_per_unit: float, legs_top
     """The measurements of a rosbag2 (config unit), paired as the module docstring says."""
     from rosbags.typesys import Stores, get_typestore
 
-    from glpma_tools.bag_run import open_bag
     ts = get_typestore(Stores.ROS2_JAZZY)
     reader = open_bag(Path(path))
     try:
