@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from .mechanism import wrap
 
 KEY = "passive_joint_limits"
 #: cone keys (hexapod) -> the joint they bound, and the URDF joints whose box holds the cone
@@ -35,6 +34,11 @@ RANGES = {"base_revolute_deg": ("base revolute", "base"), "platform_revolute_deg
 KINDS = {"hexapod_66": CONES, "planar_3rpr": RANGES}
 #: a cone angle is within (0, 180) degrees: 0 would forbid any bend, 180 bounds nothing
 MAX_CONE_DEG = 180.0
+
+
+def wrap(angle):
+    """Angles in (-pi, pi]."""
+    return math.pi - np.remainder(math.pi - np.asarray(angle, dtype=float), 2.0 * math.pi)
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,7 @@ class PassiveLimits:
         return None
 
     def violations(self, mech, position_m, orientation) -> list:
-        """The passive joints of :class:`~glpma_ros.description.mechanism.Mechanism` ``mech`` beyond
+        """The passive joints of a :class:`~glpma_ros.description.mechanism.Mechanism` ``mech`` beyond
         their limits with the platform at ``position_m`` / ``orientation``, as :class:`Violation`."""
         R, _, d, L = mech.legs_at(position_m, orientation)
         u = d / L[:, None]

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..models.rotations import cross_rows, matrix_from_quaternion
+from .limits import wrap
 
 REVOLUTE, PRISMATIC, FIXED = "revolute", "prismatic", "fixed"
 #: the leg whose chain carries the platform (the loop cut): leg 1, index 0
@@ -61,11 +62,6 @@ class JointSpec:
     limits: tuple | None = None
     leg: int = -1              # 0-based leg index, -1 for the platform mount
     role: str = ""             # u1 u2 actuator s1 s2 s3 / base actuator platform / mount
-
-
-def wrap(angle):
-    """Angles in (-pi, pi]."""
-    return math.pi - np.remainder(math.pi - np.asarray(angle, dtype=float), 2.0 * math.pi)
 
 
 class Mechanism:
