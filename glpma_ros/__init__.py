@@ -2,6 +2,6 @@
 from .runtime.moved import install as _serve_moved_names
 
 #: the package's version (also in package.xml; setup.py reads it from here)
-__version__ = "0.4.0"
+__version__ = "0.3.2"
 
 _serve_moved_names()
