@@ -45,6 +45,9 @@ NODE_KEYS = ("glpma_fk", "/glpma_fk", "/**")
 #: where robot_state_publisher reads the joint states (the node's private topic, not /joint_states:
 #: with input_type:=joint_state the node reads joint_states itself)
 MECHANISM_JOINT_STATES = "/glpma_fk/mechanism_joint_states"
+#: robot_state_publisher forwards at most this many joint states a second to /tf (its default, 20, drops
+#: poses: /tf at a pose's stamp would then be interpolated between others); the node answers up to 1 kHz
+RSP_PUBLISH_FREQUENCY_HZ = 1000.0
 
 
 def installed(package: str) -> bool:
@@ -94,7 +97,8 @@ def robot_state_publisher(context, *args, **kwargs):
     model = load_manipulator(path)
     text = urdf_text(model, robot_name=path.stem, prefix=urdf_prefix(context), source=path.name)
     return [Node(package=RSP_PACKAGE, executable="robot_state_publisher", name="robot_state_publisher",
-                 output="screen", parameters=[{"robot_description": text}],
+                 output="screen", parameters=[{"robot_description": text,
+                                               "publish_frequency": RSP_PUBLISH_FREQUENCY_HZ}],
                  remappings=[("joint_states", MECHANISM_JOINT_STATES)])]
 
 

@@ -42,8 +42,9 @@ TOL = 1e-9
 @pytest.mark.launch_test
 def generate_test_description(manipulator):
     return LaunchDescription([
+        # the mock starts once the node subscribes (no TrackingMonitor here: not waiting for one)
         *fk_with_mock(manipulator, rate_hz=RATE_HZ, params_file=params_file(manipulator),
-                      launch_arguments={"robot_description": "true"}),
+                      mock_parameters={"wait_for_monitor": False}, launch_arguments={"robot_description": "true"}),
         launch_testing.actions.ReadyToTest(),
     ])
 
