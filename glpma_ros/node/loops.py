@@ -11,6 +11,7 @@ import time
 from collections import deque
 
 from ..errors import InputError
+from .realtime import RealtimeSettings, RealtimeThreads
 from .service import FkService
 
 
@@ -178,6 +179,8 @@ class SolveLoop:
         self._busy = False              # a thread is solving (and will take _pending next)
         self._closed = False
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        # thread_priority / cpu_affinity: applied to each thread the first time it solves
+        self.realtime = RealtimeThreads(RealtimeSettings.from_params(service.params), service.log)
 
     def start(self) -> "SolveLoop":
         """Start the loop's own thread (needed for :meth:`submit`, not for :meth:`offer`)."""
@@ -224,6 +227,7 @@ class SolveLoop:
 
     def _drain(self, item) -> None:
         """Solve ``item``, then every input that arrived meanwhile, newest first; clears busy."""
+        self.realtime.enter()
         while item is not None:
             try:
                 self._solve(item)
