@@ -44,7 +44,8 @@ setup(
         # pytest < 9: ROS 2 Jazzy's launch_testing plugin (the launch tests under colcon test) fails to load
         # under pytest 9 (README, "Testing your integration"); Ubuntu 24.04 ships 7.4.4
         "test": TOOLS + ["pytest>=7,<9", "hypothesis>=6", "scipy>=1.10", "rosbags>=0.10", "mcap>=1.1",
-                         "dask[distributed]>=2024.1", "ruff==0.17.6"],     # ruff: .ci/run's lint, one version: one rule set
+                         "dask[distributed]>=2024.1", "ruff==0.17.6",     # ruff: .ci/run's lint, one version: one rule set
+                         "yourdfpy>=0.0.56"],     # yourdfpy: parses the generated URDF, its forward kinematics
         "bench": TOOLS + ["scipy>=1.10", "pymoo>=0.6", "pypop7>=0.0.80"],
         # glpma-fk bag (glpma_tools/bag.py) and glpma-fk map (glpma_tools/workspace_map/)
         "bag": TOOLS + ["rosbags>=0.10"],
@@ -74,6 +75,7 @@ setup(
             "modes = glpma_ros.cli.commands:MODES",
             "node = glpma_ros.cli.commands:NODE",
             "calibrate = glpma_ros.cli.commands:CALIBRATE",
+            "urdf = glpma_ros.cli.commands:URDF",
             "bag = glpma_tools.commands:BAG [bag]",
             "bench = glpma_tools.commands:BENCH [tools]",        # the peers (bench extra) are optional rows
             "demo = glpma_tools.commands:DEMO [tools]",

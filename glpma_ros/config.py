@@ -10,6 +10,8 @@ Schema (see ``config/*.yaml`` and ``doc/interface.md``)::
                                  # coincide, two legs sharing one: 6-3, 3-6, 3-3)
     leg_limits: [min, max]       # optional, config unit: leg lengths outside are rejected
     leg_offsets: [...]           # optional, config unit, one per leg: added to every measured length
+    passive_joint_limits: {...}  # optional, degrees: universal_cone_deg, spherical_cone_deg (hexapod),
+                                 # base_revolute_deg, platform_revolute_deg (3-RPR); see description/limits.py
     example_leg_lengths: [...]   # optional
     real_solutions: [...]        # optional (3-RPR): {x, y, theta_deg} of known assembly modes
     published_solutions: [...]   # optional (hexapod): [x1 y1 z1 x2 y2 z2 x3 y3 z3] of known modes
@@ -30,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .description.limits import PassiveLimits
 from .errors import ConfigError, InputError
 from .models import MODELS, Manipulator
 from .models.families import FAMILIES, is_family, model_from_family
@@ -45,7 +48,7 @@ LEG_COUNT = {"planar_3rpr": (3, 12), "hexapod_66": (6, 12)}
 #: keys a manipulator YAML may have (the first four are required)
 REQUIRED_KEYS = ("manipulator", "unit", "base", "platform")
 OPTIONAL_KEYS = ("leg_limits", "leg_offsets", "example_leg_lengths", "real_solutions", "published_solutions", "name",
-                 "description")
+                 "description", "passive_joint_limits")
 #: without ``leg_limits``, leg lengths are plausible between the geometry's scale (largest extent of
 #: the base or platform joints) divided and multiplied by this factor; all legs outside that band and
 #: inside it once read in another unit are taken for a unit mistake
@@ -199,6 +202,8 @@ def model_from_dict(doc, path: str = "config") -> Manipulator:
     problems.raise_if_any()
     model = MODELS[kind](base, platform, unit=unit, leg_limits=limits)
     model.leg_offsets = _leg_offsets(doc, model, path)
+    model.passive_limits = (None if doc.get("passive_joint_limits") is None else
+                            PassiveLimits.from_config(doc["passive_joint_limits"], kind, model.n_legs, path))
     model.source = path
     model.metres_per_unit = UNIT_TO_METRES[unit]
     example = doc.get("example_leg_lengths")

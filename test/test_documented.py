@@ -136,6 +136,7 @@ README_CHECKS = {
     "glpma-fk solve-all delta_irb360 --legs 0.044691 0.031328 0.227435": (0, ["2 distinct real assembly modes",
                                                                              "closed form"]),
     "glpma-fk solve delta_irb360 --legs 0.044691 0.031328 0.227435": (0, ["converged", "position"]),
+    "glpma-fk urdf planar_3rpr_seed": (0, ["<robot", "leg1_actuator", "platform_mount"]),
 }
 #: README commands that need a running node: checked by test_readme_node_and_modes
 NODE_COMMANDS = ("glpma-fk node ", "glpma-fk modes")

@@ -154,6 +154,43 @@ def test_tf_covariance_twist_and_markers(ros):
         node.destroy_node()
 
 
+def test_mechanism_joint_states(ros):
+    """publish_joint_states: every joint of the URDF beside each pose, same stamp, on ~/mechanism_joint_states."""
+    from sensor_msgs.msg import JointState
+
+    from glpma_ros.config import load_manipulator
+    from glpma_ros.description.mechanism import Mechanism
+    from glpma_ros.node.ros_node import FkNode
+    node = FkNode(parameter_overrides=[Parameter("manipulator_config", value=str(RPR_YAML)),
+                                       Parameter("initial_pose", value=SEED_X),
+                                       Parameter("time_budget_ms", value=50.0),
+                                       Parameter("publish_joint_states", value=True)])
+    client = rclpy.create_node("glpma_fk_joint_states_client")
+    poses, joints = [], []
+    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
+    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 100)
+    client.create_subscription(JointState, "/glpma_fk/mechanism_joint_states", joints.append, 100)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    executor.add_node(client)
+    mech = Mechanism(load_manipulator(RPR_YAML))
+    try:
+        assert _spin_until(executor, lambda: len(joints) >= 2,
+                           publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, 0.150])))
+        by_stamp = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in poses}
+        for js in joints[:2]:
+            pose = by_stamp[(js.header.stamp.sec, js.header.stamp.nanosec)]
+            p, o = pose.pose.position, pose.pose.orientation
+            assert list(js.name) == list(mech.joint_names)
+            # the node computed them from this pose's doubles the same way: only round-off could differ
+            expected = mech.positions((p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
+            assert max(abs(a - b) for a, b in zip(js.position, expected)) <= 1e-12
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+        node.destroy_node()
+
+
 def test_ctrl_c_stops_cleanly(tmp_path, dds_env):
     """SIGINT: the summary is logged (also to /rosout, while the context is valid), exit 0, and no
     'publisher's context is invalid' or abort."""
@@ -314,6 +351,13 @@ def test_the_encoders_bytes_are_the_messages_rclpy_reads():
         ("legs", 1, 5, "base", 2, 3.0, 0.5)
     legs = Float64MultiArray(data=[0.1, 0.12, 0.15])
     assert cdr.float64_multi_array_data(serialize_message(legs)) == (0.1, 0.12, 0.15)
+    ex = ExtraOutputs(stamp_ns=stamp_ns, frame_id="base", position=p, orientation=q,
+                      joint_names=("leg1_u1", "leg1_actuator"), joint_positions=(0.25, 1.5),
+                      joint_velocities=(-1.0, 2.0))
+    (name, data), = enc.extras(ex)
+    mjs = deserialize_message(data, JointState)
+    assert (name, mjs.header.frame_id, list(mjs.name), list(mjs.position), list(mjs.velocity), list(mjs.effort)) == \
+        ("joint_states", "base", ["leg1_u1", "leg1_actuator"], [0.25, 1.5], [-1.0, 2.0], [])
     js = JointState(name=["a", "leg_1"], position=[0.5, 0.1], velocity=[0.0, -0.01])
     js.header.stamp.sec, js.header.stamp.nanosec = 7, 8
     assert cdr.joint_state_fields(serialize_message(js)) == (7_000_000_008, ("a", "leg_1"), (0.5, 0.1), (0.0, -0.01))

@@ -9,3 +9,4 @@ PRECOMPILE = Command("compile every solver ahead of time (run once after install
 MODES = Command("ask a running node for every assembly mode of its last input", "glpma_ros.cli.modes:main")
 CALIBRATE = Command("the real geometry (joints, leg offsets) from measured poses", "glpma_ros.calibration:main")
 NODE = Command("run the estimator node (rclpy or Cyclone DDS)", "glpma_ros.node.entry:main")
+URDF = Command("the manipulator's URDF (loop-cut tree) for robot_state_publisher and RViz", "glpma_ros.cli.urdf:main")

@@ -49,6 +49,7 @@ class Diagnostics:
     def __init__(self, service):
         self.service = service
         self._capped_reported = 0     # covariances capped at a singularity, at the last report
+        self._limits_reported = 0     # poses beyond a passive-joint limit, at the last report
 
     def report(self, pause=lambda: None) -> DiagnosticReport:
         """The current statistics as a DiagnosticStatus; starts a new reporting period.
@@ -59,6 +60,7 @@ class Diagnostics:
         modes, modes_failed = svc.modes.snapshot(new_period=True)
         params, model, outputs = svc.params, svc.model, svc.outputs
         capped, self._capped_reported = outputs.capped - self._capped_reported, outputs.capped
+        beyond, self._limits_reported = outputs.limit_poses - self._limits_reported, outputs.limit_poses
         tails = []                    # p50, p99, max (ms) of each timed window
         for name in ("solve_s", "latency_s", "extras_s", "extras_handoff_s"):
             pause()
@@ -111,12 +113,16 @@ class Diagnostics:
                 ("pose_estimate", True), ("/tf", params["publish_tf"]),
                 ("pose_estimate_cov", params["publish_covariance"]),
                 ("twist_estimate", params["publish_twist"]),
-                ("~/markers", params["publish_markers"])) if on)),
+                ("~/markers", params["publish_markers"]),
+                ("~/mechanism_joint_states", params["publish_joint_states"])) if on)),
             ("child_frame_id", params["child_frame_id"]),
             ("leg noise std (m)", _g(params["leg_noise_std"], "g")),
             ("covariance capped (singular pose)", outputs.capped),
             ("twist source", outputs.twist_source or "none yet"),
         ]
+        if outputs.passive_limits is not None:
+            values += [("poses beyond a joint limit", outputs.limit_poses),
+                       ("joint limit", outputs.last_violation or "none")]
         pause()
         values += [
             ("extra outputs time p50 (ms)", _g(extras[0])),
@@ -139,6 +145,8 @@ class Diagnostics:
             problems.append(f"near a singularity (conditioning {cond_last:.2g})")
         if capped:
             problems.append(f"pose at a singularity: covariance capped ({capped} times)")
+        if beyond:
+            problems.append(f"joint_limit: {outputs.last_violation} ({beyond} poses beyond a passive joint's limit)")
         problems += leg_problems
         if problems:
             level, message = WARN, "; ".join(problems)

@@ -9,7 +9,10 @@ For every pose published on ``pose_estimate`` (each switchable by a parameter):
 * ``publish_twist``: ``twist_estimate``, from the ``joint_states`` velocities by the forward
   velocity kinematics when the input carries them, else the finite difference
   (:mod:`glpma_ros.estimation.velocity`) of this pose and the previous one;
-* ``publish_markers``: ``~/markers``, at most one every ``markers_period_s`` (by the stamps).
+* ``publish_markers``: ``~/markers``, at most one every ``markers_period_s`` (by the stamps);
+* ``publish_joint_states``: ``~/mechanism_joint_states``, every joint of the manipulator's URDF
+  (:mod:`glpma_ros.description`) at the pose, with the joints' rates when the twist is computed
+  (``publish_twist``; then even without a subscriber to ``twist_estimate``).
 
 :class:`OutputBuilder` turns an :class:`~glpma_ros.node.service.Outcome` into
 :class:`ExtraOutputs`; the transports turn those into messages.  One builder per service,
@@ -23,6 +26,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..description.mechanism import Mechanism
 from ..estimation.covariance import PoseJacobian
 from ..estimation.velocity import finite_difference_twist
 from ..models.rotations import matrix_from_quaternion
@@ -34,7 +38,7 @@ TWIST_FROM_POSES = "finite difference of consecutive poses"
 TWIST_MAX_GAP_S = 1.0
 #: the extra outputs, named as ``subscribed()`` names them, and the parameter switching each
 OUTPUT_PARAMS = {"tf": "publish_tf", "covariance": "publish_covariance", "twist": "publish_twist",
-                 "markers": "publish_markers"}
+                 "markers": "publish_markers", "joint_states": "publish_joint_states"}
 
 #: visualization_msgs/Marker types and action used here
 SPHERE_LIST, LINE_STRIP, LINE_LIST = 7, 4, 5
@@ -78,11 +82,20 @@ class ExtraOutputs:
     twist: tuple | None = None            # ((vx, vy, vz), (wx, wy, wz)), m/s and rad/s, base frame
     twist_source: str | None = None
     markers: tuple | None = None          # MarkerOutput, ...
+    joint_names: tuple | None = None      # ~/mechanism_joint_states when set: the URDF's moving joints,
+    joint_positions: tuple = ()           # their positions (rad, m) and
+    joint_velocities: tuple = ()          # rates (rad/s, m/s; empty without a twist)
+    publish_twist: bool = True            # False: the twist was computed for the joints' rates only
 
     @property
     def any(self) -> bool:
-        return (self.child_frame_id is not None or self.covariance is not None or self.twist is not None
-                or self.markers is not None)
+        return (self.child_frame_id is not None or self.covariance is not None or self.twist_out
+                or self.markers is not None or self.joint_names is not None)
+
+    @property
+    def twist_out(self) -> bool:
+        """Whether ``twist_estimate`` goes out."""
+        return self.twist is not None and self.publish_twist
 
 
 def polygon_order(points: np.ndarray) -> list:
@@ -107,8 +120,12 @@ def _blend(a: tuple, b: tuple, t: float) -> tuple:
 class OutputBuilder:
     """Builds :class:`ExtraOutputs` for the poses of one manipulator."""
 
-    def __init__(self, model):
+    def __init__(self, model, urdf_prefix: str = ""):
         self.model = model
+        self.mechanism = Mechanism(model, prefix=urdf_prefix, passive_limits=getattr(model, "passive_limits", None))
+        self.passive_limits = getattr(model, "passive_limits", None)
+        self.limit_poses = 0             # poses with a passive joint beyond its limit, so far
+        self.last_violation = None       # the joints of the last such pose, as text
         self.metres_per_unit = float(model.metres_per_unit)
         self.jacobian = PoseJacobian(model)
         #: an actuated family (:mod:`glpma_ros.models.actuated`): legs drawn as crank + rod, no covariance
@@ -138,8 +155,13 @@ class OutputBuilder:
         """Forget the previous pose: the next twist by finite difference waits for two poses."""
         self._previous = None            # (stamp_ns, position (m), orientation)
 
-    def build(self, outcome, params: dict) -> ExtraOutputs:
-        """The outputs for ``outcome`` (a published pose) under ``params``."""
+    def build(self, outcome, params: dict, twist_for_joints: bool = False) -> ExtraOutputs:
+        """The outputs for ``outcome`` (a published pose) under ``params``; ``twist_for_joints``: compute
+        the twist (as ``publish_twist`` would) for the joints' rates even though ``publish_twist`` is off
+        here (no subscriber to ``twist_estimate``)."""
+        twist_only_for_joints = twist_for_joints and not params["publish_twist"]
+        if twist_only_for_joints:
+            params = {**params, "publish_twist": True}
         pose, estimate = outcome.pose, outcome.estimate
         stamp_ns = pose.stamp_ns
         rates = outcome.leg_rates_m if params["publish_twist"] and not self.actuated else None
@@ -172,9 +194,33 @@ class OutputBuilder:
                                           stamp_ns - self._last_markers_ns >= params["markers_period_s"] * 1e9):
             markers = self.markers(pose.position, pose.orientation, outcome.legs * self.metres_per_unit)
             self._last_markers_ns = stamp_ns
-        return ExtraOutputs(stamp_ns, pose.frame_id, pose.position, pose.orientation,
-                            params["child_frame_id"] if params["publish_tf"] else None,
-                            covariance, bool(capped), twist, source, markers)
+        out = ExtraOutputs(stamp_ns, pose.frame_id, pose.position, pose.orientation,
+                           params["child_frame_id"] if params["publish_tf"] else None,
+                           covariance, bool(capped), twist, source, markers, publish_twist=not twist_only_for_joints)
+        if params.get("publish_joint_states"):
+            self.joint_states(out)
+        return out
+
+    def check_limits(self, outcome) -> None:
+        """Count ``outcome``'s pose when a passive joint is beyond the config's limits (and name them)."""
+        if self.passive_limits is None or outcome.pose is None:
+            return
+        found = self.passive_limits.violations(self.mechanism, outcome.pose.position, outcome.pose.orientation)
+        if found:
+            self.limit_poses += 1
+            self.last_violation = "; ".join(str(v) for v in found)
+
+    def joint_states(self, out: ExtraOutputs) -> None:
+        """Fill ``out``'s joint fields: every moving joint of the URDF at ``out``'s pose, with rates
+        from ``out.twist`` when there is one (and the legs are clear of a gimbal lock)."""
+        mech = self.mechanism
+        q = mech.positions(out.position, out.orientation)
+        rates = None
+        if out.twist is not None:
+            rates = mech.velocities(out.position, out.orientation, out.twist[0], out.twist[1], q)
+        out.joint_names = mech.joint_names
+        out.joint_positions = tuple(q.tolist())
+        out.joint_velocities = () if rates is None else tuple(rates.tolist())
 
     def _jacobian_without(self, leg):
         """The leg Jacobian of the legs a pose used: every leg, or all but ``leg`` (redundant legs, the

@@ -6,6 +6,7 @@ with :mod:`.ros_args` and resolve the values with :func:`resolve`.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,6 +29,8 @@ STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY, INTEGER_ARRAY = (
 ARRAY_TYPES = (DOUBLE_ARRAY, STRING_ARRAY, INTEGER_ARRAY)
 #: the largest core number cpu_affinity accepts (Linux's default CPU set size, CONFIG_NR_CPUS)
 MAX_CPU = 8191
+#: a URDF prefix (``glpma-fk urdf --prefix``) goes before joint and TF names
+URDF_PREFIX = re.compile(r"[A-Za-z0-9_/]*")
 
 
 @dataclass(frozen=True)
@@ -102,6 +105,14 @@ PARAMETERS = (
     ParamSpec("publish_markers", BOOL, False,
               "Publish ~/markers (visualization_msgs/MarkerArray): base and platform joints, legs coloured by length, "
               "the platform polygon"),
+    ParamSpec("publish_joint_states", BOOL, False,
+              "Publish ~/mechanism_joint_states (sensor_msgs/JointState, stamped as the pose): every joint of the "
+              "manipulator's URDF (glpma-fk urdf) at the pose -- universal, actuator and spherical joints of every "
+              "leg -- with their rates when the twist is computed; remap it to /joint_states for "
+              "robot_state_publisher"),
+    ParamSpec("urdf_prefix", STRING, "",
+              "The prefix of the URDF's joint names (glpma-fk urdf --prefix) in ~/mechanism_joint_states",
+              read_only=True),
     ParamSpec("markers_period_s", DOUBLE, 0.1,
               "Least time between two ~/markers messages (by the poses' stamps); 0 = with every pose",
               range=(0.0, 3600.0)),
@@ -165,6 +176,8 @@ def coerce(name: str, value):
             raise InputError(f"parameter '{name}' must be one of {', '.join(spec.choices)}, got {value!r}")
         if name in ("frame_id", "child_frame_id", "manipulator_config") and not value.strip():
             raise InputError(f"parameter '{name}' must not be empty")
+        if name == "urdf_prefix" and not URDF_PREFIX.fullmatch(value):
+            raise InputError(f"parameter '{name}' must be letters, digits, '_' and '/' only, got {value!r}")
         return value
     if t == BOOL:
         if not isinstance(value, bool):

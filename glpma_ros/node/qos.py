@@ -119,6 +119,7 @@ def node_endpoints(depth: int, input_topic: str) -> dict:
         ("pose_estimate_cov", PUBLISHER): base,
         ("twist_estimate", PUBLISHER): base,
         ("~/markers", PUBLISHER): base,
+        ("~/mechanism_joint_states", PUBLISHER): base,
         ("/diagnostics", PUBLISHER): base,
         ("~/assembly_modes", PUBLISHER): QosSpec(depth=1, durability="transient_local"),
     }

@@ -148,13 +148,14 @@ class FkEndpoints:
         self.cov_pub = pub(PoseWithCovarianceStamped, "pose_estimate_cov")
         self.twist_pub = pub(TwistStamped, "twist_estimate")
         self.markers_pub = pub(MarkerArray, "~/markers")
+        self.joint_states_pub = pub(JointState, "~/mechanism_joint_states")
         self.diag_pub = pub(DiagnosticArray, "/diagnostics")
         self.modes_pub = pub(PoseArray, "~/assembly_modes")        # latched by default
         self._publishers_opened = [self.pose_pub, self.tf_pub, self.cov_pub, self.twist_pub, self.markers_pub,
-                                   self.diag_pub, self.modes_pub]
+                                   self.joint_states_pub, self.diag_pub, self.modes_pub]
         # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
         self._extra_pubs = {"tf": self.tf_pub, "covariance": self.cov_pub, "twist": self.twist_pub,
-                            "markers": self.markers_pub}
+                            "markers": self.markers_pub, "joint_states": self.joint_states_pub}
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed)
         self.modes = AssemblyModesLoop(service, self._publish_modes).start()
@@ -264,7 +265,8 @@ class FkEndpoints:
         return {name for name, pub in self._extra_pubs.items() if pub.get_subscription_count()}
 
     def _publish_extras(self, ex) -> None:
-        """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
+        """/tf, pose_estimate_cov, twist_estimate, ~/markers, ~/mechanism_joint_states of
+        :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
         for name, data in self._encode.extras(ex):
             self._extra_pubs[name].publish(data)
 

@@ -115,7 +115,7 @@ class FkService:
         self._check_joint_names(values["joint_names"])
         self._check_frames(values)
         self.leg_health = LegHealth(self.model)
-        self.outputs = OutputBuilder(self.model)
+        self.outputs = OutputBuilder(self.model, values["urdf_prefix"])
         self.log_throttle = LogThrottle()    # one log line a second per rejection reason
         self._lock = threading.RLock()          # estimator and parameters (statistics and modes: their own)
         self._warmed: set = set()               # solvers warm_up() has run
@@ -377,20 +377,24 @@ class FkService:
         params = self.params if params is None else params
         if outcome.pose is None:
             return None
+        self.outputs.check_limits(outcome)      # the config's passive-joint limits, for /diagnostics
         wanted = {name: params[key] and (subscribed is None or name in subscribed)
                   for name, key in OUTPUT_PARAMS.items()}
         if not any(wanted.values()):
             self.outputs.reset_previous()      # no finite difference across a time it was off
             return None
+        # the joints' rates come from the twist: computed for them when publish_twist is on
+        twist_for_joints = wanted["joint_states"] and params["publish_twist"]
         if not all(wanted[name] == params[key] for name, key in OUTPUT_PARAMS.items()):
             params = {**params, **{OUTPUT_PARAMS[name]: on for name, on in wanted.items()}}
-        extras = self.outputs.build(outcome, params)
+        extras = self.outputs.build(outcome, params, twist_for_joints)
         return extras if extras.any else None
 
     def extras_on(self) -> bool:
-        """Whether any extra output is switched on (else no pose is handed to the extras thread)."""
+        """Whether any extra output is switched on or the config has passive-joint limits to check (else no
+        pose is handed to the extras thread)."""
         params = self.params
-        return any(params[key] for key in OUTPUT_PARAMS.values())
+        return self.outputs.passive_limits is not None or any(params[key] for key in OUTPUT_PARAMS.values())
 
     def note_extras_time(self, seconds: float) -> None:
         """Time the extras thread spent on the extra outputs of one pose: building, converting, writing."""

@@ -33,12 +33,14 @@ def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart:
                  input_type: str = "float64_multi_array",
                  rate_hz: float = 50.0, duration_s: float = 0.0, params_file: str | None = None,
                  mock_parameters: dict | None = None, keystore: str | None = None,
-                 mock_enclave: str = "/controller") -> list:
+                 mock_enclave: str = "/controller", launch_arguments: dict | None = None) -> list:
     """Launch actions: ``fk.launch.py`` with ``manipulator``, ``managed``, ``autostart``, ``input_type`` (and
     ``params_file`` if given) and the mock publisher driving the same manipulator's shipped config
     at ``rate_hz`` for ``duration_s`` (0: until shutdown).  With ``keystore`` (an SROS2 keystore
     with enclaves ``/glpma_fk`` and ``mock_enclave``) both run secured (``secure:=true``; README,
-    "Running secured").  Add ``launch_testing.actions.ReadyToTest()`` (or launch_pytest's) after them."""
+    "Running secured").  ``launch_arguments``: more arguments of ``fk.launch.py`` (e.g.
+    ``{"robot_description": "true"}``).  Add ``launch_testing.actions.ReadyToTest()`` (or launch_pytest's)
+    after them."""
     from launch.actions import IncludeLaunchDescription
     from launch.launch_description_sources import PythonLaunchDescriptionSource
     from launch.substitutions import PathJoinSubstitution
@@ -49,6 +51,7 @@ def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart:
             "autostart": str(bool(autostart)).lower(), "input_type": input_type}
     if params_file is not None:
         args["params_file"] = str(params_file)
+    args.update({str(k): str(v) for k, v in (launch_arguments or {}).items()})
     secured = {}
     if keystore is not None:
         args.update(secure="true", keystore=str(keystore))

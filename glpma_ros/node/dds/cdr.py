@@ -153,10 +153,28 @@ class Encoder:
             values += _MARKER_TAIL
         return CDR_LE + st.pack(*values)
 
+    def joint_state(self, stamp_ns: int, frame_id: str, names, positions, velocities=()) -> bytes:
+        """``sensor_msgs/JointState`` (no efforts; ``velocities`` empty or one per name)."""
+        frame = frame_id.encode()
+        encoded = tuple(n.encode() for n in names)
+
+        def build():
+            layout = Layout().header(frame).prim("I")
+            for name in encoded:
+                layout.string(name)
+            return layout.prim("I").prim("d", len(positions)).prim("I").prim("d", len(velocities)).prim("I").struct()
+
+        st = self._layout(("JointState", frame, encoded, len(positions), len(velocities)), build)
+        values = [*_split(stamp_ns), len(frame) + 1, frame, len(encoded)]
+        for name in encoded:
+            values += (len(name) + 1, name)
+        return CDR_LE + st.pack(*values, len(positions), *positions, len(velocities), *velocities, 0)
+
     def extras(self, ex) -> list:
         """``[(output name, bytes)]`` of the outputs present in
         :class:`~glpma_ros.node.outputs.ExtraOutputs` ``ex``: ``tf`` (``/tf``), ``covariance``
-        (``pose_estimate_cov``), ``twist`` (``twist_estimate``), ``markers`` (``~/markers``)."""
+        (``pose_estimate_cov``), ``twist`` (``twist_estimate``), ``markers`` (``~/markers``), ``joint_states``
+        (``~/mechanism_joint_states``)."""
         out = []
         if ex.child_frame_id is not None:
             out.append(("tf", self.tf_message(ex.stamp_ns, ex.frame_id, ex.child_frame_id, ex.position,
@@ -164,10 +182,13 @@ class Encoder:
         if ex.covariance is not None:
             out.append(("covariance", self.pose_with_covariance_stamped(ex.stamp_ns, ex.frame_id, ex.position,
                                                                         ex.orientation, ex.covariance)))
-        if ex.twist is not None:
+        if ex.twist_out:
             out.append(("twist", self.twist_stamped(ex.stamp_ns, ex.frame_id, *ex.twist)))
         if ex.markers is not None:
             out.append(("markers", self.marker_array(ex.stamp_ns, ex.frame_id, ex.markers)))
+        if ex.joint_names is not None:
+            out.append(("joint_states", self.joint_state(ex.stamp_ns, ex.frame_id, ex.joint_names, ex.joint_positions,
+                                                         ex.joint_velocities)))
         return out
 
 

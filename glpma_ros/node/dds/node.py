@@ -101,6 +101,7 @@ class DdsNode:
         self.topics = {name: topic(name) for name in (self.input_name, endpoints.POSE_ESTIMATE,
                                                        endpoints.POSE_ESTIMATE_COV, endpoints.TWIST_ESTIMATE,
                                                        endpoints.TF, endpoints.MARKERS,
+                                                       endpoints.MECHANISM_JOINT_STATES,
                                                        endpoints.DIAGNOSTICS, endpoints.ASSEMBLY_MODES,
                                                        endpoints.REQUEST_ASSEMBLY_MODES)}
         # every output has its writer from the start: the publish_* parameters switch them at runtime
@@ -113,11 +114,13 @@ class DdsNode:
                                                qos=pub(endpoints.TWIST_ESTIMATE))
         self.markers_writer = participant.writer(self.topics[endpoints.MARKERS], MarkerArray,
                                                  qos=pub(endpoints.MARKERS))
+        self.joint_states_writer = participant.writer(self.topics[endpoints.MECHANISM_JOINT_STATES], JointState,
+                                                      qos=pub(endpoints.MECHANISM_JOINT_STATES))
         self._encode = cdr.Encoder()
         self._raw_pose = cdr.RawWriter(self.pose_writer)
         self._raw_extras = {name: cdr.RawWriter(w).write for name, w in (
             ("tf", self.tf_writer), ("covariance", self.cov_writer), ("twist", self.twist_writer),
-            ("markers", self.markers_writer))}
+            ("markers", self.markers_writer), ("joint_states", self.joint_states_writer))}
         self.diag_writer = participant.writer(self.topics[endpoints.DIAGNOSTICS], DiagnosticArray,
                                               qos=pub(endpoints.DIAGNOSTICS))
         self._raw_diag = cdr.RawWriter(self.diag_writer)
@@ -130,7 +133,8 @@ class DdsNode:
         self.request_reader = participant.reader(self.topics[endpoints.REQUEST_ASSEMBLY_MODES], Empty,
                                                  qos=sub(endpoints.REQUEST_ASSEMBLY_MODES))
         self._extra_writers = (("tf", self.tf_writer), ("covariance", self.cov_writer),
-                               ("twist", self.twist_writer), ("markers", self.markers_writer))
+                               ("twist", self.twist_writer), ("markers", self.markers_writer),
+                               ("joint_states", self.joint_states_writer))
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed)
         self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
@@ -217,7 +221,8 @@ class DdsNode:
         return {name for name, writer in self._extra_writers if writer.get_matched_subscriptions()}
 
     def _publish_extras(self, ex) -> None:
-        """/tf, pose_estimate_cov, twist_estimate, ~/markers of :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
+        """/tf, pose_estimate_cov, twist_estimate, ~/markers, ~/mechanism_joint_states of
+        :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
         for name, data in self._encode.extras(ex):
             self._raw_extras[name](data)
 
