@@ -332,7 +332,7 @@ def test_solve_loop_solves_the_newest_input_and_counts_dropped(service):
         published.append(pose)
         release.wait(WAIT_S)            # hold the worker while more inputs arrive
 
-    loop = SolveLoop(service, publish).start()
+    loop = SolveLoop(service, publish, stats=service.stats, modes=service.modes).start()
     try:
         loop.submit(SEED_LEGS_M, 1)
         deadline = time.monotonic() + WAIT_S

@@ -124,7 +124,7 @@ def test_joint_state_gives_the_array_pose_with_its_own_stamp(service):
 
 def test_solve_loop_takes_joint_states(service):
     published = []
-    loop = SolveLoop(service, published.append).start()
+    loop = SolveLoop(service, published.append, stats=service.stats, modes=service.modes).start()
     try:
         loop.submit(JointStateInput(("j_b", "j_a", "x", "j_c"), (0.12, 0.1, 0.0, 0.15), ()), 77)
         deadline = time.monotonic() + WAIT_S
@@ -167,7 +167,7 @@ def test_assembly_modes_of_the_hexapod_example_are_sixteen():
 
 def test_assembly_modes_loop_with_the_worker_process(service):
     published = []
-    loop = AssemblyModesLoop(service, published.append)
+    loop = AssemblyModesLoop(service.modes, published.append, log=service.log)
     worker = loop.solve
     loop.start()
     try:
@@ -205,7 +205,7 @@ def test_assembly_modes_requests_are_coalesced_while_one_waits(service):
         return []
 
     published = []
-    loop = AssemblyModesLoop(service, published.append, solve=slow).start()
+    loop = AssemblyModesLoop(service.modes, published.append, solve=slow, log=service.log).start()
     try:
         service.modes.note_input(list(SEED_LEGS_M), 1)
         loop.request(1)

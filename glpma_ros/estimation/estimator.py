@@ -224,6 +224,11 @@ class Estimator:
     def has_warm_state(self) -> bool:
         return self.last_x is not None
 
+    @property
+    def warm_x(self):
+        """The solver variables the next input starts from (None: a cold start)."""
+        return self.last_x
+
     # -- solving ------------------------------------------------------------------
     def estimate(self, legs) -> Estimate:
         """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
