@@ -7,7 +7,9 @@ thread's involuntary context switches grew) or Python's garbage collector ran du
 shared machine these explain most overruns, so the reports also give the figures without them."""
 from __future__ import annotations
 
+import contextlib
 import gc
+import multiprocessing
 import os
 import platform
 import subprocess
@@ -53,10 +55,43 @@ def involuntary_switches() -> int:
 
 def infeasible_legs(model) -> np.ndarray:
     """Leg lengths of the shipped configs' geometries with no real assembly (the platform cannot
-    reach the base joints), so that a search runs until its deadline or its evaluation cap."""
+    reach the base joints), so that a search runs until its deadline or its evaluation cap.  The
+    Estimator tells these from the legs alone (a pair of legs too short for its loop)."""
     if model.kind == "planar_3rpr":
         return np.array([10.0, 10.0, 400.0])
     return np.full(model.n_legs, 100.0)
+
+
+def probed_infeasible_legs(model) -> np.ndarray:
+    """Leg lengths of the shipped configs' geometries with no real assembly that every pair of legs
+    could close (:mod:`glpma_ros.models.reach`): the Estimator needs its search and its probe to tell."""
+    if model.kind == "planar_3rpr":
+        return np.array([400.0, 400.0, 400.0])
+    return np.tile([900.0, 1600.0], model.n_legs // 2)
+
+
+def _spin() -> None:
+    # normal scheduling whatever the parent's (a real-time parent's children inherit its policy)
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    while True:
+        pass
+
+
+@contextlib.contextmanager
+def busy_cores(n: int):
+    """``n`` processes that each keep a core busy (a plain Python loop) while the block runs: the load
+    generator of the bench's "cores busy" measurements."""
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=_spin, daemon=True) for _ in range(n)]
+    for p in procs:
+        p.start()
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.join()
 
 
 def warm_up(call, budget_ms: float, quiet: int = WARM_UP_QUIET, max_calls: int = WARM_UP_MAX_CALLS) -> int:
@@ -99,9 +134,10 @@ class TimedCalls:
 
 
 def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool = False,
-                stop_early: bool = True) -> TimedCalls:
+                stop_early: bool = True, rest_s: float = 0.0) -> TimedCalls:
     """``n`` timed calls ``call(i)``; with ``stop_early`` the series stops after :data:`STOP_AFTER`
-    calls that all overran by more than :data:`STOP_OVERRUN_FACTOR` times the budget."""
+    calls that all overran by more than :data:`STOP_OVERRUN_FACTOR` times the budget; ``rest_s``: a sleep
+    before each call, not timed (a real-time thread that never sleeps is throttled by the kernel)."""
     collections = [0]
 
     def on_gc(phase, info):
@@ -114,6 +150,8 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
     gc.callbacks.append(on_gc)
     try:
         for i in progress_bar(range(n), desc, progress):
+            if rest_s:
+                time.sleep(rest_s)
             c0, g0 = involuntary_switches(), collections[0]
             t0 = time.perf_counter()
             results.append(call(i))

@@ -63,7 +63,12 @@ def test_markdown_has_every_table(report):
     assert "| ours: Estimator (warm: compiled LM) |" in text and "| scipy `lm`, analytic |" in text
     assert "| plain NumPy Newton |" in text and "ours/row (p99)" in text
     assert "| 3-RPR | 20 | U[" in text                          # solve_all row: 20 runs
-    assert "| 3-RPR, infeasible legs, default (polish) | glpma | 1 | 2 |" in text
+    for load in ("no load added", "every core busy"):          # the deadline rows, a solver's and the Estimator's
+        assert f"| 3-RPR, legs without an assembly | glpma | 1 | {load} | 2 |" in text, load
+        told = "3-RPR, legs without an assembly, told by a pair's loop bounds (Estimator: GLPMA, cold)"
+        assert f"| {told} | Estimator | 1 | {load} | 2 |" in text, load
+        assert f"| planar_3rpr | {load} | 3 |" in text, load      # its smallest deciding budget, 3 Estimators
+    assert "p99.9 / max of end − deadline, ms" in text
     waits = text.split("## Waits of an input")[1].split("\n## ")[0]
     for setup in ("handle", "handle + reports", "node at 1 kHz"):
         assert f"| {setup} | 300 |" in waits, setup

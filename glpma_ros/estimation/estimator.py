@@ -9,14 +9,25 @@ previous one.  For every new set of leg lengths the estimator
    Levenberg-Marquardt call from the previous estimate
    (:mod:`glpma_ros.solvers.lm`); accepted when it converges to a solution near
    the previous one;
-2. otherwise the population stages: **warm** (the solver's population around the
+2. otherwise, legs that no pose can reach by the loop bounds of a pair of legs
+   (:mod:`glpma_ros.models.reach`, told from the legs alone) are ``no_solution`` at once;
+3. otherwise the population stages: **warm** (the solver's population around the
    previous estimate, with a spread equal to how far the legs moved; without the
    refinement this is the first stage), **widened** (the same with a spread
    ``WIDEN_FACTOR`` times larger), **cold** (the papers' wide initial range);
 
 and, among the converged candidates, keeps the one nearest the previous pose,
-so that it does not jump assembly mode on a continuous trajectory.  The
-population stages share the time budget (``STAGE_SHARE``): the deadline is hard.
+so that it does not jump assembly mode on a continuous trajectory.
+
+**The deadline is hard.**  No work starts after ``time_budget_s``: the population stages share the
+budget less a *reserve* for the deciding work below (``STAGE_SHARE``), and every compiled call of the
+deciding work starts only when its expected duration (the longest seen so far of that kind) still ends
+before the deadline.  When the deciding work does not fit, the answer is ``budget_exhausted`` at the
+deadline.  The reserve is :data:`DECISION_MARGIN` times the longest deciding work seen so far (the
+thread's CPU time of its calls, measured once when the estimator is built, then on every input), at
+least :data:`DECISION_MIN_SHARE` and at most :data:`DECISION_MAX_SHARE` of the budget.  The smallest
+budget at which the deciding work fits is therefore ``decision_reserve_s / DECISION_MAX_SHARE``
+(:attr:`Estimator.smallest_deciding_budget_s`).
 
 **Convergence** (with the refinement) is judged on the leg residuals of the
 pose, relative to the geometry: ``max |r_i| <= leg_rtol * max(scale, max leg)``
@@ -30,18 +41,18 @@ reported (``Estimate.fitness``).  Without the refinement (``polish=False``, the
 papers' setting) convergence is the papers' ``fitness < tolerance``.
 
 **Statuses come from work done, not from the clock.**  Every point a search
-ends on is polished by the compiled Levenberg-Marquardt without a deadline
-(microseconds, bounded by its iteration cap): a polish that meets the leg
-criterion is ``converged`` however little of the search fitted in the budget.
-When none does, a *probe* runs: the same Levenberg-Marquardt from
+ends on is polished by the compiled Levenberg-Marquardt (its iteration cap bounds it):
+a polish that meets the leg criterion is ``converged`` however little of the search
+fitted in the budget.  When none does, a *probe* runs: the same Levenberg-Marquardt from
 ``PROBE_STARTS`` fixed starts in the papers' initial range (a fixed seed, so the
 same work on every machine), stopping at the first that converges (reported as
-a ``cold`` start).  If the probe fails too, the best polished point decides: ``near_singular`` (leg Jacobian
-nearly singular, small residual), ``no_solution`` (a residual that the polish
-cannot lower: a stationary point of the fitness, or a polish that stalled; no
-real assembly there); only when neither holds is
-the status ``budget_exhausted`` (the time ran out) or ``max_evals`` (the
-evaluation caps did).
+a ``cold`` start).  If the whole probe fails, the best polished point decides (:func:`classify`):
+``near_singular`` (leg Jacobian nearly singular, small residual), ``no_solution`` (a residual that
+the polish cannot lower: a stationary point of the fitness, or a polish that stalled; no real
+assembly there); only when neither holds, or when the probe could not run to its end before the
+deadline, is the status ``budget_exhausted`` (the time ran out) or ``max_evals`` (the evaluation
+caps did).  Above the smallest budget at which the deciding work fits (README, "Deadlines"), the
+same legs get the same status on an idle or a busy machine.
 """
 from __future__ import annotations
 
@@ -55,13 +66,14 @@ from .. import solvers
 from ..config import UNIT_TO_METRES
 from ..errors import InputError
 from ..models.base import Pose
+from ..models.reach import PairBounds
 from ..solvers import lm, local
 from ..solvers.driver import POLISH_MAX_ITER
 from . import redundancy
 
 #: spread of the widened stage relative to the warm one
 WIDEN_FACTOR = 10.0
-#: share of the remaining budget each population stage may use (warm, widened, cold)
+#: share of the remaining search time each population stage may use (warm, widened, cold)
 STAGE_SHARE = (0.4, 0.5, 1.0)
 #: a converged solution farther than this many leg displacements from the previous
 #: pose (in platform-joint distance) triggers the search for a nearer branch
@@ -72,7 +84,7 @@ MIN_SPREAD = 1e-6
 MAX_SPREAD = 10.0
 #: iteration cap of the warm stage's Levenberg-Marquardt (as the driver's refinement)
 WARM_MAX_ITER = POLISH_MAX_ITER
-#: iteration cap of the polish that settles a search's end point (no deadline: microseconds)
+#: iteration cap of the polish that settles a search's end point (one compiled call: microseconds)
 SETTLE_MAX_ITER = lm.MAX_ITER
 #: an unconverged fitness whose RMS leg residual exceeds this share of the scale
 #: means the legs have no real assembly (rather than too little time)
@@ -93,8 +105,24 @@ NEAR_SINGULAR_RMS = 1e-2
 #: starts of the probe that decides a failed search: Levenberg-Marquardt from fixed starts drawn in the
 #: papers' initial range (on the seed examples one start in five or more converges on any feasible legs)
 PROBE_STARTS = 32
+#: starts per compiled call of the probe: the deadline is looked at between two calls, so one call
+#: must be short (a few starts, tens of microseconds) and the calls few (each costs a Python call)
+PROBE_CHUNK = 4
 #: seed of the probe's starts (fixed: the probe is the same work on every machine)
 PROBE_SEED = 0
+#: the reserve for the deciding work is this many times the longest deciding work seen (its duration
+#: varies with the legs and with the machine's load: twice covers both on the machines measured)
+DECISION_MARGIN = 2.0
+#: ... and at most this share of the budget: the search keeps the rest (when the deciding work needs
+#: more, it is cut at the deadline: budget_exhausted)
+DECISION_MAX_SHARE = 0.8
+#: ... and at least this share: with a budget far above the deciding work's own time, a busy machine that
+#: preempts the solving thread for milliseconds still leaves the deciding work the time it needs (the
+#: search has the other half; where the search converges the reserve is not waited for)
+DECISION_MIN_SHARE = 0.5
+#: an expected duration (longest seen) forgets this share of itself per input that measures less, so
+#: that a one-off delay (a preemption) does not hold the reserve high for good
+EXPECTED_DECAY = 0.01
 #: the unit of the papers' initial ranges (``solvers.PAPER_SETTINGS``; their manipulators are in mm)
 PAPER_UNIT = "mm"
 #: solver variables that are angles (radians: the same in every unit of length)
@@ -106,7 +134,7 @@ STATUS_BUDGET = "budget_exhausted"
 STATUS_NEAR_SINGULAR = "near_singular"
 STATUS_MAX_EVALS = "max_evals"
 #: redundant legs that no pose explains within the leg noise (:mod:`glpma_ros.estimation.redundancy`)
-STATUS_INCONSISTENT = "inconsistent_legs"
+STATUS_INCONSISTENT = redundancy.STATUS_INCONSISTENT
 
 
 @dataclass
@@ -153,6 +181,43 @@ def cold_range(model):
     return low * f, high * f
 
 
+def classify(best, model, *, probe_complete: bool, probe_converged: bool, out_of_time: bool) -> tuple[str, str]:
+    """``(status, why)`` of an estimate no candidate converged for, from the work done: ``best`` (a
+    :class:`~glpma_ros.solvers.local.LocalResult`) the polished point of least leg fitness;
+    ``probe_complete`` the probe ran to its end (every start, or up to one that converged), and
+    ``probe_converged`` one did; ``out_of_time`` a search was stopped by its deadline.  A pure function of
+    its arguments: a probe cut by the deadline leaves the question open (``budget_exhausted``)."""
+    rms = math.sqrt(best.leg_fitness / model.n_legs)
+    cond = best.conditioning
+    if not probe_complete:
+        return STATUS_BUDGET, (f"not converged within the budget (the deciding work did not fit; RMS residual "
+                               f"{rms:.3g} {model.unit})")
+    if cond < NEAR_SINGULAR and rms < NEAR_SINGULAR_RMS * model.scale:
+        return STATUS_NEAR_SINGULAR, (f"near a singularity: not converged (conditioning {cond:.2g}, "
+                                      f"RMS residual {rms:.3g} {model.unit})")
+    if rms > NO_SOLUTION_RMS * model.scale and not probe_converged and \
+            (best.stationarity <= STATIONARY or best.progress < STALLED):
+        return STATUS_NO_SOLUTION, f"no real assembly found (RMS residual {rms:.3g} {model.unit})"
+    if out_of_time:
+        return STATUS_BUDGET, f"not converged within the budget (RMS residual {rms:.3g} {model.unit})"
+    return STATUS_MAX_EVALS, f"not converged within the evaluation cap (RMS residual {rms:.3g} {model.unit})"
+
+
+class _Expected:
+    """The expected duration (s) of one kind of compiled call: the longest seen, forgetting
+    :data:`EXPECTED_DECAY` of itself per shorter one.  Durations are the thread's CPU time
+    (``time.thread_time``): the work itself, not the time other processes took the core meanwhile
+    (a preemption would otherwise hold the expectation high, and cut the next deciding work short)."""
+
+    __slots__ = ("s",)
+
+    def __init__(self, s: float = 0.0):
+        self.s = s
+
+    def note(self, seconds: float) -> None:
+        self.s = max(seconds, (1.0 - EXPECTED_DECAY) * self.s)
+
+
 class Estimator:
     """Keeps the last solution and solves each new set of leg lengths from it.
 
@@ -166,21 +231,15 @@ class Estimator:
     Redundant legs (more than the degrees of freedom): the pose is the least-squares one, converged
     when its residuals pass the chi-square test against ``leg_noise_std`` (config unit; default
     :data:`~glpma_ros.estimation.redundancy.DEFAULT_LEG_NOISE_M` in the config's unit); otherwise the status is
-    ``inconsistent_legs``
-    with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other legs determine
-    the pose consistently, the pose without it (:mod:`glpma_ros.estimation.redundancy`)."""
+    ``inconsistent_legs`` with the leg most likely at fault, and, when ``exclude_faulty_leg`` and the other
+    legs determine the pose consistently, the pose without it (the policy:
+    :class:`~glpma_ros.estimation.redundancy.RedundantLegs`)."""
 
     def __init__(self, model, solver="glpma", time_budget_s=0.002, tolerance=solvers.common.DEFAULT_TOLERANCE,
                  seed=0, polish=True, initial_pose=None, population=None, local_population=None,
                  ls_interval=None, ls_intensity=None, max_evals=None, leg_rtol=lm.LEG_RTOL, init_range=None,
                  leg_noise_std=None, exclude_faulty_leg=True):
         self.model = model
-        self.leg_noise_std = redundancy.leg_noise(model, leg_noise_std)
-        self.exclude_faulty_leg = bool(exclude_faulty_leg)
-        self._isolator = redundancy.FaultIsolator(model) if model.redundancy > 0 else None
-        self.consistency_limit = redundancy.chi2_limit(model.redundancy)
-        #: the largest sum of squared leg residuals (config unit squared) of a consistent pose
-        self._consistent_fitness = self.consistency_limit * self.leg_noise_std ** 2 if model.redundancy else math.inf
         self.time_budget_s = float(time_budget_s)
         self.tolerance = float(tolerance)
         self.leg_rtol = float(leg_rtol)
@@ -195,9 +254,16 @@ class Estimator:
             tuple(np.full(model.n_vars, float(v)) for v in init_range)
         self._probe_starts = np.ascontiguousarray(
             np.random.default_rng(PROBE_SEED).uniform(*self._cold_range, size=(PROBE_STARTS, model.n_vars)))
+        self.redundant = redundancy.RedundantLegs(model, leg_noise_std, exclude_faulty_leg, self._probe_starts)
+        self.leg_noise_std = self.redundant.leg_noise_std
+        # the loop bounds tell unreachable legs only where every leg is needed (redundant legs with a
+        # faulty one are the redundancy policy's to judge)
+        self._bounds = None if model.redundancy else PairBounds(model)
         self._lm.prepare()        # compiled code loaded now, not on the first input that needs it
         self.set_solver(solver, population=population, local_population=local_population,
                         ls_interval=ls_interval, ls_intensity=ls_intensity)
+        self._settle_s, self._chunk_s = _Expected(), _Expected()
+        self.calibrate()
         self.reset(initial_pose)
 
     # -- state ------------------------------------------------------------------
@@ -211,9 +277,7 @@ class Estimator:
     def reset(self, initial_pose=None):
         """Forget the warm-start state; ``initial_pose`` (solver variables) selects
         the assembly mode to start from."""
-        self.prev_x = None                  # the estimate before last_x (redundant legs: the prediction)
-        self._inputs = self._advanced_at = 0    # redundant legs: inputs seen, and when last_x was set
-        self.excluded = None                # the leg left out of the last pose (redundant legs)
+        self.redundant.reset()
         if initial_pose is None or len(initial_pose) == 0:
             self.last_x = self.last_legs = None
         else:
@@ -229,13 +293,49 @@ class Estimator:
         """The solver variables the next input starts from (None: a cold start)."""
         return self.last_x
 
+    @property
+    def decision_reserve_s(self) -> float:
+        """The time (s) the deciding work is expected to take, with its margin: the settle of a
+        search's end point and the whole probe."""
+        return DECISION_MARGIN * (self._settle_s.s + self._chunk_s.s * math.ceil(PROBE_STARTS / PROBE_CHUNK))
+
+    @property
+    def smallest_deciding_budget_s(self) -> float:
+        """The smallest budget (s) whose reserve holds the deciding work with its margin: above it, the
+        same legs get the same status whatever fitted of the search (on a machine no busier than the
+        margin covers)."""
+        return self.decision_reserve_s / DECISION_MAX_SHARE
+
+    def calibrate(self) -> None:
+        """A first measure of the deciding work's calls, before any input: a settle and the whole probe
+        on the legs of the cold range's centre, with a fitness threshold no start meets (so that every
+        start runs to its stationary point or stall, as on legs with no assembly).  Run twice, the first
+        time to load the code and the caches; the inputs then keep the measures up to date.  Called again,
+        it adds a new measure (the machine's load changed, say)."""
+        model = self.model
+        legs = model.inverse_kinematics(0.5 * (self._cold_range[0] + self._cold_range[1]))
+        legs = np.where(legs > 0.0, legs, model.scale)          # any legs the kernel accepts will do
+        if model.leg_limits is not None:
+            legs = np.clip(legs, *model.leg_limits)
+        legs = np.ascontiguousarray(legs, dtype=float)
+        for _ in range(2):
+            t0 = time.thread_time()
+            self._lm.solve(self._probe_starts[0], legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol, stall=STALLED,
+                           ftol=-1.0)
+            t1 = time.thread_time()
+            self._lm.multistart(self._probe_starts[:PROBE_CHUNK], legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol,
+                                stall=STALLED, ftol=-1.0)
+            t2 = time.thread_time()
+        self._settle_s.note(t1 - t0)
+        self._chunk_s.note(t2 - t1)
+
     # -- solving ------------------------------------------------------------------
     def estimate(self, legs) -> Estimate:
         """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
         t0 = time.perf_counter()
         model = self.model
-        if self._isolator is not None:
-            self._inputs += 1
+        if self.redundant.active:
+            self.redundant.note_input()
         if self.last_x is None or not self.polish:
             return self._search(np.array(model.check_legs(legs), dtype=float), t0, None)
         try:
@@ -245,6 +345,8 @@ class Estimator:
             raise
         if arr.shape != self.last_legs.shape:
             arr = np.array(model.check_legs(arr), dtype=float)
+        if self.time_budget_s <= 0.0:                   # no time for any work: straight to what the legs tell
+            return self._search(np.array(model.check_legs(arr), dtype=float), t0, None)
         # the warm stage: one compiled call (checks the legs, solves, measures)
         settings = self._warm_settings
         if settings is None or self._warm_key != (model.leg_limits, self.leg_rtol):
@@ -255,86 +357,40 @@ class Estimator:
         lm.lm_kernel(solver.kind, solver.data, solver.platform, solver.frame, arr, self.last_x, self.last_x,
                      self.last_legs, settings, out, solver.work)
         n = self._n
-        info = out[n + 7:].tolist()
-        if info[lm.I_INPUT_OK] == 0.0:
+        info = local.LmInfo.of(out, n)
+        if info.input_ok == 0.0:
             model.check_legs(arr)                       # raises with the reason
-        if info[lm.I_CONVERGED] == 1.0 and \
-                info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
+        if info.converged == 1.0 and info.distance <= max(CONTINUITY_FACTOR * info.movement, self._near_floor):
             x = out[:n]
-            cond = info[lm.I_CONDITIONING]
+            cond = info.conditioning
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
-            isolator = self._isolator
-            how = "leg residuals at round-off" if isolator is None else "least-squares pose"
-            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]), info[lm.I_FITNESS],
-                         int(info[lm.I_NFEV]), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
-                         info[lm.I_MAX_RESIDUAL])
-            if isolator is None:             # the everyday case, no call more than needed
+            how = "least-squares pose" if self.redundant.active else "leg residuals at round-off"
+            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]), info.fitness,
+                         int(info.nfev), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
+                         info.max_residual)
+            if not self.redundant.active:       # the everyday case, no call more than needed
                 self.last_x, self.last_legs = x, arr
                 return e
-            return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
+            return self._accept(e, arr, info.leg_fitness, t0)
         return self._search(arr, t0, solver.result(out))
-
-    # -- redundant legs ---------------------------------------------------------------
-    def _consistent(self, point) -> bool:
-        """A converged point passes the consistency test (always without redundant legs)."""
-        return point.leg_fitness <= self._consistent_fitness
 
     def _advance(self, x, legs):
         """``x`` (for ``legs``) becomes the warm start of the next input."""
-        self.prev_x, self.last_x, self.last_legs = self.last_x, x, legs
-        self._advanced_at = self._inputs
+        self.redundant.advanced(self.last_x)
+        self.last_x, self.last_legs = x, legs
 
     def _accept(self, e: Estimate, legs, leg_fitness: float, t0: float) -> Estimate:
         """A converged estimate: the next warm start; with redundant legs, after the consistency test
-        (:mod:`glpma_ros.estimation.redundancy`), which may turn it into ``inconsistent_legs``."""
-        if self._isolator is None:
+        (:class:`~glpma_ros.estimation.redundancy.RedundantLegs`), which may turn it into ``inconsistent_legs``."""
+        if not self.redundant.active:
             self._advance(e.x, legs)
             return e
-        T = leg_fitness / self.leg_noise_std ** 2
-        e.consistency, e.consistency_limit = T, self.consistency_limit
-        if T <= self.consistency_limit:
-            self.excluded = None
-            self._advance(e.x, legs)
-            e.message += f", legs consistent (chi-square {T:.3g} <= {self.consistency_limit:.3g})"
-            return e
-        return self._inconsistent(e, legs, t0)
-
-    def _inconsistent(self, e: Estimate, legs, t0: float) -> Estimate:
-        """The least-squares pose failed the consistency test: name the leg most likely at fault and,
-        when the other legs determine the pose consistently, give that pose (left-out leg named)."""
-        model = self.model
-        predicted, near = None, math.inf
+        near = math.inf
         if self.last_x is not None:
-            # constant velocity per input from the last two estimates, over the inputs since the last one
-            # (an input that gave no pose leaves the history behind by one more step)
-            steps = max(self._inputs - self._advanced_at, 1)
-            predicted = self.last_x if self.prev_x is None else self.last_x + steps * (self.last_x - self.prev_x)
             near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
-        iso = self._isolator.isolate(legs, self.last_x, self.leg_noise_std, predicted, near, first=self.excluded,
-                                     starts=self._probe_starts)
-        e.status, e.suspect_leg = STATUS_INCONSISTENT, iso.leg
-        e.evaluations += iso.evaluations
-        head = f"legs inconsistent (chi-square {e.consistency:.3g} > {e.consistency_limit:.3g})"
-        x_ls = e.x
-        e.pose = None
-        if iso.leg is None:
-            e.message = f"{head}; {iso.reason}"
-        elif not iso.isolated:
-            e.message = f"{head}; leg {iso.leg + 1} most likely at fault ({iso.reason})"
-        else:
-            r = iso.result
-            self.excluded = iso.leg
-            self._advance(r.x, legs)
-            if self.exclude_faulty_leg:
-                e.x, e.pose, e.excluded_leg = r.x, Pose(r.position, r.orientation), iso.leg
-                e.conditioning, e.max_residual = r.conditioning, r.max_residual
-                e.fitness = r.fitness          # the papers' fitness of the legs the pose used
-                e.message = (f"{head}; leg {iso.leg + 1} most likely at fault, left out: pose from the other "
-                             f"{model.n_legs - 1} legs")
-            else:
-                e.message = f"{head}; leg {iso.leg + 1} most likely at fault (exclude_faulty_leg off: no pose)"
-        if e.pose is None:
-            e.x = x_ls
+        advance = self.redundant.judge(e, legs, leg_fitness, self.last_x, near)
+        if advance is not None:
+            self._advance(advance, legs)
         e.elapsed_s = time.perf_counter() - t0
         return e
 
@@ -344,35 +400,84 @@ class Estimator:
                              budget_s=budget, polish=self.polish, max_evals=self.max_evals,
                              **init, **self.params)
 
-    def _polish(self, x, legs) -> local.LocalResult:
-        """The compiled Levenberg-Marquardt from ``x``, without a deadline; distance from the previous pose."""
-        return self._lm.solve(np.ascontiguousarray(x, dtype=float), legs, max_iter=SETTLE_MAX_ITER,
+    def _polish(self, x, legs, max_iter=SETTLE_MAX_ITER) -> local.LocalResult:
+        """The compiled Levenberg-Marquardt from ``x``; distance from the previous pose."""
+        return self._lm.solve(np.ascontiguousarray(x, dtype=float), legs, max_iter=max_iter,
                               rtol=self.leg_rtol, x_ref=self.last_x, stall=STALLED)
 
-    def _settle(self, result, legs):
-        """``(point, status_point, evaluations)`` for a search's result: ``point`` is what the estimate
-        reports (with the refinement: the polished end point or refinement point, whichever is better;
-        without it: the search's own point, converged by the papers' criterion); ``status_point`` the
-        polished point the status is decided on."""
+    def _settle(self, result, legs, deadline):
+        """``(point, status_point, evaluations, settled)`` for a search's result: ``point`` is what the
+        estimate reports (with the refinement: the polished end point or refinement point, whichever is
+        better; without it: the search's own point, converged by the papers' criterion); ``status_point``
+        the polished point the status is decided on; ``settled``: every polish fitted before the deadline
+        (those that did not are evaluated where they start, not moved)."""
         starts = [result.x]
         if result.refined_x is not None and not np.array_equal(result.refined_x, result.x):
             starts.append(result.refined_x)
-        polished = [self._polish(x, legs) for x in starts]
+        polished, settled = [], True
+        for x in starts:
+            if time.perf_counter() + self._settle_s.s > deadline:
+                polished.append(self._polish(x, legs, max_iter=0))
+                settled = False
+                continue
+            c = time.thread_time()
+            polished.append(self._polish(x, legs))
+            self._settle_s.note(time.thread_time() - c)
         nfev = sum(p.nfev for p in polished)
         best = min(polished, key=lambda p: (not p.converged, p.leg_fitness))
         if self.polish:
-            return best, best, nfev
+            return best, best, nfev, settled
         # the search's own point; the polish above only informs the status
         x = np.asarray(result.x, dtype=float)
         at = self._lm.solve(np.ascontiguousarray(x), legs, max_iter=0, rtol=self.leg_rtol, x_ref=self.last_x)
         own = at._replace(x=x, converged=result.success, fitness=float(result.fun),
                           distance=0.0 if self.last_x is None else self.model.distance(x, self.last_x))
-        return own, best, nfev + at.nfev
+        return own, best, nfev + at.nfev, settled
+
+    def _probe(self, legs, deadline):
+        """``(result, done)``: the probe's Levenberg-Marquardt from the fixed starts, a few per compiled
+        call, each call started only when it is expected to end before ``deadline``; ``result`` the first
+        converged solve or the one of least leg fitness (None when no call fitted), ``done`` every start
+        was tried or one converged."""
+        best, nfev, nit = None, 0, 0
+        for k in range(0, PROBE_STARTS, PROBE_CHUNK):
+            if time.perf_counter() + self._chunk_s.s > deadline:
+                return (None if best is None else best._replace(nfev=nfev, nit=nit)), False
+            c = time.thread_time()
+            r = self._lm.multistart(self._probe_starts[k:k + PROBE_CHUNK], legs, max_iter=SETTLE_MAX_ITER,
+                                    rtol=self.leg_rtol, x_ref=self.last_x, stall=STALLED,
+                                    ftol=self.redundant.consistent_fitness)
+            self._chunk_s.note(time.thread_time() - c)
+            nfev, nit = nfev + r.nfev, nit + r.nit
+            if best is None or r.converged or r.leg_fitness < best.leg_fitness:
+                best = r
+            if r.converged:
+                break
+        return best._replace(nfev=nfev, nit=nit), True
 
     def _search(self, legs, t0, warm) -> Estimate:
-        """The population stages, then the decision (``warm``: the warm stage's LocalResult, or None)."""
+        """What the legs tell, the population stages, then the decision (``warm``: the warm stage's
+        LocalResult, or None)."""
         model = self.model
         deadline = t0 + self.time_budget_s
+        if self._bounds is not None:
+            unreachable = self._bounds.check(legs)
+            if unreachable is not None:
+                # reported at the warm stage's point, else evaluated at the warm start or the cold range's
+                # centre (one evaluation, when there is time left for it)
+                p = warm
+                if p is None and time.perf_counter() < deadline:
+                    x = self.last_x if self.last_x is not None else 0.5 * (self._cold_range[0] + self._cold_range[1])
+                    p = self._polish(x, legs, max_iter=0)
+                if p is None:
+                    return Estimate(STATUS_NO_SOLUTION, "cold", None, None, math.inf, 0, time.perf_counter() - t0,
+                                    0.0, self.solver, f"no real assembly: {unreachable.why}", math.inf)
+                return Estimate(STATUS_NO_SOLUTION, "cold", p.x, None, p.fitness, p.nfev, time.perf_counter() - t0,
+                                p.conditioning, self.solver, f"no real assembly: {unreachable.why}", p.max_residual)
+        # the search's own deadline leaves the deciding work its reserve
+        budget = self.time_budget_s
+        search_deadline = deadline - min(max(self.decision_reserve_s, DECISION_MIN_SHARE * budget),
+                                         DECISION_MAX_SHARE * budget)
         candidates = []           # (distance to previous, point, stage)
         inconsistent = []         # redundant legs: least-squares poses that failed the consistency test
         tried = []                # (status point, stage)
@@ -381,47 +486,49 @@ class Estimator:
         movement = 0.0
         near = self._near_floor
         stages = []
+        consistent = self.redundant.consistent
         if warm is not None:
             evaluations += warm.nfev
             tried.append((warm, "warm"))
             if warm.converged:    # but far from the previous pose: look for a nearer branch
-                (candidates if self._consistent(warm) else inconsistent).append((warm.distance, warm, "warm"))
+                (candidates if consistent(warm.leg_fitness) else inconsistent).append((warm.distance, warm, "warm"))
         if self.last_x is not None:
             movement = float(np.max(np.abs(legs - self.last_legs)))
             near = max(CONTINUITY_FACTOR * movement, near)
             spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
-        # a cold-only estimate gets the cold stage's share, i.e. the whole budget
+        # a cold-only estimate gets the cold stage's share, i.e. the whole search time
         for (stage, spread), share in zip(stages, STAGE_SHARE[-len(stages):]):
             now = time.perf_counter()
-            if now >= deadline and tried:   # the first search runs even when the budget is gone
+            if now >= search_deadline:
                 out_of_time = True
                 break
-            stage_deadline = now + share * max(deadline - now, 0.0)
+            stage_deadline = now + share * (search_deadline - now)
             if spread is None:
                 result = self._run(legs, stage_deadline, init_range=self._cold_range)
             else:
                 result = self._run(legs, stage_deadline, center=self.last_x, spread=model.spread_vector(spread))
-            point, status_point, nfev = self._settle(result, legs)
+            point, status_point, nfev, settled = self._settle(result, legs, deadline)
             evaluations += result.nfev + nfev
-            out_of_time = out_of_time or result.status == solvers.BUDGET_EXHAUSTED
+            out_of_time = out_of_time or result.status == solvers.BUDGET_EXHAUSTED or not settled
             tried.append((status_point, stage))
-            if point.converged and not self._consistent(point):
+            if point.converged and not consistent(point.leg_fitness):
                 inconsistent.append((point.distance, point, stage))
             elif point.converged:
                 candidates.append((point.distance, point, stage))
                 if self.last_x is None or point.distance <= near:
                     break
-        probe = None
+        probe_complete = probe_converged = False
         if not candidates:
-            # the probe: the same fixed work on every machine, whatever fitted in the budget
-            probe = self._lm.multistart(self._probe_starts, legs, max_iter=SETTLE_MAX_ITER, rtol=self.leg_rtol,
-                                        x_ref=self.last_x, stall=STALLED, ftol=self._consistent_fitness)
-            evaluations += probe.nfev
-            tried.append((probe, "cold"))
-            if probe.converged and self.polish:
-                candidates.append((probe.distance, probe, "cold"))
+            # the probe: the same fixed work on every machine, whatever fitted of the search
+            probe, probe_complete = self._probe(legs, deadline)
+            if probe is not None:
+                evaluations += probe.nfev
+                tried.append((probe, "cold"))
+                probe_converged = probe.converged
+                if probe.converged and self.polish:
+                    candidates.append((probe.distance, probe, "cold"))
         elapsed = time.perf_counter() - t0
         if not candidates and inconsistent:     # no pose explains the legs: which one is at fault
             candidates = inconsistent if self.last_x is not None else \
@@ -430,23 +537,15 @@ class Estimator:
             _, p, stage = min(candidates, key=lambda c: c[0])
             note = f", near a singularity (conditioning {p.conditioning:.2g})" if p.conditioning < NEAR_SINGULAR else ""
             how = "fitness below tolerance" if not self.polish else \
-                "leg residuals at round-off" if self._isolator is None else "least-squares pose"
+                "least-squares pose" if self.redundant.active else "leg residuals at round-off"
             return self._accept(Estimate(STATUS_CONVERGED, stage, p.x, Pose(p.position, p.orientation), p.fitness,
                                          evaluations, elapsed, p.conditioning, self.solver,
                                          f"{stage} start, {how}{note}", p.max_residual), legs, p.leg_fitness, t0)
+        if not tried:           # nothing fitted in the budget
+            return Estimate(STATUS_BUDGET, "cold", None, None, math.inf, evaluations, elapsed, 0.0, self.solver,
+                            "not converged within the budget (no search fitted)", math.inf)
         p, stage = min(tried, key=lambda t: t[0].leg_fitness)
-        rms = math.sqrt(p.leg_fitness / model.n_legs)
-        cond = p.conditioning
-        if cond < NEAR_SINGULAR and rms < NEAR_SINGULAR_RMS * model.scale:
-            status, why = STATUS_NEAR_SINGULAR, (f"near a singularity: not converged (conditioning {cond:.2g}, "
-                                                 f"RMS residual {rms:.3g} {model.unit})")
-        elif rms > NO_SOLUTION_RMS * model.scale and not probe.converged and \
-                (p.stationarity <= STATIONARY or p.progress < STALLED):
-            status, why = STATUS_NO_SOLUTION, f"no real assembly found (RMS residual {rms:.3g} {model.unit})"
-        elif out_of_time:
-            status, why = STATUS_BUDGET, f"not converged within the budget (RMS residual {rms:.3g} {model.unit})"
-        else:
-            status, why = STATUS_MAX_EVALS, (f"not converged within the evaluation cap "
-                                             f"(RMS residual {rms:.3g} {model.unit})")
-        return Estimate(status, stage, p.x, None, p.fitness, evaluations, elapsed, cond, self.solver, why,
+        status, why = classify(p, model, probe_complete=probe_complete, probe_converged=probe_converged,
+                               out_of_time=out_of_time)
+        return Estimate(status, stage, p.x, None, p.fitness, evaluations, elapsed, p.conditioning, self.solver, why,
                         p.max_residual)

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..config import UNIT_TO_METRES
 from ..errors import InputError
+from ..models.base import Pose
 from ..solvers.local import LocalSolver
 
 #: confidence of the consistency test: a healthy manipulator gets ``inconsistent_legs`` for one
@@ -47,6 +48,8 @@ DEFAULT_LEG_NOISE_M = 1e-5
 ISOLATION_MARGIN = 3.0
 #: iteration cap of a leave-one-out solve (it starts at the previous pose: a few iterations)
 LEAVE_ONE_OUT_MAX_ITER = 50
+#: the status of legs that no pose explains within the leg noise
+STATUS_INCONSISTENT = "inconsistent_legs"
 
 
 def chi2_limit(dof: int, level: float = CONSISTENCY_LEVEL) -> float:
@@ -185,3 +188,94 @@ class FaultIsolator:
     def _continues(self, r, predicted, near) -> bool:
         """The pose ``r`` continues the motion: within ``near`` of the predicted pose (if any)."""
         return predicted is None or self.model.distance(r.x, predicted) <= near
+
+
+class RedundantLegs:
+    """The estimator's policy for redundant legs (more legs than degrees of freedom): the consistency
+    test of a converged least-squares pose and, when it fails, the isolation of the faulty leg with
+    the pose from the others.  Keeps what the policy needs of the history: the estimate before the
+    last one (for the constant-velocity prediction), the inputs since the last pose and the leg left
+    out last time.  The estimator keeps the warm state itself and asks :meth:`judge` what to advance
+    it to.
+
+    ``leg_noise_std``: sigma of the tests (config unit; default :data:`DEFAULT_LEG_NOISE_M` in the
+    config's unit); ``exclude_faulty_leg``: publish the pose without the isolated leg; ``starts``: the
+    fixed starts of leave-one-out solves without history."""
+
+    def __init__(self, model, leg_noise_std=None, exclude_faulty_leg=True, starts=None):
+        self.model = model
+        self.leg_noise_std = leg_noise(model, leg_noise_std)
+        self.exclude_faulty_leg = bool(exclude_faulty_leg)
+        self.consistency_limit = chi2_limit(model.redundancy)
+        self.isolator = FaultIsolator(model) if model.redundancy > 0 else None
+        #: the largest sum of squared leg residuals (config unit squared) of a consistent pose
+        self.consistent_fitness = self.consistency_limit * self.leg_noise_std ** 2 if model.redundancy else math.inf
+        self.starts = starts
+        self.reset()
+
+    @property
+    def active(self) -> bool:
+        """The model has redundant legs (otherwise every method is a no-op)."""
+        return self.isolator is not None
+
+    def reset(self) -> None:
+        self.prev_x = None                  # the estimate before the last one
+        self.inputs = self.advanced_at = 0  # inputs seen, and when the last estimate was set
+        self.excluded = None                # the leg left out of the last pose
+
+    def note_input(self) -> None:
+        self.inputs += 1
+
+    def consistent(self, leg_fitness: float) -> bool:
+        """A converged point with this leg fitness passes the consistency test (always without redundant legs)."""
+        return leg_fitness <= self.consistent_fitness
+
+    def advanced(self, old_x) -> None:
+        """The warm state moved on from ``old_x`` (the estimate before the new one)."""
+        self.prev_x = old_x
+        self.advanced_at = self.inputs
+
+    def judge(self, e, legs, leg_fitness: float, last_x, near: float):
+        """Test the converged least-squares estimate ``e`` (changed in place: its consistency, and for
+        inconsistent legs its status, message, suspect and, when isolated, the pose without the faulty
+        leg).  ``last_x``: the warm state (None: no history); ``near``: the largest distance a
+        continuing pose may have from the prediction.  Returns the variables the warm state should
+        advance to, or None."""
+        T = leg_fitness / self.leg_noise_std ** 2
+        e.consistency, e.consistency_limit = T, self.consistency_limit
+        if T <= self.consistency_limit:
+            self.excluded = None
+            e.message += f", legs consistent (chi-square {T:.3g} <= {self.consistency_limit:.3g})"
+            return e.x
+        predicted = None
+        if last_x is not None:
+            # constant velocity per input from the last two estimates, over the inputs since the last one
+            # (an input that gave no pose leaves the history behind by one more step)
+            steps = max(self.inputs - self.advanced_at, 1)
+            predicted = last_x if self.prev_x is None else last_x + steps * (last_x - self.prev_x)
+        iso = self.isolator.isolate(legs, last_x, self.leg_noise_std, predicted, near, first=self.excluded,
+                                    starts=self.starts)
+        e.status, e.suspect_leg = STATUS_INCONSISTENT, iso.leg
+        e.evaluations += iso.evaluations
+        head = f"legs inconsistent (chi-square {e.consistency:.3g} > {e.consistency_limit:.3g})"
+        x_ls, advance = e.x, None
+        e.pose = None
+        if iso.leg is None:
+            e.message = f"{head}; {iso.reason}"
+        elif not iso.isolated:
+            e.message = f"{head}; leg {iso.leg + 1} most likely at fault ({iso.reason})"
+        else:
+            r = iso.result
+            self.excluded = iso.leg
+            advance = r.x
+            if self.exclude_faulty_leg:
+                e.x, e.pose, e.excluded_leg = r.x, Pose(r.position, r.orientation), iso.leg
+                e.conditioning, e.max_residual = r.conditioning, r.max_residual
+                e.fitness = r.fitness          # the papers' fitness of the legs the pose used
+                e.message = (f"{head}; leg {iso.leg + 1} most likely at fault, left out: pose from the other "
+                             f"{self.model.n_legs - 1} legs")
+            else:
+                e.message = f"{head}; leg {iso.leg + 1} most likely at fault (exclude_faulty_leg off: no pose)"
+        if e.pose is None:
+            e.x = x_ls
+        return advance

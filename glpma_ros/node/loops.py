@@ -16,6 +16,7 @@ from collections import deque
 from ..errors import InputError
 from .assembly_modes import AssemblyModes
 from .diagnostics import Diagnostics
+from .realtime import RealtimeSettings, RealtimeThreads
 from .service import FkService
 from .stats import Statistics
 
@@ -192,6 +193,8 @@ class SolveLoop:
         self._busy = False              # a thread is solving (and will take _pending next)
         self._closed = False
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        # thread_priority / cpu_affinity: applied to each thread the first time it solves
+        self.realtime = RealtimeThreads(RealtimeSettings.from_params(service.params), service.log)
 
     def start(self) -> "SolveLoop":
         """Start the loop's own thread (needed for :meth:`submit`, not for :meth:`offer`)."""
@@ -238,6 +241,7 @@ class SolveLoop:
 
     def _drain(self, item) -> None:
         """Solve ``item``, then every input that arrived meanwhile, newest first; clears busy."""
+        self.realtime.enter()
         while item is not None:
             try:
                 self._solve(item)

@@ -13,6 +13,7 @@ from ..errors import InputError
 from ..estimation.redundancy import DEFAULT_LEG_NOISE_M
 from ..solvers import SOLVERS
 from .qos import PREFIX as QOS_PREFIX
+from .realtime import MAX_PRIORITY
 
 NODE_NAME = "glpma_fk"
 #: every registered solver: the papers' G3-PCX, RCGA, GLPMA and the baselines SA, GA-SA, DE
@@ -22,18 +23,20 @@ SOLVER_CHOICES = tuple(SOLVERS)
 INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE = "float64_multi_array", "joint_state"
 INPUT_TYPES = (INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE)
 
-STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY = (
-    "string", "double", "integer", "bool", "double_array", "string_array")
-ARRAY_TYPES = (DOUBLE_ARRAY, STRING_ARRAY)
+STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY, INTEGER_ARRAY = (
+    "string", "double", "integer", "bool", "double_array", "string_array", "integer_array")
+ARRAY_TYPES = (DOUBLE_ARRAY, STRING_ARRAY, INTEGER_ARRAY)
+#: the largest core number cpu_affinity accepts (Linux's default CPU set size, CONFIG_NR_CPUS)
+MAX_CPU = 8191
 
 
 @dataclass(frozen=True)
 class ParamSpec:
     name: str
-    type: str                      # one of STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY
+    type: str                      # one of STRING, DOUBLE, INTEGER, BOOL, DOUBLE_ARRAY, STRING_ARRAY, INTEGER_ARRAY
     default: Any
     description: str
-    range: tuple | None = None     # inclusive (min, max) for numbers
+    range: tuple | None = None     # inclusive (min, max) for numbers (INTEGER_ARRAY: for each element)
     min_exclusive: bool = False    # the minimum itself is not allowed
     choices: tuple | None = None   # allowed strings
     read_only: bool = False        # fixed once the node runs
@@ -125,6 +128,14 @@ PARAMETERS = (
               read_only=True),
     ParamSpec("diagnostics_period_s", DOUBLE, 1.0, "Period of /diagnostics (s)", range=(0.05, 3600.0),
               read_only=True),
+    ParamSpec("thread_priority", INTEGER, 0,
+              "SCHED_FIFO priority of the solving thread (as ros2_control's thread_priority); 0 = normal "
+              "scheduling. Needs CAP_SYS_NICE or an rtprio limit of at least this value (ulimit -r); when refused, "
+              "one warning and the node runs on", range=(0, MAX_PRIORITY), read_only=True),
+    ParamSpec("cpu_affinity", INTEGER_ARRAY, [],
+              "Cores the solving thread may run on (as ros2_control's cpu_affinity); empty = unchanged. "
+              "Cores this process may not use: one warning and the node runs on",
+              range=(0, MAX_CPU), read_only=True),
 )
 SPECS = {spec.name: spec for spec in PARAMETERS}
 
@@ -174,6 +185,16 @@ def coerce(name: str, value):
         out = [float(v) for v in value]
         if not all(math.isfinite(v) for v in out):
             raise InputError(f"parameter '{name}' must contain finite numbers only")
+        return out
+    if t == INTEGER_ARRAY:
+        if not isinstance(value, (list, tuple)) or not all(_is_number(v) and float(v).is_integer() for v in value):
+            raise InputError(f"parameter '{name}' must be a list of integers, got {value!r}")
+        out = [int(v) for v in value]
+        lo, hi = spec.range
+        if any(v < lo or v > hi for v in out):
+            raise InputError(f"parameter '{name}' must hold integers {spec.constraints}, got {value!r}")
+        if len(set(out)) != len(out):
+            raise InputError(f"parameter '{name}' must not contain a value twice")
         return out
     if t == INTEGER:
         if isinstance(value, float) and value.is_integer():

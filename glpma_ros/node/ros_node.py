@@ -68,9 +68,11 @@ SPINNER_JOIN_TIMEOUT_S = 10.0
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
              P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
-             P.STRING_ARRAY: ParameterType.PARAMETER_STRING_ARRAY}
+             P.STRING_ARRAY: ParameterType.PARAMETER_STRING_ARRAY,
+             P.INTEGER_ARRAY: ParameterType.PARAMETER_INTEGER_ARRAY}
 #: how an array parameter without default is declared (an empty list has no inferable type)
-ARRAY_PARAMETER_TYPES = {P.DOUBLE_ARRAY: Parameter.Type.DOUBLE_ARRAY, P.STRING_ARRAY: Parameter.Type.STRING_ARRAY}
+ARRAY_PARAMETER_TYPES = {P.DOUBLE_ARRAY: Parameter.Type.DOUBLE_ARRAY, P.STRING_ARRAY: Parameter.Type.STRING_ARRAY,
+                         P.INTEGER_ARRAY: Parameter.Type.INTEGER_ARRAY}
 
 
 def descriptor(spec: P.ParamSpec) -> ParameterDescriptor:

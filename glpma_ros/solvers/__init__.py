@@ -1,5 +1,7 @@
 """Solvers: one module per algorithm, one result type (:class:`SolveResult`)."""
 
+import time
+
 from . import de, g3pcx, gasa, glpma, rcga, refine, sa
 from .common import BUDGET_EXHAUSTED, CONVERGED, MAX_EVALS, SolveResult, Termination
 
@@ -37,7 +39,9 @@ PAPER_SETTINGS = {
 
 def solve(name, model, legs, **kwargs):
     """Run solver ``name`` with the paper's settings for ``model`` overridden by ``kwargs``
-    (options of :data:`OPTIONS`; ``None`` keeps the default)."""
+    (options of :data:`OPTIONS`; ``None`` keeps the default).  ``budget_s`` counts from this call:
+    the settings and the solver's setup are inside it."""
+    start = time.perf_counter()
     if name not in SOLVERS:
         raise ValueError(f"unknown solver {name!r}; choose one of {', '.join(SOLVERS)}")
     unknown = sorted(set(kwargs) - OPTIONS[name])
@@ -48,7 +52,7 @@ def solve(name, model, legs, **kwargs):
     if name in DEFAULT_POPULATION:
         settings["population"] = DEFAULT_POPULATION[name](model)
     settings.update({k: v for k, v in kwargs.items() if v is not None})
-    return SOLVERS[name](model, legs, **settings)
+    return SOLVERS[name](model, legs, start=start, **settings)
 
 
 __all__ = ["SOLVERS", "OPTIONS", "PAPER_SETTINGS", "solve", "SolveResult", "Termination",

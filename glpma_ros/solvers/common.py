@@ -45,9 +45,11 @@ class Termination:
     """Tolerance, evaluation cap and a hard wall-clock deadline.
 
     The deadline is checked by the solvers' driver loop between compiled chunks
-    whose length is sized to a fraction of the remaining budget."""
+    whose length is sized to a fraction of the remaining budget.  ``start``: the
+    ``time.perf_counter()`` value the budget counts from (default: now), so that a
+    solver's setup before its termination is built is inside the budget."""
 
-    def __init__(self, tolerance=DEFAULT_TOLERANCE, max_evals=10_000, budget_s=None):
+    def __init__(self, tolerance=DEFAULT_TOLERANCE, max_evals=10_000, budget_s=None, start=None):
         if not tolerance > 0:
             raise ValueError("tolerance must be positive")
         if max_evals < 1:
@@ -55,7 +57,7 @@ class Termination:
         self.tolerance = float(tolerance)
         self.max_evals = int(max_evals)
         self.budget_s = None if budget_s is None else float(budget_s)
-        self.start = time.perf_counter()
+        self.start = time.perf_counter() if start is None else float(start)
         self.deadline = None if budget_s is None else self.start + self.budget_s
         self.nfev = 0
 

@@ -119,7 +119,7 @@ def initial_de_population(rng, size, n_vars, init_range, center=None, spread=Non
 
 
 def solve(model, legs, *, population=None, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,
-          tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
+          tolerance=1e-20, max_evals=10_000, budget_s=None, start=None, polish=True, **params):
     """Minimise the model's fitness with DE/rand/1/bin (plus the refinement
     unless ``polish=False``).  ``population`` defaults to ``10 D``.
     ``params``: ``f_low``, ``f_high``, ``cr_low``, ``cr_high``."""
@@ -128,4 +128,4 @@ def solve(model, legs, *, population=None, rng=None, init_range=(-50.0, 50.0), c
                             lambda problem, pop, fit, rng, term: DEPopulation(problem, pop, fit, rng, **params),
                             population=size, sample=initial_de_population,
                             rng=rng, init_range=init_range, center=center, spread=spread,
-                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish, start=start)

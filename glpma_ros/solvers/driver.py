@@ -3,13 +3,14 @@ between which the wall clock is checked, the refinement is scheduled and the
 history of the best fitness is recorded."""
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 
 from ..models.kernels import population_fitness
 from . import refine
-from .common import CONVERGED, SolveResult, Termination, initial_population
+from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population
 
 #: generations per compiled call when no deadline limits it
 CHUNK_GENERATIONS = 256
@@ -60,6 +61,11 @@ class EvolutionaryState:
     def evals_per_generation(self) -> int:
         return len(self.pop)
 
+    def first_chunk(self) -> int:
+        """Generations of the first chunk under a deadline, which measures the time per generation: enough
+        to hold every kind of work a generation may bring (:data:`PROBE_GENERATIONS` by default)."""
+        return PROBE_GENERATIONS
+
     def advance(self, n_generations, max_evals, tolerance):  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -69,7 +75,8 @@ class EvolutionaryState:
         return int(gens)
 
 
-def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center=None):
+def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center=None,
+                  start=None):
     """Run ``make_state(problem, term)``'s population to termination.
 
     A warm start's first individual is the previous estimate ``center``: with the
@@ -78,9 +85,15 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     With redundant legs (more than the degrees of freedom) measured legs leave a residual, so the
     fitness never reaches ``tolerance``: a refinement that converges to the least-squares pose ends
     the search instead.
+
+    The deadline (``budget_s`` from ``start``, a ``time.perf_counter()`` value, default now) is
+    hard: a chunk of generations starts only when at least one generation is expected to fit before
+    it (``seconds_per_gen`` measured on the chunks so far), so that the search returns by its deadline
+    plus at most one generation's time.  The first population's evaluation runs whatever the budget
+    (a result needs a point).
     """
     least_squares = polish and model.redundancy > 0
-    term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s)
+    term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, start=start)
     problem = Problem(model, legs)
     history = []
     nit = 0
@@ -92,7 +105,7 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
         warm = refine.polish(model, np.asarray(center, dtype=float), problem.legs, rng, tolerance=tolerance,
                              max_iter=POLISH_MAX_ITER, deadline=term.deadline)
         term.nfev += warm[2]
-        refined = warm[:2]
+        refined = warm[:2] if math.isfinite(warm[1]) else None
         if warm[1] < tolerance or (least_squares and warm.converged):
             history.append((term.nfev, warm[1]))
             return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED)
@@ -110,7 +123,7 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             xp, fp, n, reached = refine.polish(model, x, problem.legs, rng, tolerance=tolerance,
                                                max_iter=POLISH_MAX_ITER, deadline=term.deadline)
             term.nfev += n
-            if refined is None or fp < refined[1]:
+            if math.isfinite(fp) and (refined is None or fp < refined[1]):
                 refined = (xp, fp)
             if fp < f:
                 state.inject(xp, fp)
@@ -123,21 +136,25 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
         if stop is not None:
             break
         if term.deadline is None or seconds_per_gen is None:
-            chunk = CHUNK_GENERATIONS if term.deadline is None else PROBE_GENERATIONS
+            chunk = CHUNK_GENERATIONS if term.deadline is None else state.first_chunk()
         else:
             left = term.deadline - time.perf_counter()
+            if left < seconds_per_gen:          # not even one generation fits: stop at the deadline
+                stop = BUDGET_EXHAUSTED
+                break
             chunk = int(max(1, min(CHUNK_GENERATIONS, 0.1 * left / seconds_per_gen)))
         t0 = time.perf_counter()
+        nfev = term.nfev
         gens = state.step(chunk, term)
         if gens:
             seconds_per_gen = (time.perf_counter() - t0) / gens
         nit += gens
-        if gens == 0 and term.status(state.best()[1]) is None:
+        if term.nfev == nfev and term.status(state.best()[1]) is None:
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()
     return _result(name, model, x, f, term, nit, polished, history, refined,
-                   CONVERGED if stop == CONVERGED else None)
+                   stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
 
 
 MESSAGES = {"converged": "fitness below tolerance", "budget_exhausted": "time budget exhausted",
@@ -153,7 +170,7 @@ def _result(name, model, x, f, term, nit, polished, history, refined=None, statu
 
 
 def solve_population(name, model, legs, make_population, *, population, rng, init_range, center, spread,
-                     tolerance, max_evals, budget_s, polish, sample=initial_population):
+                     tolerance, max_evals, budget_s, polish, sample=initial_population, start=None):
     """What every population solver's ``solve`` does: draw ``population`` individuals with
     ``sample(rng, size, n_vars, init_range, center, spread)``, evaluate them, hand them to
     ``make_population(problem, pop, fit, rng, term)`` and run that to termination."""
@@ -164,4 +181,4 @@ def solve_population(name, model, legs, make_population, *, population, rng, ini
         return make_population(problem, pop, problem.evaluate(pop, term), rng, term)
 
     return run_evolution(name, model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish, start=start)

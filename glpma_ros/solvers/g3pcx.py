@@ -176,10 +176,10 @@ class G3PCXPopulation(EvolutionaryState):
 
 
 def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,
-          tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
+          tolerance=1e-20, max_evals=10_000, budget_s=None, start=None, polish=True, **params):
     """Minimise the model's fitness with G3-PCX (plus the refinement unless
     ``polish=False``).  ``params``: ``mu``, ``lam``, ``r``, ``sigma_zeta``, ``sigma_eta``."""
     return solve_population("g3pcx", model, legs,
                             lambda problem, pop, fit, rng, term: G3PCXPopulation(problem, pop, fit, rng, **params),
                             population=population, rng=rng, init_range=init_range, center=center, spread=spread,
-                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish, start=start)

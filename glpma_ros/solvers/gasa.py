@@ -238,7 +238,7 @@ def default_population(model) -> int:
 
 
 def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,
-          tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
+          tolerance=1e-20, max_evals=10_000, budget_s=None, start=None, polish=True, **params):
     """Minimise the model's fitness with the hybrid GA-SA (plus the refinement
     unless ``polish=False``).  ``params``: ``t0``, ``sa_iterations``,
     ``chain_length``, ``cooling_rate``, ``crossover_rate``, ``sa_rate``,
@@ -246,4 +246,4 @@ def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50
     return solve_population("gasa", model, legs, lambda problem, pop, fit, rng, term: GASAPopulation(
         problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), term=term, **params),
                             population=population, rng=rng, init_range=init_range, center=center, spread=spread,
-                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish, start=start)

@@ -28,7 +28,13 @@ LS_INTENSITY = 1
 class GLPMAState(EvolutionaryState):
     """The master population, with the local population alongside it.  One
     "generation" of this state is one master generation (plus, every
-    ``ls_interval`` of them, one local search)."""
+    ``ls_interval`` of them, one local search).
+
+    A local search may be split across compiled chunks: a chunk of ``n`` master generations
+    runs at most ``ceil(n * ls_intensity / ls_interval)`` local generations (its share of the
+    work), and a local search cut there resumes at the next chunk, before any further master
+    generation -- the same sequence of generations as in one piece, but no chunk outlasts its
+    share (the 6-6 hexapod's 85 local generations would otherwise run past a deadline)."""
 
     name = "glpma"
 
@@ -39,10 +45,33 @@ class GLPMAState(EvolutionaryState):
         if self.ls_interval < 1 or self.ls_intensity < 1:
             raise ValueError("ls_interval and ls_intensity must be at least 1")
         self.since_local_search = 0
+        self.local_left = 0             # generations of the local search under way (0: none)
+
+    def first_chunk(self) -> int:
+        """At least one local search's worth of master generations: the time per generation measured on it
+        includes the local search's share."""
+        return max(super().first_chunk(), self.ls_interval)
 
     def advance(self, n_generations, max_evals, tolerance):
         gens = evals = 0
-        while gens < n_generations and evals < max_evals:
+        local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
+        while evals < max_evals:
+            if self.local_left > 0:
+                if local_share <= 0:
+                    break               # the chunk's share is spent: resumed at the next chunk
+                g, e = self.local.advance(min(self.local_left, local_share), max_evals - evals, tolerance)
+                evals += e
+                local_share -= g
+                self.local_left -= g
+                if g == 0 or self.local.fit.min() < tolerance:
+                    self.local_left = 0
+                if self.local_left > 0:
+                    break               # the chunk's share is spent: resumed at the next chunk
+                x, f = self.local.best()
+                self.master.inject(x, f)
+                continue
+            if gens >= n_generations:
+                break
             g, e = self.master.advance(min(self.ls_interval - self.since_local_search, n_generations - gens),
                                        max_evals - evals, tolerance)
             gens += g
@@ -54,15 +83,12 @@ class GLPMAState(EvolutionaryState):
                 self.since_local_search = 0
                 meme, f_meme = self.master.best()
                 self.local.inject(meme, f_meme)
-                _, e = self.local.advance(self.ls_intensity, max_evals - evals, tolerance)
-                evals += e
-                x, f = self.local.best()
-                self.master.inject(x, f)
+                self.local_left = self.ls_intensity
         return gens, evals
 
 
 def solve(model, legs, *, population=100, local_population=100, rng=None, init_range=(-50.0, 50.0),
-          center=None, spread=None, tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True,
+          center=None, spread=None, tolerance=1e-20, max_evals=10_000, budget_s=None, start=None, polish=True,
           ls_interval=LS_INTERVAL, ls_intensity=LS_INTENSITY, **params):
     """Minimise the model's fitness with GLPMA (plus the refinement unless ``polish=False``)."""
     rng = np.random.default_rng(rng)
@@ -77,4 +103,4 @@ def solve(model, legs, *, population=100, local_population=100, rng=None, init_r
         return GLPMAState(master, local, ls_interval, ls_intensity)
 
     return run_evolution("glpma", model, legs, make, rng, tolerance=tolerance, max_evals=max_evals,
-                         center=center, budget_s=budget_s, polish=polish)
+                         center=center, budget_s=budget_s, polish=polish, start=start)

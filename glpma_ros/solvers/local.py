@@ -48,6 +48,36 @@ def make_settings(model, *, max_iter=None, rtol=None, ftol=math.inf) -> np.ndarr
     return np.ascontiguousarray(np.concatenate((head, model.pose_column_scale)), dtype=float)
 
 
+class LmInfo(NamedTuple):
+    """The ``info`` part of :func:`lm_kernel`'s output, by name (fields in the order of the ``I_*``
+    layout, checked below): what the estimator's warm path reads of one compiled call."""
+
+    leg_fitness: float        # sum of squared leg residuals at the returned variables
+    max_residual: float       # max |r_i| (config unit)
+    fitness: float            # the papers' fitness of the returned variables
+    conditioning: float       # reciprocal condition number of the leg Jacobian (0 = singular)
+    stationarity: float       # |J^T r| / (|J| |r|)
+    distance: float           # platform-joint distance from x_ref
+    movement: float           # max |legs - legs_ref|
+    nfev: float
+    nit: float
+    converged: float          # 1.0 when converged
+    input_ok: float           # 0.0 when the legs failed the check (nothing solved)
+    progress: float           # relative decrease of the leg fitness over the last iterations
+
+    @classmethod
+    def of(cls, out, n_vars: int) -> "LmInfo":
+        """The info of ``out`` (one output vector of a model with ``n_vars`` solver variables)."""
+        return cls._make(out[n_vars + 7:].tolist())
+
+
+assert [LmInfo._fields.index(name) for name in ("leg_fitness", "max_residual", "fitness", "conditioning",
+                                                  "stationarity", "distance", "movement", "nfev", "nit",
+                                                  "converged", "input_ok", "progress")] == [
+    I_LEG_FITNESS, I_MAX_RESIDUAL, I_FITNESS, I_CONDITIONING, I_STATIONARITY, I_DISTANCE, I_MOVEMENT, I_NFEV,
+    I_NIT, I_CONVERGED, I_INPUT_OK, I_PROGRESS] and len(LmInfo._fields) == N_INFO, "LmInfo out of step with lm.I_*"
+
+
 class LocalResult(NamedTuple):
     """Outcome of one local solve (config unit)."""
 

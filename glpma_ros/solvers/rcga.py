@@ -169,10 +169,10 @@ def mutation_width(init_range, spread, n_vars):
 
 
 def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,
-          tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
+          tolerance=1e-20, max_evals=10_000, budget_s=None, start=None, polish=True, **params):
     """Minimise the model's fitness with the RCGA (plus the refinement unless
     ``polish=False``).  ``params``: ``crossover_rate``, ``mutation_rate``, ``mutation_b``."""
     return solve_population("rcga", model, legs, lambda problem, pop, fit, rng, term: RCGAPopulation(
         problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), max_evals=max_evals, **params),
                             population=population, rng=rng, init_range=init_range, center=center, spread=spread,
-                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish, start=start)

@@ -89,10 +89,11 @@ class Polished(NamedTuple):
 def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None) -> Polished:
     """Levenberg-Marquardt in pose space (:mod:`.lm`; its last evaluation gives the
     fitness of the solver's model), then, for models whose solver variables are
-    redundant like the hexapod's nine, the round-off search."""
-    if deadline is not None and time.perf_counter() >= deadline:
-        max_iter = 0
+    redundant like the hexapod's nine, the round-off search.  Past ``deadline`` (a
+    ``time.perf_counter`` value) nothing is computed: ``x0`` comes back with an infinite fitness."""
     x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
+    if deadline is not None and time.perf_counter() >= deadline:
+        return Polished(x0.copy(), math.inf, 0, False)      # no work after the deadline: not even evaluated
     legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
     # redundant legs: measured legs leave a residual, the least-squares pose is the goal
     r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance if model.redundancy == 0 else math.inf)

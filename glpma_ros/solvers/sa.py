@@ -190,11 +190,11 @@ def default_population(model) -> int:
 
 
 def solve(model, legs, *, population=POPULATION, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,
-          tolerance=1e-20, max_evals=10_000, budget_s=None, polish=True, **params):
+          tolerance=1e-20, max_evals=10_000, budget_s=None, start=None, polish=True, **params):
     """Minimise the model's fitness by simulated annealing (plus the refinement
     unless ``polish=False``).  ``params``: ``t0``, ``chain_length``,
     ``cooling_rate``, ``neighbour_fraction``."""
     return solve_population("sa", model, legs, lambda problem, pop, fit, rng, term: SAState(
         problem, pop, fit, rng, width=mutation_width(init_range, spread, model.n_vars), **params),
                             population=population, rng=rng, init_range=init_range, center=center, spread=spread,
-                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish)
+                            tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, polish=polish, start=start)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from collections import Counter
 from types import SimpleNamespace
 
@@ -18,6 +19,7 @@ from scipy.optimize import least_squares
 
 from glpma_ros import solvers
 from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.node import realtime
 from glpma_ros.solvers.lm import LEG_RTOL
 from glpma_tools import timing
 from glpma_tools.sim import trajectories as traj
@@ -200,45 +202,79 @@ def tracking_section(res, md_path) -> list[str]:
 
 
 # -- deadlines -----------------------------------------------------------------------------------------------
-def deadlines(scenarios, budgets_ms, n, progress, names=None) -> list[SimpleNamespace]:
-    """The bench's deadline experiment: cold searches that cannot converge, stopped only by their time
-    budget (every registered solver, and the Estimator as the node runs it, cold: every stage runs until the
-    deadline)."""
+#: the load conditions of the deadline experiment: no load added (the machine is shared: its own load is said in
+#: the report's header), then one busy loop per core, then the same with the measuring thread under SCHED_FIFO
+#: (the node's thread_priority; measured where the process may use it)
+LOADS = ("no load added", "every core busy", "every core busy, SCHED_FIFO")
+#: the SCHED_FIFO priority of the last load condition
+FIFO_PRIORITY = 10
+#: ... and the sleep before each of its solves: a real-time thread that never sleeps is throttled by the
+#: kernel (sched_rt_runtime_us: 50 ms of every second), which a node answering inputs never meets
+FIFO_REST_S = 1e-3
+#: the quantile of (end - deadline) the deadline section reports besides the largest
+TAIL_QUANTILE = 99.9
 
-    def search(name, model, legs, polish, budget_ms):
-        return lambda seed: solvers.solve(name, model, legs, rng=seed, polish=polish, budget_s=budget_ms / 1e3,
-                                          max_evals=NO_CAP)
+
+def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> list[SimpleNamespace]:
+    """The bench's deadline experiment, under each of ``loads``: every registered solver (evaluation cap
+    10^9: only the deadline or convergence stops it) on feasible legs and on legs without a real assembly, and
+    the Estimator as the node runs it, cold, on feasible legs, on legs without an assembly that its probe must
+    tell, and on legs the loop bounds of a pair of legs tell at once.  A row per cell, with the statuses."""
+
+    def search(name, model, legs, budget_ms):
+        def call(seed):
+            return solvers.solve(name, model, legs, rng=seed, budget_s=budget_ms / 1e3, max_evals=NO_CAP).status
+        return call
+
+    estimators = []             # (manipulator, load, Estimator): their smallest deciding budgets after the cells
 
     def cold(model, legs, budget_ms):
         est = Estimator(model, time_budget_s=budget_ms / 1e3)
+        estimators.append((model.kind, est))
 
         def call(_):
             est.reset()
-            est.estimate(legs)
+            return est.estimate(legs).status
         return call
     cells = []          # (case, case in short, solver, budget ms, call(seed))
     for sc in scenarios:
-        infeasible = timing.infeasible_legs(sc.model)
-        cases = [(f"{sc.label}, infeasible legs, default (polish)", f"{sc.label} infeasible", infeasible, True)]
-        if sc.key == "hexapod":
-            cases.insert(0, (f"{sc.label}, feasible legs, pure (cannot converge in ms)", f"{sc.label} pure",
-                             sc.legs, False))
-        cells += [(case, short, name, b, search(name, sc.model, legs, polish, b))
-                  for case, short, legs, polish in cases for name in names or solvers.SOLVERS for b in budgets_ms]
-        cells += [(f"{sc.label}, infeasible legs, Estimator (GLPMA, cold, its default evaluation cap)",
-                   f"{sc.label} infeasible, cold", "Estimator", b, cold(sc.model, infeasible, b)) for b in budgets_ms]
+        probed, told = timing.probed_infeasible_legs(sc.model), timing.infeasible_legs(sc.model)
+        cases = [(f"{sc.label}, feasible legs", f"{sc.label} feasible", sc.legs),
+                 (f"{sc.label}, legs without an assembly", f"{sc.label} infeasible", probed)]
+        cells += [(case, short, name, b, search(name, sc.model, legs, b))
+                  for case, short, legs in cases for name in names or solvers.SOLVERS for b in budgets_ms]
+        cases.append((f"{sc.label}, legs without an assembly, told by a pair's loop bounds", f"{sc.label} told", told))
+        cells += [(f"{case} (Estimator: GLPMA, cold)", short, "Estimator", b, cold(sc.model, legs, b))
+                  for case, short, legs in cases for b in budgets_ms]
     rows = []
-    for case, short, solver, b, call in cells:
-        warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
-        calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms", progress)
-        rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
-                                    solver=solver, label=f"{short} | {solver}"))
+    for load in loads:
+        fifo = load == LOADS[2]
+        with timing.busy_cores(0 if load == LOADS[0] else os.cpu_count() or 1):
+            # after the busy loops started: they must not inherit the real-time policy
+            if fifo and realtime.apply(realtime.RealtimeSettings(FIFO_PRIORITY)):
+                continue                    # not allowed here: the report says so
+            for _, est in estimators:       # measured again under this load
+                est.calibrate()
+            for case, short, solver, b, call in cells:
+                warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
+                calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms, {load}", progress,
+                                    stop_early=False, rest_s=FIFO_REST_S if fifo else 0.0)
+                rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
+                                            solver=solver, load=load, statuses=Counter(calls.results),
+                                            label=f"{short} | {solver}" + {LOADS[1]: " | busy",
+                                                                           LOADS[2]: " | busy, FIFO"}.get(load, "")))
+        for kind in dict.fromkeys(k for k, _ in estimators):
+            floors = [1e3 * est.smallest_deciding_budget_s for k, est in estimators if k == kind]
+            rows.append(SimpleNamespace(floor=True, kind=kind, load=load, floor_ms=floors))
+        if fifo:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     return rows
 
 
 # -- the report's section: deadlines -------------------------------------------------------------------------
 def all_overruns(rows) -> tuple[np.ndarray, np.ndarray]:
     """The overruns (ms) of every deadline solve, and of those not preempted."""
+    rows = [r for r in rows if hasattr(r, "overrun_ms")]
     return np.concatenate([r.overrun_ms for r in rows]), np.concatenate([r.overrun_ms[~r.preempted] for r in rows])
 
 
@@ -252,15 +288,32 @@ def worst_overrun(over) -> str:
     return f"{float(np.max(over)):+.3f}" if over.size else MISSING
 
 
+def tail(over) -> str:
+    """p99.9 and max of the overruns ``over`` (ms), signed; dashes when there are none."""
+    if not over.size:
+        return f"{MISSING} / {MISSING}"
+    return f"{float(np.percentile(over, TAIL_QUANTILE)):+.3f} / {float(np.max(over)):+.3f}"
+
+
 def deadline_section(res, md_path) -> list[str]:
-    """Each cell's solves on time and overruns, with and without the preempted ones, and the totals."""
-    rows = res["deadline"]
+    """Per solver and load, p99.9 and max of (end - deadline) over every cell, with and without the preempted
+    solves; then each cell's, with its statuses."""
+    floors = [r for r in res["deadline"] if getattr(r, "floor", False)]
+    rows = [r for r in res["deadline"] if not getattr(r, "floor", False)]
 
     def on_time(over):
         return pct(share_on_time(over), 4) if over.size else MISSING
-    body = [[r.case, r.solver, f"{r.budget_ms:g}", f"{len(over)} (stopped)" if r.stopped_early else len(over),
-             on_time(over), fmt(distribution(r.elapsed_s, 1e3)["p99"]), worst_overrun(over), int(np.sum(r.preempted)),
-             on_time(calm), worst_overrun(calm)]
+    loads = list(dict.fromkeys(getattr(r, "load", LOADS[0]) for r in rows))
+    per_solver = []
+    for load in loads:
+        for solver in dict.fromkeys(r.solver for r in rows):
+            mine = [r for r in rows if r.solver == solver and getattr(r, "load", LOADS[0]) == load]
+            over, calm = all_overruns(mine)
+            per_solver.append([solver, load, len(over), tail(over), int(np.sum([np.sum(r.preempted) for r in mine])),
+                               tail(calm)])
+    body = [[r.case, r.solver, f"{r.budget_ms:g}", getattr(r, "load", LOADS[0]), len(over), tail(over),
+             int(np.sum(r.preempted)), tail(calm), on_time(over),
+             ", ".join(f"{k} {v}" for k, v in sorted(getattr(r, "statuses", {}).items()))]
             for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~r.preempted])]]
     total, calm = all_overruns(rows)
     late = sorted({r.solver for r in rows if np.any(r.overrun_ms[~r.preempted] > DEADLINE_MARGIN_MS)})
@@ -271,6 +324,12 @@ def deadline_section(res, md_path) -> list[str]:
                             worst=worst_overrun(total), preempted=total.size - calm.size, calm_on_time=on_time(calm),
                             calm_worst=worst_overrun(calm)),
         late and "Late without preemption (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
-        table(["case", "solver", "budget ms", "solves", "on time", "p99 elapsed ms", "worst overrun ms", "preempted",
-               "on time, not preempted", "worst overrun, not preempted"], body),
+        floors and prose("deadline", "floor"),
+        floors and table(["manipulator", "load", "Estimators", "smallest deciding budget ms: median", "max"],
+                         [[f.kind, f.load, len(f.floor_ms), fmt(float(np.median(f.floor_ms))),
+                           fmt(float(np.max(f.floor_ms)))] for f in floors]),
+        table(["solver", "load", "solves", "p99.9 / max of end − deadline, ms", "preempted",
+               "p99.9 / max, not preempted"], per_solver),
+        table(["case", "solver", "budget ms", "load", "solves", "p99.9 / max ms", "preempted",
+               "p99.9 / max ms, not preempted", "within budget + margin", "statuses"], body),
         figure_link(res, "deadline", md_path, "deadline overruns"))

@@ -1,5 +1,6 @@
 """Deadlines in process: :class:`~glpma_ros.estimation.estimator.Estimator` solves on legs without a real
-assembly and without an evaluation cap, so that only the deadline stops each one -- cold (state
+assembly that only its search and probe tell (not the loop bounds of a pair of legs) and without an
+evaluation cap, so that only the deadline or the deciding work stops each one -- cold (state
 reset before each solve) and warm (a warm state that the failures keep, so that the warm, widened
 and cold stages all run).  The timed calls are the ones every measuring tool shares (:mod:`glpma_tools.timing`)."""
 from __future__ import annotations
@@ -8,7 +9,7 @@ from collections import Counter
 
 from glpma_ros.estimation.estimator import Estimator
 from glpma_tools.stats import distribution
-from glpma_tools.timing import NO_CAP, infeasible_legs, timed_calls, warm_up
+from glpma_tools.timing import NO_CAP, probed_infeasible_legs, timed_calls, warm_up
 
 DEADLINE_BUDGETS_MS = (1.0, 2.0, 5.0)
 CASES = ("cold", "warm")
@@ -16,7 +17,7 @@ CASES = ("cold", "warm")
 
 def deadline_cell(model, case: str, budget_ms: float, n: int, seed_x=None) -> dict:
     """``n`` timed solves of one case and budget, after a warm-up until the solves run on time."""
-    legs = infeasible_legs(model)
+    legs = probed_infeasible_legs(model)
     est = Estimator(model, time_budget_s=budget_ms * 1e-3, initial_pose=seed_x if case == "warm" else None,
                     max_evals=NO_CAP)
 
