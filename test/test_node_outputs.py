@@ -248,7 +248,8 @@ def test_extras_thread_publishes_in_order_only_what_is_subscribed(service):
     order, and builds only the outputs that have a subscriber (none: nothing at all)."""
     from glpma_ros.node.loops import SolveLoop
     poses, extras, subscribed = [], [], [{"tf", "twist"}]
-    loop = SolveLoop(service, poses.append, publish_extras=extras.append, subscribed=lambda: subscribed[0])
+    loop = SolveLoop(service, poses.append, publish_extras=extras.append, subscribed=lambda: subscribed[0],
+                     stats=service.stats, modes=service.modes)
     for k in range(20):
         loop.offer((0.1, 0.12, 0.15 + 1e-5 * k), 1_000_000 * (k + 1))
     assert loop.extras.flush(30.0)
@@ -275,7 +276,7 @@ def test_extras_backlog_drops_the_oldest_and_counts_them(service):
     def slow_publish(e):
         release.wait(60.0)
         extras.append(e)
-    loop = SolveLoop(service, poses.append, publish_extras=slow_publish)
+    loop = SolveLoop(service, poses.append, publish_extras=slow_publish, stats=service.stats, modes=service.modes)
     n = EXTRAS_BACKLOG + 30
     for k in range(n):
         loop.offer((0.1, 0.12, 0.15 + 1e-6 * k), 1_000_000 * (k + 1))

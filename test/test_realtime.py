@@ -63,7 +63,7 @@ def test_the_solving_thread_gets_fifo_priority_and_affinity():
     cores; another thread of the process is left as it was."""
     core = min(os.sched_getaffinity(0))
     svc = FkService({"manipulator_config": str(RPR_YAML), "thread_priority": 10, "cpu_affinity": [core]})
-    loop = SolveLoop(svc, lambda pose: None)
+    loop = SolveLoop(svc, lambda pose: None, stats=svc.stats, modes=svc.modes)
     seen = {}
 
     def solve():
@@ -86,7 +86,7 @@ def test_a_refused_priority_is_one_warning_and_the_node_runs_on(monkeypatch, cap
     monkeypatch.setattr(realtime, "rtprio_limit", lambda: (0, 0))
     svc = FkService({"manipulator_config": str(RPR_YAML), "thread_priority": 50})
     published = []
-    loop = SolveLoop(svc, published.append)
+    loop = SolveLoop(svc, published.append, stats=svc.stats, modes=svc.modes)
     with caplog.at_level(logging.WARNING):
         for _ in range(3):
             _in_thread(lambda: loop.offer(LEGS_M, 0))

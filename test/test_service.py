@@ -313,6 +313,17 @@ def test_new_initial_pose_restarts_tracking_from_it(service):
     assert service.diagnostics().as_dict()["warm state"].startswith("no")
 
 
+def test_the_warm_state_is_the_estimators_and_survives_a_parameter_change(service):
+    out = service.handle([0.1, 0.12, 0.1501], 1)
+    assert out.pose is not None, out.reason
+    # the same array, handed on (not recomputed): equal element for element
+    np.testing.assert_array_equal(service.warm_x, service.estimator.warm_x)
+    np.testing.assert_array_equal(service.warm_x, out.estimate.x)
+    assert service.set_parameters({"tolerance": 1e-18}) == (True, "")
+    np.testing.assert_array_equal(service.estimator.warm_x, out.estimate.x)     # the rebuilt estimator's
+    assert service.diagnostics().as_dict()["warm state"] == "yes"
+
+
 # -- the worker ----------------------------------------------------------------------------------------------------
 
 def test_latest_input_keeps_only_the_newest():
@@ -332,7 +343,7 @@ def test_solve_loop_solves_the_newest_input_and_counts_dropped(service):
         published.append(pose)
         release.wait(WAIT_S)            # hold the worker while more inputs arrive
 
-    loop = SolveLoop(service, publish).start()
+    loop = SolveLoop(service, publish, stats=service.stats, modes=service.modes).start()
     try:
         loop.submit(SEED_LEGS_M, 1)
         deadline = time.monotonic() + WAIT_S

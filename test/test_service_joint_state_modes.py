@@ -85,6 +85,19 @@ def test_joint_names_must_name_every_leg_and_input_type_is_read_only(service):
 
 # -- JointState input ---------------------------------------------------------------------------------
 
+def test_joint_names_changed_at_runtime_pick_the_legs_from_then_on(service):
+    renamed = ["p_a", "p_b", "p_c"]
+    assert service.handle_joint_state(NAMES, SEED_LEGS_M, 1).pose is not None
+    assert service.set_parameters({"joint_names": renamed}) == (True, "")
+    assert service.joint_names == renamed
+    assert service.handle_joint_state(NAMES, SEED_LEGS_M, 2).reason == "joint_states has no joint 'p_a'"
+    assert service.handle_joint_state(renamed[::-1], SEED_LEGS_M[::-1], 3).pose is not None
+    assert service.diagnostics().as_dict()["input"] == "joint_states (p_a, p_b, p_c)"
+    # a refused change leaves the names as they were
+    assert not service.set_parameters({"joint_names": ["q_a", "q_b"]})[0]
+    assert service.handle_joint_state(renamed, SEED_LEGS_M, 4).pose is not None
+
+
 def test_legs_are_picked_by_name_in_any_order_among_other_joints(service):
     names = ["wrist", "j_c", "gripper", "j_a", "j_b"]
     positions = [3.0, 0.15, -1.0, 0.1, 0.12]
@@ -124,7 +137,7 @@ def test_joint_state_gives_the_array_pose_with_its_own_stamp(service):
 
 def test_solve_loop_takes_joint_states(service):
     published = []
-    loop = SolveLoop(service, published.append).start()
+    loop = SolveLoop(service, published.append, stats=service.stats, modes=service.modes).start()
     try:
         loop.submit(JointStateInput(("j_b", "j_a", "x", "j_c"), (0.12, 0.1, 0.0, 0.15), ()), 77)
         deadline = time.monotonic() + WAIT_S
@@ -167,7 +180,7 @@ def test_assembly_modes_of_the_hexapod_example_are_sixteen():
 
 def test_assembly_modes_loop_with_the_worker_process(service):
     published = []
-    loop = AssemblyModesLoop(service, published.append)
+    loop = AssemblyModesLoop(service.modes, published.append, log=service.log)
     worker = loop.solve
     loop.start()
     try:
@@ -205,7 +218,7 @@ def test_assembly_modes_requests_are_coalesced_while_one_waits(service):
         return []
 
     published = []
-    loop = AssemblyModesLoop(service, published.append, solve=slow).start()
+    loop = AssemblyModesLoop(service.modes, published.append, solve=slow, log=service.log).start()
     try:
         service.modes.note_input(list(SEED_LEGS_M), 1)
         loop.request(1)

@@ -293,6 +293,11 @@ class Estimator:
         return self.last_x is not None
 
     @property
+    def warm_x(self):
+        """The solver variables the next input starts from (None: a cold start)."""
+        return self.last_x
+
+    @property
     def decision_reserve_s(self) -> float:
         """The time (s) the deciding work is expected to take, with its margin: the settle of a
         search's end point and the whole probe."""

@@ -1,7 +1,8 @@
 """The ``glpma_fk`` node's diagnostics: the ``diagnostic_msgs/DiagnosticStatus`` levels, a
 transport-free status (:class:`DiagnosticReport`) and :class:`Diagnostics`, the reporter a
-:class:`~glpma_ros.node.service.FkService` holds: one key-value pair per figure, the level WARN with
-the problems of the last reporting period, and the shutdown summary.
+:class:`~glpma_ros.node.service.FkService` holds, handed the collaborators it reads: one
+key-value pair per figure, the level WARN with the problems of the last reporting period, and the
+shutdown summary.
 
 A report is built from snapshots (:meth:`Statistics.snapshot <glpma_ros.node.stats.Statistics.snapshot>`,
 :meth:`AssemblyModes.snapshot <glpma_ros.node.assembly_modes.AssemblyModes.snapshot>`) taken in
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import params as P
+from .input_topic import input_topic, model_is_actuated
 from .stats import percentiles_ms
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3   # diagnostic_msgs/DiagnosticStatus levels
@@ -43,22 +45,36 @@ def _g(value: float, digits: str = ".4g") -> str:
 
 
 class Diagnostics:
-    """The /diagnostics report and the shutdown summary of a :class:`~glpma_ros.node.service.FkService`
-    (from its public state: ``stats``, ``modes``, ``params``, ``model``, ``outputs``, ``warm_x``)."""
+    """The /diagnostics report and the shutdown summary of a :class:`~glpma_ros.node.service.FkService`,
+    from its collaborators: ``params()`` the current parameter values, ``inputs`` the
+    :class:`~glpma_ros.node.inputs.InputConverter` (joint names), ``stats``
+    (:class:`~glpma_ros.node.stats.Statistics`), ``modes`` (:class:`~glpma_ros.node.assembly_modes.AssemblyModes`),
+    ``leg_health`` (:class:`~glpma_ros.node.leg_health.LegHealth`), ``outputs``
+    (:class:`~glpma_ros.node.outputs.OutputBuilder`) and ``warm_state()``: whether the estimator
+    has a warm start for the next input."""
 
-    def __init__(self, service):
-        self.service = service
+    def __init__(self, node_name: str, model, params, inputs, stats, modes, leg_health, outputs, warm_state):
+        self.node_name = node_name
+        self.model = model
+        self.params = params
+        self.inputs = inputs
+        self.stats = stats
+        self.modes = modes
+        self.leg_health = leg_health
+        self.outputs = outputs
+        self.warm_state = warm_state
         self._capped_reported = 0     # covariances capped at a singularity, at the last report
         self._limits_reported = 0     # poses beyond a passive-joint limit, at the last report
 
     def report(self, pause=lambda: None) -> DiagnosticReport:
         """The current statistics as a DiagnosticStatus; starts a new reporting period.
         ``pause()`` is called between the stages of the work (default: nothing)."""
-        svc = self.service
-        st = svc.stats.snapshot(new_period=True, pause=pause)
+        st = self.stats.snapshot(new_period=True, pause=pause)
         pause()
-        modes, modes_failed = svc.modes.snapshot(new_period=True)
-        params, model, outputs = svc.params, svc.model, svc.outputs
+        modes, modes_failed = self.modes.snapshot(new_period=True)
+        params, model, outputs = self.params(), self.model, self.outputs
+        joint_state = params["input_type"] == P.INPUT_JOINT_STATE
+        topic = input_topic(params["input_type"], model_is_actuated(model))
         capped, self._capped_reported = outputs.capped - self._capped_reported, outputs.capped
         beyond, self._limits_reported = outputs.limit_poses - self._limits_reported, outputs.limit_poses
         tails = []                    # p50, p99, max (ms) of each timed window
@@ -72,8 +88,8 @@ class Diagnostics:
         cond_last = last.conditioning if last is not None else math.nan
         pause()
         values = [
-            ("input", "joint_states (" + ", ".join(svc.joint_names) + ")"
-             if svc.input_type == P.INPUT_JOINT_STATE else svc.input_topic),
+            ("input", "joint_states (" + ", ".join(self.inputs.joint_names) + ")"
+             if joint_state else topic),
             ("inputs received", st.received),
             ("inputs solved", st.published),
             ("inputs rejected", st.rejected),
@@ -81,7 +97,7 @@ class Diagnostics:
             ("deadline misses", st.deadline_misses),
             ("solver", params["solver"]),
             ("last start", last.start if last is not None else "none"),
-            ("warm state", "yes" if svc.warm_x is not None else "no (cold start next)"),
+            ("warm state", "yes" if self.warm_state() else "no (cold start next)"),
             ("starts warm/widened/cold", "/".join(str(st.starts.get(k, 0)) for k in ("warm", "widened", "cold"))),
         ]
         pause()
@@ -132,7 +148,7 @@ class Diagnostics:
             ("extra outputs dropped (backlog)", st.extras_dropped),
             *modes,
         ]
-        legs, leg_problems = svc.leg_health.report(svc.joint_names)     # redundant legs' health
+        legs, leg_problems = self.leg_health.report(self.inputs.joint_names)     # redundant legs' health
         values += [*legs, *((f"rejected: {reason}", n) for reason, n in st.reasons)]
         if st.last_reason:
             values.append(("last rejection", st.last_reason))
@@ -151,16 +167,16 @@ class Diagnostics:
         if problems:
             level, message = WARN, "; ".join(problems)
         elif st.received == 0:
-            level, message = OK, f"waiting for {svc.input_topic}"
+            level, message = OK, f"waiting for {topic}"
         else:
             level, message = OK, "tracking"
-        return DiagnosticReport(level, f"{svc.node_name}: forward kinematics", message,
+        return DiagnosticReport(level, f"{self.node_name}: forward kinematics", message,
                                 f"{model.kind}:{Path(str(getattr(model, 'source', ''))).name}",
                                 [(k, v if isinstance(v, str) else str(v)) for k, v in values])
 
     def summary(self) -> str:
         """One line of totals, for the log at shutdown."""
-        st = self.service.stats.snapshot()
+        st = self.stats.snapshot()
         solve_s = st.window("solve_s")
         solve = percentiles_ms(solve_s)
         times = (f"solve time p50 {solve[0]:.3g} ms p99 {solve[1]:.3g} ms max {solve[2]:.3g} ms"

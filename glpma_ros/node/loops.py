@@ -2,7 +2,10 @@
 input replaced before it was picked up counts as dropped) and publishes its pose;
 :class:`ExtrasLoop` builds and publishes the pose's TF, covariance, twist and markers after it,
 off the real-time path; :class:`AssemblyModesLoop` answers ``~/request_assembly_modes``;
-:class:`ReportLoop` publishes ``/diagnostics`` from a thread of its own."""
+:class:`ReportLoop` publishes ``/diagnostics`` from a thread of its own.  Each is handed the
+collaborators it reads -- the :class:`~glpma_ros.node.service.FkService` that solves and builds
+the extra outputs, its statistics (``service.stats``), its assembly modes (``service.modes``), its
+diagnostics reporter (``service.reporter``) -- which the transport wires together."""
 from __future__ import annotations
 
 import queue
@@ -11,8 +14,11 @@ import time
 from collections import deque
 
 from ..errors import InputError
+from .assembly_modes import AssemblyModes
+from .diagnostics import Diagnostics
 from .realtime import RealtimeSettings, RealtimeThreads
 from .service import FkService
+from .stats import Statistics
 
 
 class LatestInput:
@@ -70,8 +76,11 @@ class ExtrasLoop:
     :data:`EXTRAS_POLL_S` instead (hybrid polling), so the real-time path pays an append, and an
     extra output follows its pose by at most that period plus its building and writing."""
 
-    def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras"):
+    def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras", *,
+                 stats: Statistics):
+        """``service`` builds the extra outputs; ``stats``: where their times and drops are counted."""
         self.service = service
+        self.stats = stats
         self.publish_extras = publish_extras
         self.subscribed = subscribed
         self._pending: deque = deque()       # (outcome, params at hand-off)
@@ -103,7 +112,7 @@ class ExtrasLoop:
             if pending:
                 item = pending.popleft()
                 if len(pending) >= EXTRAS_BACKLOG:      # behind: the newer ones are kept
-                    self.service.note_extras_dropped(1)
+                    self.stats.record_extras_dropped(1)
                 else:
                     self.publish(*item)
                 self._finished += 1
@@ -130,7 +139,7 @@ class ExtrasLoop:
                 self.publish_extras(extras)
         except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
             self.service.log.error(f"publishing tf / covariance / twist / markers failed: {exc!r}")
-        self.service.note_extras_time(time.perf_counter() - t0)
+        self.stats.record_extras_time(time.perf_counter() - t0)
 
     def flush(self, timeout: float = 2.0) -> bool:
         """Wait until every pose handed over so far has had its extra outputs published (or
@@ -167,13 +176,18 @@ class SolveLoop:
     Either way the newest input wins and every input replaced unsolved counts as dropped."""
 
     def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver", publish_extras=None,
-                 subscribed=None):
-        """``publish(PoseOutput)``; ``publish_extras(ExtraOutputs)`` (TF, covariance, twist,
-        markers; None: not published), called by the extras thread; ``subscribed()``: the
-        outputs that have subscribers (see :class:`ExtrasLoop`)."""
+                 subscribed=None, *, stats: Statistics, modes: AssemblyModes):
+        """``service`` solves each input; ``publish(PoseOutput)``; ``publish_extras(ExtraOutputs)`` (TF,
+        covariance, twist, markers; None: not published), called by the extras thread; ``subscribed()``:
+        the outputs that have subscribers (see :class:`ExtrasLoop`); ``stats``: where dropped inputs and
+        hand-off times are counted; ``modes``: told of every input received (the assembly modes are
+        computed for the last one)."""
         self.service = service
         self.publish = publish
-        self.extras = None if publish_extras is None else ExtrasLoop(service, publish_extras, subscribed)
+        self.stats = stats
+        self.modes = modes
+        self.extras = None if publish_extras is None else ExtrasLoop(service, publish_extras, subscribed,
+                                                                     stats=stats)
         self._cond = threading.Condition()
         self._pending = None            # the input waiting for the solver
         self._busy = False              # a thread is solving (and will take _pending next)
@@ -188,7 +202,7 @@ class SolveLoop:
         return self
 
     def _item(self, legs_m, stamp_ns: int, arrival: float | None):
-        self.service.modes.note_input(legs_m, stamp_ns)
+        self.modes.note_input(legs_m, stamp_ns)
         return legs_m, int(stamp_ns), time.perf_counter() if arrival is None else arrival
 
     def submit(self, legs_m, stamp_ns: int) -> None:
@@ -212,7 +226,7 @@ class SolveLoop:
                 replaced = None
         if replaced is not None:
             if replaced:
-                self.service.note_dropped(1)
+                self.stats.record_dropped(1)
             return False
         self._drain(item)
         return True
@@ -223,7 +237,7 @@ class SolveLoop:
             self._pending = item
             self._cond.notify()
         if replaced:
-            self.service.note_dropped(1)
+            self.stats.record_dropped(1)
 
     def _drain(self, item) -> None:
         """Solve ``item``, then every input that arrived meanwhile, newest first; clears busy."""
@@ -251,7 +265,7 @@ class SolveLoop:
         if self.extras is not None and self.service.extras_on():
             t0 = time.perf_counter()
             self.extras.put(outcome)
-            self.service.note_extras_handoff(time.perf_counter() - t0)
+            self.stats.record_extras_handoff(time.perf_counter() - t0)
 
     def _run(self) -> None:
         while True:
@@ -282,13 +296,16 @@ class AssemblyModesLoop:
     another waits replaces it (counted as coalesced); one arriving during a computation is
     answered by a computation of its own afterwards."""
 
-    def __init__(self, service: FkService, publish, solve=None, name: str = "glpma_fk-assembly-modes"):
-        """``solve(legs, runs, seed, leg_noise_std)``: default a new :class:`~glpma_ros.node.modes_worker.ModesWorker`
-        (started by :meth:`start`, stopped by :meth:`stop`)."""
-        self.service = service
+    def __init__(self, modes: AssemblyModes, publish, solve=None, name: str = "glpma_fk-assembly-modes", *, log):
+        """``modes``: the node's :class:`~glpma_ros.node.assembly_modes.AssemblyModes` (last input,
+        figures); ``solve(legs, runs, seed, leg_noise_std)``: default a new
+        :class:`~glpma_ros.node.modes_worker.ModesWorker` (started by :meth:`start`, stopped by
+        :meth:`stop`); ``log``: anything with ``info/warning/error(str)``."""
+        self.modes = modes
+        self.log = log
         self.publish = publish
         self._owned = solve is None
-        self.solve = service.modes.worker() if solve is None else solve
+        self.solve = modes.worker() if solve is None else solve
         self.mailbox = LatestInput()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -301,11 +318,11 @@ class AssemblyModesLoop:
 
     def request(self, stamp_ns: int) -> None:
         """Called by the transport on arrival of a request, ``stamp_ns`` = its arrival time."""
-        if self.mailbox.put((int(stamp_ns), self.service.modes.last_input)):
-            self.service.modes.note(coalesced=1)
+        if self.mailbox.put((int(stamp_ns), self.modes.last_input)):
+            self.modes.note(coalesced=1)
 
     def _run(self) -> None:
-        log, modes = self.service.log, self.service.modes
+        log, modes = self.log, self.modes
         while not self._stop.is_set():
             item = self.mailbox.get(timeout=0.1)
             if item is None:
@@ -349,16 +366,20 @@ def pause_report() -> None:
 
 
 class ReportLoop:
-    """Publishes ``service.diagnostics()`` every ``period_s`` from a thread of its own, so that a
+    """Publishes the report of a :class:`~glpma_ros.node.diagnostics.Diagnostics` every ``period_s``
+    from a thread of its own, so that a
     report -- taken from snapshots, its formatting and its message built outside every lock of
     the service -- is never on the solving thread's path (in the rclpy node a timer would run it
     in the executor's thread, between two inputs).  Between the stages of a report (and before
     its message is built) the thread sleeps :data:`REPORT_PAUSE_S`: a solving thread waits at
     most one stage for the interpreter."""
 
-    def __init__(self, service: FkService, publish, period_s: float, name: str = "glpma_fk-diagnostics"):
-        """``publish(DiagnosticReport)``: converts and writes the report (a failure is logged)."""
-        self.service = service
+    def __init__(self, diagnostics: Diagnostics, publish, period_s: float, name: str = "glpma_fk-diagnostics", *,
+                 log):
+        """``diagnostics``: the service's reporter (``service.reporter``); ``publish(DiagnosticReport)``:
+        converts and writes the report (a failure is logged in ``log``)."""
+        self.diagnostics = diagnostics
+        self.log = log
         self.publish = publish
         self.period_s = float(period_s)
         self._stop = threading.Event()
@@ -372,11 +393,11 @@ class ReportLoop:
         next_report = time.monotonic()
         while not self._stop.wait(max(0.0, next_report - time.monotonic())):
             try:
-                report = self.service.diagnostics(pause=pause_report)
+                report = self.diagnostics.report(pause=pause_report)
                 pause_report()
                 self.publish(report)
             except Exception as exc:  # noqa: BLE001 - a failed report must not end the reports
-                self.service.log.warning(f"publishing diagnostics failed: {exc!r}")
+                self.log.warning(f"publishing diagnostics failed: {exc!r}")
             next_report = max(next_report + self.period_s, time.monotonic())
 
     def stop(self, timeout: float = 2.0) -> None:

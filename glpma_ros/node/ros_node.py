@@ -101,43 +101,62 @@ def _plain(value):
     return value
 
 
+def declare_parameters(node, on_set_parameters) -> None:
+    """Declare every parameter of :mod:`glpma_ros.node.params` on ``node`` (with its descriptor) and
+    route their changes to ``on_set_parameters``."""
+    for spec in P.PARAMETERS:
+        # an empty array has no inferable type: declare the type without a default
+        default = ARRAY_PARAMETER_TYPES[spec.type] if spec.type in P.ARRAY_TYPES and not spec.default \
+            else spec.default
+        node.declare_parameter(spec.name, default, descriptor(spec))
+    node.add_on_set_parameters_callback(on_set_parameters)
+
+
+def parameter_values(node) -> dict:
+    """name -> current value of every parameter declared by :func:`declare_parameters`."""
+    values = {}
+    for spec in P.PARAMETERS:
+        try:
+            value = node.get_parameter(spec.name).value
+        except ParameterUninitializedException:     # declared by type only, and not overridden
+            value = None
+        values[spec.name] = spec.default if value is None else _plain(value)
+    return values
+
+
 class FkEndpoints:
-    """What both rclpy nodes share (mixed into :class:`rclpy.node.Node` or
-    :class:`rclpy.lifecycle.LifecycleNode`): the declared parameters, and :meth:`_open` /
-    :meth:`_close` of the service, the publishers and subscriptions (with QoS overrides), the
-    loops and the diagnostics timer, and the message conversions."""
+    """What both rclpy nodes hold as a member (:class:`FkNode`, :class:`FkLifecycleNode`), handed the
+    node it serves and how that node creates and destroys its publishers (a lifecycle node's are
+    managed): :meth:`open` / :meth:`close` of the service, the publishers and subscriptions (with
+    QoS overrides), the loops and the diagnostics thread, the message conversions, and the
+    parameter changes (:meth:`on_set_parameters`)."""
 
-    service = None
-    _active = True          # inputs are solved and outputs published (a lifecycle node: only while active)
-    _stopped = True
+    def __init__(self, node, create_publisher, destroy_publisher, active: bool = True):
+        """``active``: inputs are solved and outputs published (a lifecycle node: only while active)."""
+        self.node = node
+        self._create_publisher = create_publisher
+        self._destroy_publisher = destroy_publisher
+        self.active = active
+        self.service = None
+        self._stopped = True
 
-    def _declare_parameters(self) -> None:
-        for spec in P.PARAMETERS:
-            # an empty array has no inferable type: declare the type without a default
-            default = ARRAY_PARAMETER_TYPES[spec.type] if spec.type in P.ARRAY_TYPES and not spec.default \
-                else spec.default
-            self.declare_parameter(spec.name, default, descriptor(spec))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-
-    def _values(self) -> dict:
-        return {spec.name: self._value(spec) for spec in P.PARAMETERS}
-
-    def _open(self, values: dict, create_publisher) -> None:
-        """Build the service (reads the config), warm up the solvers, create every endpoint with
-        ``create_publisher`` (a lifecycle node's publishers are managed) and start the loops."""
-        service = FkService(values, logger=self.get_logger(), node_name=self.get_name())
-        self.get_logger().info(f"{service.describe()}; warming up the solvers")
-        self.get_logger().info(f"warm-up done in {service.warm_up():.2f} s")
+    def open(self, values: dict) -> None:
+        """Build the service (reads the config), warm up the solvers, create every endpoint and
+        start the loops."""
+        node = self.node
+        service = FkService(values, logger=node.get_logger(), node_name=node.get_name())
+        node.get_logger().info(f"{service.describe()}; warming up the solvers")
+        node.get_logger().info(f"warm-up done in {service.warm_up():.2f} s")
         self.service, self._stopped = service, False
         input_topic = service.input_topic
         profiles = qos.node_endpoints(values["qos_depth"], input_topic)
 
         def pub(msg_type, topic):
-            return create_publisher(msg_type, topic, qos_profile(profiles[(topic, qos.PUBLISHER)]),
-                                    qos_overriding_options=QOS_OVERRIDING)
+            return self._create_publisher(msg_type, topic, qos_profile(profiles[(topic, qos.PUBLISHER)]),
+                                          qos_overriding_options=QOS_OVERRIDING)
 
         def sub(msg_type, topic, callback, raw=False):
-            return self.create_subscription(msg_type, topic, callback, qos_profile(profiles[(topic, qos.SUBSCRIPTION)]),
+            return node.create_subscription(msg_type, topic, callback, qos_profile(profiles[(topic, qos.SUBSCRIPTION)]),
                                             qos_overriding_options=QOS_OVERRIDING, raw=raw)
 
         # every output has its publisher from the start: the publish_* parameters switch them at runtime;
@@ -157,8 +176,8 @@ class FkEndpoints:
         self._extra_pubs = {"tf": self.tf_pub, "covariance": self.cov_pub, "twist": self.twist_pub,
                             "markers": self.markers_pub, "joint_states": self.joint_states_pub}
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
-                              subscribed=self._subscribed)
-        self.modes = AssemblyModesLoop(service, self._publish_modes).start()
+                              subscribed=self._subscribed, stats=service.stats, modes=service.modes)
+        self.modes = AssemblyModesLoop(service.modes, self._publish_modes, log=service.log).start()
         # the input is taken as bytes and read with struct (cdr): no message object per input
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
             self.input_sub = sub(JointState, "joint_states", self._on_joint_state, raw=True)
@@ -166,28 +185,19 @@ class FkEndpoints:
             self.input_sub = sub(Float64MultiArray, input_topic, self._on_legs, raw=True)
         self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
         # /diagnostics from a thread of its own, off the executor's (ReportLoop)
-        self.reports = ReportLoop(service, self._publish_diagnostics, values["diagnostics_period_s"]).start()
+        self.reports = ReportLoop(service.reporter, self._publish_diagnostics, values["diagnostics_period_s"],
+                                  log=service.log).start()
 
-    def _close(self) -> None:
-        """Stop the loops (logging the summary) and destroy what :meth:`_open` created."""
+    def close(self) -> None:
+        """Stop the loops (logging the summary) and destroy what :meth:`open` created."""
         if self.service is None:
             return
         self.stop()
         for subscription in (self.input_sub, self.request_sub):
-            self.destroy_subscription(subscription)
+            self.node.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
             self._destroy_publisher(publisher)
         self._publishers_opened, self._extra_pubs, self.service = [], {}, None
-
-    def _destroy_publisher(self, publisher) -> None:
-        self.destroy_publisher(publisher)
-
-    def _value(self, spec: P.ParamSpec):
-        try:
-            value = self.get_parameter(spec.name).value
-        except ParameterUninitializedException:     # declared by type only, and not overridden
-            value = None
-        return spec.default if value is None else _plain(value)
 
     def _newest(self, msg):
         """The newest input waiting: ``msg`` or a later one still in the subscription's queue (taken
@@ -206,7 +216,7 @@ class FkEndpoints:
     def _taking(self) -> bool:
         """True when inputs are solved; otherwise (an inactive lifecycle node) the input and the
         ones waiting behind it are counted as received and dropped."""
-        if self._active:
+        if self.active:
             return True
         self._newest(None)
         self.service.note_dropped(1)
@@ -216,7 +226,7 @@ class FkEndpoints:
         if not self._taking():
             return
         data = self._newest(data)       # the pose's stamp is the arrival of the input it answers:
-        stamp_ns = self.get_clock().now().nanoseconds                  # taken after the newest
+        stamp_ns = self.node.get_clock().now().nanoseconds             # taken after the newest
         try:
             legs = (cdr.float64_multi_array_data(data) if cdr.little_endian_cdr(data)
                     else tuple(deserialize_message(data, Float64MultiArray).data))
@@ -242,8 +252,8 @@ class FkEndpoints:
         self.loop.offer(JointStateInput(names, positions, velocities), stamp_ns)
 
     def _on_request_modes(self, _msg: Empty) -> None:
-        if self._active:
-            self.modes.request(self.get_clock().now().nanoseconds)
+        if self.active:
+            self.modes.request(self.node.get_clock().now().nanoseconds)
 
     def _publish_modes(self, modes) -> None:
         msg = PoseArray()
@@ -271,16 +281,18 @@ class FkEndpoints:
             self._extra_pubs[name].publish(data)
 
     def _publish_diagnostics(self, report) -> None:
-        if not self._active:
+        if not self.active:
             return
         msg = DiagnosticArray()
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.status = [DiagnosticStatus(level=bytes([report.level]), name=report.name, message=report.message,
                                        hardware_id=report.hardware_id,
                                        values=[KeyValue(key=k, value=v) for k, v in report.values])]
         self.diag_pub.publish(msg)
 
-    def _on_set_parameters(self, parameters) -> SetParametersResult:
+    def on_set_parameters(self, parameters) -> SetParametersResult:
+        """The node's parameters callback: checked and applied by the service (before configure:
+        checked only, applied at configure)."""
         mine = [p for p in parameters if not p.name.startswith(qos.PREFIX)]    # QoS overrides: rclpy's, read-only
         if not mine:
             return SetParametersResult(successful=True)
@@ -303,31 +315,46 @@ class FkEndpoints:
         self.reports.stop()
         self.loop.stop()
         self.modes.stop()
-        self.get_logger().info(f"stopped: {self.service.summary()}")
+        self.node.get_logger().info(f"stopped: {self.service.summary()}")
 
-    def destroy_node(self):
-        if self.service is not None:
-            if rclpy.ok(context=self.context):
-                self.stop()
-            elif not self._stopped:     # the context is gone: no logging through rosout any more
-                self._stopped = True
-                self.reports.stop()
-                self.loop.stop()
-                self.modes.stop()
-        return super().destroy_node()
+    def destroy(self) -> None:
+        """Before the node is destroyed: stop the threads (with the summary while the context is valid)."""
+        if self.service is None:
+            return
+        if rclpy.ok(context=self.node.context):
+            self.stop()
+        elif not self._stopped:     # the context is gone: no logging through rosout any more
+            self._stopped = True
+            self.reports.stop()
+            self.loop.stop()
+            self.modes.stop()
 
 
-class FkNode(FkEndpoints, Node):
+class FkNode(Node):
     """``ros2 run glpma_ros fk_node``: configured and publishing from the start."""
 
     def __init__(self, **node_kwargs):
         super().__init__(P.NODE_NAME, **node_kwargs)
-        self._declare_parameters()
-        self._open(self._values(), self.create_publisher)
+        self.endpoints = FkEndpoints(self, self.create_publisher, self.destroy_publisher)
+        declare_parameters(self, self.endpoints.on_set_parameters)
+        self.endpoints.open(parameter_values(self))
         self.get_logger().info("ready")
 
+    @property
+    def service(self):
+        """The node's :class:`~glpma_ros.node.service.FkService`."""
+        return self.endpoints.service
 
-class FkLifecycleNode(FkEndpoints, LifecycleNode):
+    def stop(self) -> None:
+        """Stop the node's threads and log the summary (:meth:`FkEndpoints.stop`)."""
+        self.endpoints.stop()
+
+    def destroy_node(self):
+        self.endpoints.destroy()
+        return super().destroy_node()
+
+
+class FkLifecycleNode(LifecycleNode):
     """``ros2 run glpma_ros fk_lifecycle_node``: the same node, managed (ROS 2 design, *Managed nodes*).
 
     * unconfigured: parameters declared (and checked when set), nothing else;
@@ -340,19 +367,29 @@ class FkLifecycleNode(FkEndpoints, LifecycleNode):
       destroyed; ``configure`` starts again from the parameters' values.
     A failed configure (a bad config) logs the reason and leaves the node unconfigured."""
 
-    _active = False
-
     def __init__(self, **node_kwargs):
         super().__init__(P.NODE_NAME, **node_kwargs)
-        self._declare_parameters()
+        self.endpoints = FkEndpoints(self, self.create_lifecycle_publisher, self.destroy_lifecycle_publisher,
+                                     active=False)
+        declare_parameters(self, self.endpoints.on_set_parameters)
         self.get_logger().info("unconfigured: waiting for configure (ros2 lifecycle set /glpma_fk configure)")
 
-    def _destroy_publisher(self, publisher) -> None:
-        self.destroy_lifecycle_publisher(publisher)
+    @property
+    def service(self):
+        """The node's :class:`~glpma_ros.node.service.FkService` (None while unconfigured)."""
+        return self.endpoints.service
+
+    def stop(self) -> None:
+        """Stop the node's threads and log the summary (:meth:`FkEndpoints.stop`)."""
+        self.endpoints.stop()
+
+    def destroy_node(self):
+        self.endpoints.destroy()
+        return super().destroy_node()
 
     def on_configure(self, state) -> TransitionCallbackReturn:
         try:
-            self._open(self._values(), self.create_lifecycle_publisher)
+            self.endpoints.open(parameter_values(self))
         except GlpmaError as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
@@ -361,23 +398,23 @@ class FkLifecycleNode(FkEndpoints, LifecycleNode):
 
     def on_activate(self, state) -> TransitionCallbackReturn:
         result = super().on_activate(state)        # enables the managed publishers
-        self._active = True
+        self.endpoints.active = True
         self.get_logger().info("active")
         return result
 
     def on_deactivate(self, state) -> TransitionCallbackReturn:
-        self._active = False
+        self.endpoints.active = False
         self.get_logger().info("inactive: inputs are counted and dropped")
         return super().on_deactivate(state)
 
     def on_cleanup(self, state) -> TransitionCallbackReturn:
-        self._active = False
-        self._close()
+        self.endpoints.active = False
+        self.endpoints.close()
         return super().on_cleanup(state)
 
     def on_shutdown(self, state) -> TransitionCallbackReturn:
-        self._active = False
-        self._close()
+        self.endpoints.active = False
+        self.endpoints.close()
         return super().on_shutdown(state)
 
 

@@ -2,11 +2,12 @@
 
 :class:`FkService` owns the :class:`~glpma_ros.estimation.estimator.Estimator` and does
 everything a transport should not have to know about: parameters and their
-runtime changes, unit conversion (metres on topics, the config's unit inside),
-input validation with a one-line reason, the publish decision (converged, or -- redundant legs --
-inconsistent with the faulty leg left out), and the collaborators it holds: the statistics
+runtime changes, the publish decision (converged, or -- redundant legs --
+inconsistent with the faulty leg left out), and the collaborators it holds: the input conversion
+(``inputs``, :mod:`.inputs`: JointState decoding, metres on topics, the config's unit inside,
+a one-line reason for a bad input), the warm-up (``warming``, :mod:`.warm_up`), the statistics
 (``stats``, :mod:`.stats`), the legs' health (``leg_health``, :mod:`.leg_health`), the diagnostics
-report built from their snapshots (:mod:`.diagnostics`) and the assembly modes on request
+report built from their snapshots (``reporter``, :mod:`.diagnostics`) and the assembly modes on request
 (``modes``, :mod:`.assembly_modes`), each with its own lock.  The threads both
 transports share are in :mod:`.loops`.
 
@@ -24,10 +25,8 @@ received is computed by :func:`~glpma_ros.modes.multistart.solve_all` in a worke
 """
 from __future__ import annotations
 
-import gc
 import logging
 import math
-import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -35,26 +34,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import check_units, load_manipulator, plausible_band, resolve_config
+from ..config import load_manipulator, resolve_config
 from ..errors import InputError
 from ..estimation.estimator import Estimator
 from ..runtime.compat import check_numba
-from ..runtime.precompile import cache_counts, describe_cache_use, warm_up_pose
 from . import params as P
 from .assembly_modes import AssemblyModes
 from .diagnostics import DiagnosticReport, Diagnostics
 from .input_topic import input_topic, model_is_actuated
+from .inputs import InputConverter, JointStateInput, default_joint_names
 from .leg_health import LegHealth
 from .outputs import OUTPUT_PARAMS, OutputBuilder
 from .stats import LogThrottle, Statistics
-
-#: solvers warmed up at start (with the configured one): the papers' real-time solvers
-WARM_UP_SOLVERS = ("glpma", "g3pcx", "rcga")
-
-
-def default_joint_names(n_legs: int) -> list:
-    """``leg_1`` .. ``leg_n``: the joint names when parameter ``joint_names`` is empty."""
-    return [f"leg_{i + 1}" for i in range(n_legs)]
+from .warm_up import WarmUp, warm_up_variables
 
 
 @dataclass(frozen=True)
@@ -66,15 +58,6 @@ class PoseOutput:
     position: tuple
     orientation: tuple
 
-
-@dataclass(frozen=True)
-class JointStateInput:
-    """A ``sensor_msgs/JointState`` as far as the node reads it: joint names, positions (metres)
-    and velocities (m/s; empty when the message has none)."""
-
-    names: tuple
-    positions: tuple
-    velocities: tuple = ()
 
 @dataclass
 class Outcome:
@@ -89,7 +72,11 @@ class Outcome:
 
 
 class FkService:
-    """Leg lengths (metres) in, poses (metres) out, with the estimator's warm state in between."""
+    """Leg lengths (metres) in, poses (metres) out: the parameters, the estimator (which keeps its
+    warm state; the service reads it through :attr:`Estimator.warm_x
+    <glpma_ros.estimation.estimator.Estimator.warm_x>`) and the publish decision; the input
+    conversion (:class:`~glpma_ros.node.inputs.InputConverter`) and the warm-up
+    (:class:`~glpma_ros.node.warm_up.WarmUp`) are collaborators of their own."""
 
     def __init__(self, parameters: dict | None = None, *, logger=None, node_name: str = P.NODE_NAME):
         """``parameters``: name -> value (unknown names are an error, missing ones take their default);
@@ -104,24 +91,23 @@ class FkService:
         self.config_path = resolve_config(values["manipulator_config"])
         self.model = load_manipulator(self.config_path)
         self.metres_per_unit = float(self.model.metres_per_unit)
-        #: leg lengths (m) below this divide by metres_per_unit without overflow
-        self._overflow_m = sys.float_info.max * min(self.metres_per_unit, 1.0)
         self._initial_x = self._initial_variables(values["initial_pose"])
-        # the estimator's warm-start state, mirrored so that a rebuilt estimator can keep it
-        self._warm_x = self._initial_x
-        self.estimator = self._build_estimator(values, self._warm_x)
+        self.estimator = self._build_estimator(values, self._initial_x)
         self.params = values
         self.stats = Statistics()
         self._check_joint_names(values["joint_names"])
         self._check_frames(values)
+        self.inputs = InputConverter(self.model, values["joint_names"])
         self.leg_health = LegHealth(self.model)
         self.outputs = OutputBuilder(self.model, values["urdf_prefix"])
         self.log_throttle = LogThrottle()    # one log line a second per rejection reason
         self._lock = threading.RLock()          # estimator and parameters (statistics and modes: their own)
-        self._warmed: set = set()               # solvers warm_up() has run
-        self.modes = AssemblyModes(self.model, self.config_path, self.to_config_unit, lambda: self.params,
+        self.warming = WarmUp(self.model, self._build_estimator, self.log)
+        self.modes = AssemblyModes(self.model, self.config_path, self.inputs.to_config_unit, lambda: self.params,
                                    warm_legs=self.model.inverse_kinematics(self._warm_up_variables()))
-        self._diagnostics = Diagnostics(self)
+        self.reporter = Diagnostics(node_name, self.model, lambda: self.params, self.inputs, self.stats,
+                                    self.modes, self.leg_health, self.outputs,
+                                    warm_state=lambda: self.estimator.warm_x is not None)
 
     # -- construction --------------------------------------------------------------------
     def _initial_variables(self, initial_pose):
@@ -161,13 +147,13 @@ class FkService:
 
     @property
     def warm_x(self):
-        """The solver variables the next input starts from (None: a cold start)."""
-        return self._warm_x
+        """The solver variables the next input starts from (None: a cold start): the estimator's."""
+        return self.estimator.warm_x
 
     @property
     def warmed_up(self) -> frozenset:
         """The solvers :meth:`warm_up` has run."""
-        return frozenset(self._warmed)
+        return self.warming.warmed
 
     @property
     def frame_id(self) -> str:
@@ -186,7 +172,7 @@ class FkService:
     @property
     def joint_names(self) -> list:
         """The legs' joint names in leg order (``joint_names``, or ``leg_1`` .. ``leg_n``)."""
-        return list(self.params["joint_names"]) or default_joint_names(self.model.n_legs)
+        return self.inputs.joint_names
 
     def describe(self) -> str:
         m = self.model
@@ -203,105 +189,24 @@ class FkService:
 
     def _warm_up_variables(self) -> np.ndarray:
         """A pose to warm up with: ``initial_pose``, or any pose clear of the base joints."""
-        if self._initial_x is not None:
-            return self._initial_x
-        return warm_up_pose(self.model)
+        return warm_up_variables(self.model, self._initial_x)
 
     def warm_up(self, solvers=None, budget_ms: float = 50.0, max_tries: int = 5) -> float:
-        """Run every path of each solver -- cold and warm start, with and without the
-        refinement (without it the evolutionary loops run in the warm stages too) -- until it
-        runs within its budget, so that Numba has compiled everything before the first real
-        input.  ``solvers``: default :data:`WARM_UP_SOLVERS` and the configured one; a switch
-        to another solver at runtime warms that one up first (:meth:`set_parameters`).
+        """Numba's compiled code of ``solvers`` (default
+        :data:`~glpma_ros.node.warm_up.WARM_UP_SOLVERS` and the configured
+        one) loaded before the first real input (:meth:`WarmUp.run <glpma_ros.node.warm_up.WarmUp.run>`);
+        a switch to another solver at runtime warms that one up first (:meth:`set_parameters`).
         The warm-start state and the statistics are left untouched (the service lock is not
         held: inputs are solved meanwhile).  Returns the seconds spent."""
-        t0 = time.perf_counter()
         with self._lock:
             params = dict(self.params)
-        if solvers is None:
-            solvers = tuple(dict.fromkeys((*WARM_UP_SOLVERS, params["solver"])))
-        x = self._warm_up_variables()
-        # not exactly x's legs: a warm start must then search, not stop at its first individual
-        legs = self.model.inverse_kinematics(x) * (1.0 + 1e-3)
-        if self.model.leg_limits is not None:
-            legs = np.clip(legs, *self.model.leg_limits)
-        for k, name in enumerate(solvers, 1):
-            t_solver = time.perf_counter()
-            counts = cache_counts()
-            for start in (None, x):
-                for polish in (True, False):
-                    values = dict(params, solver=name, time_budget_ms=budget_ms, polish=polish)
-                    for _ in range(max_tries):
-                        t = time.perf_counter()
-                        try:
-                            self._build_estimator(values, start).estimate(legs)
-                        except Exception as exc:  # noqa: BLE001 - reported, not fatal
-                            self.log.warning(f"warm-up with {name} failed: {exc}")
-                            break
-                        if time.perf_counter() - t < 3e-3 * budget_ms:
-                            break
-            self._warmed.add(name)
-            loaded, compiled = (after - before for after, before in zip(cache_counts(), counts))
-            self._log_warm_up(name, k, len(solvers), time.perf_counter() - t_solver, loaded, compiled)
-        # everything loaded so far lives as long as the node: keep it out of the cyclic
-        # collector's scans, whose pauses would otherwise land in the real-time path
-        from ..estimation.covariance import warm_up as warm_up_covariance
-        warm_up_covariance()
-        gc.collect()
-        gc.freeze()
-        return time.perf_counter() - t0
-
-    def _log_warm_up(self, name: str, k: int, n: int, took_s: float, loaded: int, compiled: int) -> None:
-        """One line per solver warmed up: what Numba compiled (first start after an install) or
-        loaded from its cache, counted (:func:`~glpma_ros.runtime.precompile.cache_counts`), not guessed."""
-        how = describe_cache_use(loaded, compiled)
-        if compiled:
-            how += " (first start; `glpma-fk precompile` does this ahead)"
-        self.log.info(f"warm-up [{k}/{n}] {name}: {how} in {took_s:.1f} s")
+        return self.warming.run(params, self._warm_up_variables(), solvers, budget_ms, max_tries)
 
     # -- inputs -------------------------------------------------------------------------------
-    def _leg_indices(self, names, positions) -> list:
-        """Where each leg of :attr:`joint_names` is in a JointState's ``names``."""
-        names = list(names)
-        if len(names) != len(positions):
-            raise InputError(f"joint_states has {len(names)} names but {len(positions)} positions")
-        index: dict = {}
-        for i, name in enumerate(names):
-            index.setdefault(name, []).append(i)
-        found_at = []
-        for leg in self.joint_names:
-            found = index.get(leg)
-            if not found:
-                raise InputError(f"joint_states has no joint '{leg}'")
-            if len(found) > 1:
-                raise InputError(f"joint_states names joint '{leg}' {len(found)} times")
-            found_at.append(found[0])
-        return found_at
-
     def legs_from_joint_state(self, names, positions) -> list:
-        """The leg lengths (metres, leg order) in a JointState's ``names`` / ``positions``: each
-        leg by its name in :attr:`joint_names`, in any order; other joints are ignored.
-        :class:`InputError` with the reason when a leg is missing or named twice, or when there
-        are not as many positions as names."""
-        positions = list(positions)
-        return [positions[i] for i in self._leg_indices(names, positions)]
-
-    def leg_rates_from_joint_state(self, js: JointStateInput):
-        """The legs' rates (m/s, leg order) from a JointState's velocities, or None when it has
-        none (``velocity`` empty, as the message allows) or they are not finite."""
-        if not js.velocities or len(js.velocities) != len(js.names):
-            return None
-        try:
-            rates = np.array([js.velocities[i] for i in self._leg_indices(js.names, js.positions)], dtype=float)
-        except (InputError, TypeError, ValueError):
-            return None
-        return rates if np.all(np.isfinite(rates)) else None
-
-    def _legs_m(self, legs_m):
-        """An input (leg lengths in metres, or a :class:`JointStateInput`) as leg lengths in metres."""
-        if isinstance(legs_m, JointStateInput):
-            return self.legs_from_joint_state(legs_m.names, legs_m.positions)
-        return legs_m
+        """The leg lengths (metres, leg order) in a JointState's ``names`` / ``positions``
+        (:meth:`InputConverter.legs_from_joint_state <glpma_ros.node.inputs.InputConverter.legs_from_joint_state>`)."""
+        return self.inputs.legs_from_joint_state(names, positions)
 
     def handle_joint_state(self, names, positions, stamp_ns: int, arrival: float | None = None,
                            velocities=()) -> Outcome:
@@ -312,30 +217,8 @@ class FkService:
 
     def to_config_unit(self, raw) -> np.ndarray:
         """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit, with the
-        config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for."""
-        if model_is_actuated(self.model):       # actuator positions: radians, or metres for prismatic ones
-            return self.model.legs_from_sensors(self.model.readings_from_si(self._legs_m(raw)))
-        try:
-            legs_m = np.asarray(self._legs_m(raw), dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise InputError("leg lengths are not numbers") from None
-        if legs_m.size == self.model.n_legs:
-            # the usual input, every leg within the plausible band (finite, no unit mistake possible):
-            # the checks below would pass; deciding it on Python floats saves their NumPy calls
-            given = legs_m.tolist()
-            if -self._overflow_m < min(given) and max(given) < self._overflow_m:
-                legs = legs_m / self.metres_per_unit
-                values = legs.tolist()
-                lo, hi = plausible_band(self.model)
-                if lo <= min(values) and max(values) <= hi:
-                    return self.model.legs_from_sensors(legs)      # the config's leg_offsets added
-        with np.errstate(over="ignore", invalid="ignore"):
-            legs = legs_m / self.metres_per_unit
-        if legs.size == self.model.n_legs and np.all(np.isfinite(legs_m)) and not np.all(np.isfinite(legs)):
-            raise InputError(f"leg lengths too large to express in {self.model.unit}")
-        if legs.size == self.model.n_legs:   # e.g. millimetres sent on the topic: a reason naming units
-            check_units(self.model, legs, "m", "topics are in metres (REP 103)")
-        return self.model.legs_from_sensors(legs)      # the config's leg_offsets added
+        config's ``leg_offsets`` added (:class:`~glpma_ros.node.inputs.InputConverter`)."""
+        return self.inputs.to_config_unit(raw)
 
     def handle(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
         """Solve one input.  ``legs_m``: leg lengths in metres, or a :class:`JointStateInput`;
@@ -347,7 +230,7 @@ class FkService:
         with self._lock:
             st.record_handled()
             try:
-                legs = self.to_config_unit(legs_m)
+                legs = self.inputs.to_config_unit(legs_m)
                 estimate = self.estimator.estimate(legs)
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
@@ -360,12 +243,11 @@ class FkService:
                 return self._reject(f"{estimate.status}: {estimate.message}", estimate.status, estimate, arrival)
             st.record_published(estimate.conditioning,
                                 math.sqrt(estimate.fitness / self.model.n_res) * self.metres_per_unit)
-            self._warm_x = np.array(estimate.x, dtype=float)
             pose = estimate.pose
             out = PoseOutput(int(stamp_ns), self.frame_id,
                              tuple((np.asarray(pose.position, dtype=float) * self.metres_per_unit).tolist()),
                              tuple(np.asarray(pose.orientation, dtype=float).tolist()))
-            rates = self.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
+            rates = self.inputs.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
             return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
 
     def extras(self, outcome: Outcome, params: dict | None = None, subscribed=None):
@@ -432,11 +314,11 @@ class FkService:
         starts a new reporting period.  Holds no lock of the service: call it from any thread;
         ``pause()`` runs between the stages of the work (:class:`~glpma_ros.node.loops.ReportLoop`
         sleeps there)."""
-        return self._diagnostics.report(pause)
+        return self.reporter.report(pause)
 
     def summary(self) -> str:
         """One line of totals, for the log at shutdown."""
-        return self._diagnostics.summary()
+        return self.reporter.summary()
 
     # -- parameters -----------------------------------------------------------------------------
     def set_parameters(self, changes: dict) -> tuple[bool, str]:
@@ -446,7 +328,7 @@ class FkService:
         was not warmed up yet is warmed up first (Numba loads or compiles it; seconds), without
         holding up the solve loop."""
         solver = changes.get("solver")
-        if isinstance(solver, str) and solver in P.SOLVER_CHOICES and solver not in self._warmed:
+        if isinstance(solver, str) and solver in P.SOLVER_CHOICES and solver not in self.warming.warmed:
             self.log.info(f"warming up solver {solver} before switching to it")
             self.warm_up(solvers=(solver,))
         with self._lock:
@@ -461,7 +343,7 @@ class FkService:
                 self._check_joint_names(values["joint_names"])
                 self._check_frames(values)
                 initial_x = self._initial_variables(values["initial_pose"])
-                warm_x = initial_x if values["initial_pose"] != self.params["initial_pose"] else self._warm_x
+                warm_x = initial_x if values["initial_pose"] != self.params["initial_pose"] else self.warm_x
                 estimator = self._build_estimator(values, warm_x)
             except InputError as exc:
                 return False, str(exc)
@@ -471,7 +353,8 @@ class FkService:
             if "initial_pose" in changed:
                 self.outputs.reset()        # tracking restarts: no velocity across the jump
             self.params, self.estimator = values, estimator
-            self._initial_x, self._warm_x = initial_x, warm_x
+            self._initial_x = initial_x
+            self.inputs.joint_names = values["joint_names"]
             if changed:
                 self.log.info("parameters set: " + ", ".join(f"{k}={v!r}" for k, v in changed.items()))
             return True, ""

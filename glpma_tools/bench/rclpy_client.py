@@ -82,8 +82,9 @@ def _node(variant: str, values: dict):
         return Echo(values["qos_depth"], values["frame_id"])
     node = FkNode(parameter_overrides=[Parameter(n, value=v) for n, v in values.items() if v != []])
     if variant in ("submit", "multi"):
-        node.destroy_subscription(node.input_sub)
-        solve = node.loop.start().submit if variant == "submit" else node.loop.offer
+        node.destroy_subscription(node.endpoints.input_sub)
+        loop = node.endpoints.loop
+        solve = loop.start().submit if variant == "submit" else loop.offer
         node.create_subscription(Float64MultiArray, "leg_lengths",
                                  lambda msg: solve(tuple(msg.data), node.get_clock().now().nanoseconds),
                                  values["qos_depth"],

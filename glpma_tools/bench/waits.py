@@ -80,7 +80,7 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
     legs = [(tuple(legs), k + 1) for k, legs in enumerate(load("3rpr").along(inputs)[1] * service.metres_per_unit)]
     node = FkService({**PARAMS, **SHIPPED_ON})
     node.warm_up()
-    loop = SolveLoop(node, lambda pose: None, publish_extras=lambda extras: None)
+    loop = SolveLoop(node, lambda pose: None, publish_extras=lambda extras: None, stats=node.stats, modes=node.modes)
     # setup -> (the service reported on, report period (None: no reports), the call, the input period)
     setups = {"handle": (service, None, service.handle, 0.0),
               "handle + reports": (service, period_s, service.handle, 0.0),
@@ -90,7 +90,8 @@ def measure(rounds: int = 4, inputs: int = 5000, period_s: float = REPORT_PERIOD
         for _ in range(rounds):
             for setup, (svc, report_period, call, input_period) in setups.items():
                 made: list = []
-                reporter = ReportLoop(svc, made.append, report_period).start() if report_period else None
+                reporter = ReportLoop(svc.reporter, made.append, report_period, log=svc.log).start() \
+                    if report_period else None
                 try:
                     wall, cpu, delay = timed(call, legs, input_period)
                 finally:

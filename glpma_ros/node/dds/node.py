@@ -136,9 +136,10 @@ class DdsNode:
                                ("twist", self.twist_writer), ("markers", self.markers_writer),
                                ("joint_states", self.joint_states_writer))
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
-                              subscribed=self._subscribed)
-        self.modes = AssemblyModesLoop(service, self._publish_modes, solve=modes_solve)
-        self.reports = ReportLoop(service, self._publish_report, service.params["diagnostics_period_s"])
+                              subscribed=self._subscribed, stats=service.stats, modes=service.modes)
+        self.modes = AssemblyModesLoop(service.modes, self._publish_modes, solve=modes_solve, log=service.log)
+        self.reports = ReportLoop(service.reporter, self._publish_report, service.params["diagnostics_period_s"],
+                                  log=service.log)
         self._stop = threading.Event()
         self._waitset, self._guard = endpoints.reader_waitset(participant, [self.input_reader, self.request_reader])
         self._lead = threading.Lock()           # held by the thread that waits for input
