@@ -169,8 +169,9 @@ class Mechanism:
         tip = tuple(float(v) for v in self.crank_m[i])
         full = (-math.pi, math.pi)
         motor = full if self.model_limits is None else tuple(float(v) for v in self.model_limits[i])
-        joint = (lambda part, parent, child, origin=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), limits=full:
-                 JointSpec(self.name(f"leg{i + 1}_{part}"), REVOLUTE, parent, child, origin, axis, limits, i, part))
+
+        def joint(part, parent, child, origin=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), limits=full):
+            return JointSpec(self.name(f"leg{i + 1}_{part}"), REVOLUTE, parent, child, origin, axis, limits, i, part)
         actuator = joint("actuator", base, leg("crank"), a, tuple(float(v) for v in self.axis_3d[i]), motor)
         rod = float(self.rods_m[i])
         if self.planar:
