@@ -326,3 +326,24 @@ def test_urdfdom_check_urdf_parses_it(name, tmp_path):
     p = subprocess.run(["check_urdf", str(tmp_path / f"{name}.urdf")], capture_output=True, text=True, timeout=60)
     assert p.returncode == 0 and "Successfully Parsed XML" in p.stdout, p.stdout + p.stderr
     assert "root Link: r1_base_link" in p.stdout and p.stdout.count("r1_platform_link") == 1
+
+
+@pytest.mark.parametrize("name, parts", [
+    ("delta_irb360", ("actuator", "u1", "u2", "s1", "s2", "s3")),
+    ("rus6_simulator", ("actuator", "u1", "u2", "s1", "s2", "s3")),
+    ("planar_3rrr_symmetric", ("actuator", "elbow", "platform"))])
+def test_actuated_family_joint_names_and_motor_limits(name, parts, tmp_path):
+    """The families' joints as doc/interface.md names them, leg by leg; the motors' URDF limits are the
+    config's actuator_limits (written as the shortest repr of the same double: compared exactly)."""
+    model = load_manipulator(resolve_config(name))
+    root = ET.fromstring(urdf_of(name, tmp_path, "--prefix", "r_").split("\n", 2)[2])
+    moving = [j for j in root.iter("joint") if j.get("type") != "fixed"]
+    assert [j.get("name") for j in moving] == [f"r_leg{i}_{p}" for i in range(1, model.n_legs + 1) for p in parts]
+    assert all(j.get("type") == "revolute" for j in moving)
+    for i in range(model.n_legs):
+        limit = moving[i * len(parts)].find("limit")
+        assert (float(limit.get("lower")), float(limit.get("upper"))) == tuple(model.actuator_limits[i])
+        assert moving[i * len(parts)].find("parent").get("link") == "r_base_link"
+    text = ET.tostring(root, encoding="unicode")
+    assert "r_leg1_crank" in text
+    load(text)
