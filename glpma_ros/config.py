@@ -37,9 +37,8 @@ from .errors import ConfigError, InputError
 from .models import MODELS, Manipulator
 from .models.families import FAMILIES, is_family, model_from_family
 from .models.hexapod_66 import COINCIDENT_RELATIVE, frame_joints
+from .units import UNIT_NAMES, UNIT_TO_METRES
 
-UNIT_TO_METRES = {"m": 1.0, "cm": 0.01, "mm": 0.001}
-UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
 #: coordinates of a joint, per kind
 JOINT_DIMENSION = {"planar_3rpr": 2, "hexapod_66": 3}
 #: legs a config may list, per kind: the degrees of freedom up to redundant legs (more squared

@@ -63,12 +63,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import solvers
-from ..config import UNIT_TO_METRES
 from ..errors import InputError
 from ..models.base import Pose
 from ..models.reach import PairBounds
 from ..solvers import lm, local
 from ..solvers.driver import POLISH_MAX_ITER
+from ..units import UNIT_TO_METRES
 from . import redundancy
 
 #: spread of the widened stage relative to the warm one

@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import UNIT_TO_METRES
 from ..errors import InputError
 from ..models.base import Pose
 from ..solvers.local import LocalSolver
+from ..units import UNIT_TO_METRES
 
 #: confidence of the consistency test: a healthy manipulator gets ``inconsistent_legs`` for one
 #: input in a thousand (a false alarm costs little: the pose without the "faulty" leg is published)

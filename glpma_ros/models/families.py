@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
+from ..units import UNIT_TO_METRES
 from .actuated import ActuatedPlanar, ActuatedSpatial, DeltaTranslation
 from .legs import ACTUATOR_KINDS, REVOLUTE
 
@@ -138,7 +139,6 @@ def model_from_family(doc: dict, path: str):
             close = difflib.get_close_matches(str(key), REQUIRED_KEYS + OPTIONAL_KEYS, n=1)
             problems.append(f"unknown key {str(key)!r}" + (f" (did you mean '{close[0]}'?)" if close else ""))
     unit = doc.get("unit")
-    from ..config import UNIT_TO_METRES  # the config module imports this one
     if unit not in UNIT_TO_METRES:
         problems.append(f"'unit' must be one of {', '.join(UNIT_TO_METRES)}, got {unit!r}")
     given_motion = doc.get("platform_motion", motion)
