@@ -119,6 +119,10 @@ class Mechanism:
         #: names of the joints a JointState carries, in the order of :meth:`positions`
         self.joint_names = tuple(j.name for j in self.moving)
         self.per_leg = len(self.moving) // self.n_legs
+        k = self.per_leg
+        #: every leg's joints' origins and axes (n, per_leg, 3), each in its parent link's frame
+        self._chains = tuple(np.array([[getattr(j, key) for j in self.moving[i * k:(i + 1) * k]]
+                                       for i in range(self.n_legs)], dtype=float) for key in ("origin", "axis"))
 
     # -- names ----------------------------------------------------------------------------
     def name(self, text: str) -> str:
@@ -281,8 +285,8 @@ class Mechanism:
         return out
 
     def _crank_rotations(self, angles) -> np.ndarray:
-        """Rot(axis_i, angle_i) for every leg (Rodrigues), shape (n, 3, 3): the crank links' orientations."""
-        return np.stack([_axis_rotation(a, t) for a, t in zip(self.axis_3d, angles)])
+        """Rot(axis_i, angle_i) for every leg, shape (n, 3, 3): the crank links' orientations."""
+        return _axis_rotations(self.axis_3d, angles)
 
     def _actuated_positions(self, position_m, orientation) -> np.ndarray:
         R, B, _, _ = self.legs_at(position_m, orientation)
@@ -313,17 +317,18 @@ class Mechanism:
 
     def _actuated_velocities(self, q, B, v_B, w):
         """The actuated legs' joint rates: each leg's chain Jacobian (revolute joint at o with axis a:
-        (a x (B - o), a); planar: its x, y and z rows) solved for its end link's twist (v_B, w)."""
+        (a x (B - o), a); planar: its x, y and z rows) solved for its end link's twist (v_B, w).  The
+        chain's frames are composed joint by joint, every leg at once."""
         n, k = self.n_legs, self.per_leg
         rows = [0, 1, 5] if self.planar else list(range(6))
+        origins, axes = self._chains
         J = np.empty((n, len(rows), k))
-        for i in range(n):
-            Ri, o = np.eye(3), np.zeros(3)
-            for c, j in enumerate(self.moving[i * k:(i + 1) * k]):
-                o = o + Ri @ np.asarray(j.origin, dtype=float)
-                a = Ri @ np.asarray(j.axis, dtype=float)
-                J[i, :, c] = np.concatenate((np.cross(a, B[i] - o), a))[rows]
-                Ri = Ri @ _axis_rotation(np.asarray(j.axis, dtype=float), q[i, c])
+        Ri, o = np.broadcast_to(np.eye(3), (n, 3, 3)), np.zeros((n, 3))
+        for c in range(k):
+            o = o + np.einsum("nij,nj->ni", Ri, origins[:, c])
+            a = np.einsum("nij,nj->ni", Ri, axes[:, c])
+            J[:, :, c] = np.hstack((np.cross(a, B - o), a))[:, rows]
+            Ri = np.einsum("nij,njk->nik", Ri, _axis_rotations(axes[:, c], q[:, c]))
         rhs = np.hstack((v_B, np.broadcast_to(w, v_B.shape)))[:, rows]
         return self._solve(J, rhs)
 
@@ -396,8 +401,12 @@ class Mechanism:
             return None
 
 
-def _axis_rotation(axis, angle) -> np.ndarray:
-    """The rotation by ``angle`` about the unit ``axis`` (Rodrigues' formula)."""
-    a = np.asarray(axis, dtype=float)
-    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+def _axis_rotations(axes, angles) -> np.ndarray:
+    """The rotations by ``angles`` (n,) about the unit ``axes`` (n, 3), shape (n, 3, 3) (Rodrigues' formula
+    ``I + sin(t) K + (1 - cos(t)) K^2``, ``K`` the cross-product matrix of the axis)."""
+    a = np.asarray(axes, dtype=float)
+    t = np.asarray(angles, dtype=float)
+    K = np.zeros((len(a), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
+    return np.eye(3) + np.sin(t)[:, None, None] * K + (1.0 - np.cos(t))[:, None, None] * (K @ K)
