@@ -3,7 +3,8 @@
 * for every shipped config the URDF parses with a URDF library (yourdfpy) and, with the joint
   states the node computes for its poses -- along a trajectory, in several assembly modes -- every
   leg's chain, composed by that library's joint transforms, ends at its platform joint, the platform
-  link is at the pose and the actuators are at the leg lengths, within 1e-9 m / 1e-9 rad;
+  link is at the pose and the actuators are at the leg lengths (an actuated family's: at the motors'
+  readings), within 1e-9 m / 1e-9 rad;
 * the joints' rates are those of the twist (finite differences of the joint positions);
 * the JointState's wire form is Cyclone DDS's own; the command's options and bad input.
 """
@@ -39,24 +40,37 @@ def known_modes(name: str) -> list:
     doc = yaml.safe_load((CONFIG / f"{name}.yaml").read_text())
     if "real_solutions" in doc:
         return [[s["x"], s["y"], math.radians(s["theta_deg"])] for s in doc["real_solutions"]]
+    if "known_solutions" in doc:                  # an actuated family
+        return doc["known_solutions"]
     modes = doc["published_solutions"]
     return [modes[k] for k in ROLLAND_MODES] if name == "hexapod_66_rolland" else modes
 
 
+def is_planar(model) -> bool:
+    return model.kind == "planar_3rpr" or getattr(model, "dim", 3) == 2
+
+
+def translates_only(model) -> bool:
+    """The Delta: the platform's orientation is fixed."""
+    return model.n_vars == 3 and not is_planar(model)
+
+
 def trajectory(model, x0) -> list:
     """Poses (solver variables) along a closed loop around the pose of ``x0``: a circle and a
-    wobble of the platform, small enough to stay on ``x0``'s assembly mode."""
-    pose = model.pose(model.canonical(x0) if model.kind == "planar_3rpr" else x0)
+    wobble of the platform (none for a platform that only translates), small enough to stay on
+    ``x0``'s assembly mode."""
+    pose = model.pose(model.canonical(x0) if is_planar(model) else x0)
     p0, R0 = np.asarray(pose.position), matrix_from_quaternion(pose.orientation)
     r = AMPLITUDE * model.scale
     out = []
     for k in range(STEPS):
         t = 2.0 * math.pi * k / STEPS
-        if model.kind == "planar_3rpr":
+        if is_planar(model):
             dp, w = np.array([r * math.sin(t), r * (math.cos(t) - 1.0), 0.0]), np.array([0.0, 0.0, 0.1 * math.sin(t)])
         else:
             dp = np.array([r * math.sin(t), r * (math.cos(t) - 1.0), 0.5 * r * math.sin(2 * t)])
-            w = 0.05 * np.array([math.sin(t), math.cos(t) - 1.0, math.sin(2 * t)])
+            w = 0.0 * dp if translates_only(model) else 0.05 * np.array([math.sin(t), math.cos(t) - 1.0,
+                                                                              math.sin(2 * t)])
         R = rotation_from_vector(w) @ R0
         out.append(model.variables_from_pose(p0 + dp, quaternion_from_matrix(R)))
     return out
@@ -85,8 +99,10 @@ def test_every_leg_of_the_urdf_ends_at_its_platform_joint(name, tmp_path):
         svc = FkService({"manipulator_config": str(CONFIG / f"{name}.yaml"), "initial_pose": list(map(float, x0)),
                          "publish_joint_states": True, "time_budget_ms": GENEROUS_BUDGET_MS})
         for k, x in enumerate(trajectory(model, x0)):
-            legs = model.inverse_kinematics(x)
-            outcome = svc.handle(list(legs * metres), 1_000_000_000 + k)
+            actuated = getattr(model, "actuated", False)
+            # what the actuators read at x: leg lengths (metres), or the motors' angles (radians)
+            legs = model.actuator_positions(x) if actuated else model.inverse_kinematics(x) * metres
+            outcome = svc.handle(list(legs), 1_000_000_000 + k)
             assert outcome.pose is not None, outcome.reason
             ex = svc.extras(outcome)
             assert ex.stamp_ns == outcome.pose.stamp_ns           # stamped as the pose
@@ -106,7 +122,7 @@ def test_every_leg_of_the_urdf_ends_at_its_platform_joint(name, tmp_path):
             truth = model.pose(x)
             assert np.abs(np.array(outcome.pose.position) - truth.position * metres).max() < TOL
             actuators = [q for n, q in zip(ex.joint_names, ex.joint_positions) if n.endswith("_actuator")]
-            worst["actuator"] = max(worst["actuator"], float(np.abs(np.array(actuators) - legs * metres).max()))
+            worst["actuator"] = max(worst["actuator"], float(np.abs(np.array(actuators) - legs).max()))
             poses += 1
     assert poses >= STEPS
     assert max(worst.values()) < TOL, worst
@@ -117,14 +133,15 @@ def model_platform_m(model) -> np.ndarray:
     return np.hstack((pts, np.zeros((len(pts), 1)))) if pts.shape[1] == 2 else pts
 
 
-@pytest.mark.parametrize("name", ["planar_3rpr_seed", "hexapod_66_rolland", "hexapod_33_octahedral"])
+@pytest.mark.parametrize("name", ["planar_3rpr_seed", "hexapod_66_rolland", "hexapod_33_octahedral", "delta_irb360",
+                                  "rus6_simulator", "planar_3rrr_symmetric"])
 def test_joint_rates_are_the_twist_s(name):
     """Each joint's rate = the finite difference of its position over a small step of the twist
     (central difference: error O(dt^2) ~ 1e-10 of the rates' size, checked to 1e-6)."""
     model = load_manipulator(resolve_config(name))
     mech = Mechanism(model)
     rng = np.random.default_rng(7)
-    planar = model.kind == "planar_3rpr"
+    planar = is_planar(model)
     dt = 1e-6
     for x0 in known_modes(name)[:2]:
         pose = model.pose(x0)
@@ -133,6 +150,8 @@ def test_joint_rates_are_the_twist_s(name):
         w = rng.normal(size=3)
         if planar:
             v[2], w[:2] = 0.0, 0.0
+        if translates_only(model):
+            w[:] = 0.0
         rates = mech.velocities(p, q, v, w)
         R = matrix_from_quaternion(q)
         at = [mech.positions(p + v * h, quaternion_from_matrix(rotation_from_vector(w * h) @ R)) for h in (dt, -dt)]
@@ -307,3 +326,24 @@ def test_urdfdom_check_urdf_parses_it(name, tmp_path):
     p = subprocess.run(["check_urdf", str(tmp_path / f"{name}.urdf")], capture_output=True, text=True, timeout=60)
     assert p.returncode == 0 and "Successfully Parsed XML" in p.stdout, p.stdout + p.stderr
     assert "root Link: r1_base_link" in p.stdout and p.stdout.count("r1_platform_link") == 1
+
+
+@pytest.mark.parametrize("name, parts", [
+    ("delta_irb360", ("actuator", "u1", "u2", "s1", "s2", "s3")),
+    ("rus6_simulator", ("actuator", "u1", "u2", "s1", "s2", "s3")),
+    ("planar_3rrr_symmetric", ("actuator", "elbow", "platform"))])
+def test_actuated_family_joint_names_and_motor_limits(name, parts, tmp_path):
+    """The families' joints as doc/interface.md names them, leg by leg; the motors' URDF limits are the
+    config's actuator_limits (written as the shortest repr of the same double: compared exactly)."""
+    model = load_manipulator(resolve_config(name))
+    root = ET.fromstring(urdf_of(name, tmp_path, "--prefix", "r_").split("\n", 2)[2])
+    moving = [j for j in root.iter("joint") if j.get("type") != "fixed"]
+    assert [j.get("name") for j in moving] == [f"r_leg{i}_{p}" for i in range(1, model.n_legs + 1) for p in parts]
+    assert all(j.get("type") == "revolute" for j in moving)
+    for i in range(model.n_legs):
+        limit = moving[i * len(parts)].find("limit")
+        assert (float(limit.get("lower")), float(limit.get("upper"))) == tuple(model.actuator_limits[i])
+        assert moving[i * len(parts)].find("parent").get("link") == "r_base_link"
+    text = ET.tostring(root, encoding="unicode")
+    assert "r_leg1_crank" in text
+    load(text)

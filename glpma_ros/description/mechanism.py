@@ -20,12 +20,29 @@ The legs as they are built (``P`` = prefix, ``i`` = leg number from 1, in config
 * planar 3-RPR (and more RPR legs): ``Pleg<i>_base`` (revolute about z at A_i, zero with the leg
   along the base's +x axis), ``Pleg<i>_actuator`` (prismatic along the leg, the leg length in
   metres), ``Pleg<i>_platform`` (revolute about z at B_i: the platform's angle minus the leg's).
+* actuated spatial families (``delta``, ``rus_6``; :mod:`glpma_ros.models.actuated`): ``Pleg<i>_actuator``
+  (revolute about the leg's ``axis`` at its ``origin``, position = the motor's angle in radians: the
+  reading plus the config's ``actuator_offsets``, zero without; link ``Pleg<i>_crank``, its frame the
+  base's turned by that angle), ``Pleg<i>_u1``, ``Pleg<i>_u2`` (the rod's universal joint at the crank
+  tip, about the crank frame's x axis and the y axis it has turned, zero with the rod along the crank
+  frame's +z axis; link ``Pleg<i>_rod``, the rod along its +z axis), ``Pleg<i>_s1``, ``Pleg<i>_s2``,
+  ``Pleg<i>_s3`` (a spherical joint at the platform joint, ``rod`` along the rod, as the hexapod's).
+  The Delta's parallelogram forearm is one rod here (its position kinematics is that of a rod between
+  the crank tip and the platform joint): universal at the crank tip, spherical -- not universal -- at
+  the platform, since only three rotations bring the rod's frame back to the platform's (which only
+  translates) whatever the arm's angle;
+* actuated planar families (``planar_3rrr``): ``Pleg<i>_actuator`` (revolute about z at ``origin``,
+  the crank's angle), ``Pleg<i>_elbow`` (revolute about z at the crank tip, the rod's angle minus the
+  crank's: zero with the rod along the crank frame's +x axis), ``Pleg<i>_platform`` (revolute about z
+  at B_i, ``rod`` along the rod: the platform's angle minus the rod's).
 
 Each leg's last link ``Pleg<i>_end`` sits at its platform joint B_i with the platform's
 orientation; ``Pplatform_link`` is fixed to ``Pleg1_end`` (joint ``Pplatform_mount``, origin
 -CB_1), so it is at the pose.  Velocities: each leg's joint rates are those that move its end
 link with the platform (the twist), the leg's chain Jacobian solved (six joints, six
-components; planar: three, three).
+components; planar: three, three).  The actuated families' actuator angles come from the model's
+inverse kinematics (the branch of :func:`~glpma_ros.models.legs.choose_root`, the one the readings are
+solved with), their passive joints from the rod's direction as above.
 
 No ROS import here: plain NumPy.
 """
@@ -37,6 +54,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..models.legs import REVOLUTE as REVOLUTE_ACTUATOR
+from ..models.legs import actuator_roots, choose_root
 from ..models.rotations import cross_rows, matrix_from_quaternion
 from .limits import wrap
 
@@ -61,7 +80,7 @@ class JointSpec:
     axis: tuple = (0.0, 0.0, 1.0)
     limits: tuple | None = None
     leg: int = -1              # 0-based leg index, -1 for the platform mount
-    role: str = ""             # u1 u2 actuator s1 s2 s3 / base actuator platform / mount
+    role: str = ""             # u1 u2 actuator s1 s2 s3 / base actuator platform / elbow / mount
 
 
 class Mechanism:
@@ -73,11 +92,18 @@ class Mechanism:
     ranges become the URDF's limits of the passive joints."""
 
     def __init__(self, model, prefix: str = "", passive_limits=None):
-        if model.kind not in ("hexapod_66", "planar_3rpr"):
-            raise InputError(f"no URDF for manipulator kind {model.kind!r} (known: hexapod_66, planar_3rpr)")
+        #: an actuated family: the legs are crank + rod (:mod:`glpma_ros.models.actuated`)
+        self.actuated = bool(getattr(model, "actuated", False))
+        if self.actuated:
+            kinds = np.asarray(model.actuators)
+            if np.any(kinds != REVOLUTE_ACTUATOR):
+                raise InputError(f"no URDF for {model.kind} with non-revolute actuators (known: revolute)")
+        elif model.kind not in ("hexapod_66", "planar_3rpr"):
+            raise InputError(f"no URDF for manipulator kind {model.kind!r} (known: hexapod_66, planar_3rpr, "
+                             f"delta, rus_6, planar_3rrr)")
         self.model = model
         self.prefix = str(prefix)
-        self.planar = model.kind == "planar_3rpr"
+        self.planar = model.kind == "planar_3rpr" or (self.actuated and int(model.dim) == 2)
         self.metres = float(getattr(model, "metres_per_unit", 1.0))
         self.n_legs = int(model.n_legs)
         pts = np.asarray(model.base, dtype=float) * self.metres
@@ -86,11 +112,17 @@ class Mechanism:
         self.platform_m = np.hstack((pts, np.zeros((self.n_legs, 1)))) if self.planar else pts
         self.scale_m = float(model.scale) * self.metres
         self.passive_limits = passive_limits
+        if self.actuated:
+            self._actuated_geometry()
         self.joints = self._build()
         self.moving = tuple(j for j in self.joints if j.type != FIXED)
         #: names of the joints a JointState carries, in the order of :meth:`positions`
         self.joint_names = tuple(j.name for j in self.moving)
         self.per_leg = len(self.moving) // self.n_legs
+        k = self.per_leg
+        #: every leg's joints' origins and axes (n, per_leg, 3), each in its parent link's frame
+        self._chains = tuple(np.array([[getattr(j, key) for j in self.moving[i * k:(i + 1) * k]]
+                                       for i in range(self.n_legs)], dtype=float) for key in ("origin", "axis"))
 
     # -- names ----------------------------------------------------------------------------
     def name(self, text: str) -> str:
@@ -123,7 +155,43 @@ class Mechanism:
         lo, hi = plausible_band(self.model)
         return (lo * self.metres, hi * self.metres)
 
+    def _actuated_geometry(self) -> None:
+        """The actuated legs' crank (3-D, metres), axis (planar: +z), rod (metres), offsets and limits."""
+        m, n = self.model, self.n_legs
+        crank = np.asarray(m.crank, dtype=float) * self.metres
+        self.crank_m = np.hstack((crank, np.zeros((n, 1)))) if self.planar else crank
+        self.axis_3d = (np.tile([0.0, 0.0, 1.0], (n, 1)) if self.planar else np.asarray(m.axis, dtype=float))
+        self.rods_m = np.asarray(m.rods, dtype=float) * self.metres
+        self.offsets = np.zeros(n) if m.actuator_offsets is None else np.asarray(m.actuator_offsets, dtype=float)
+        #: the motors' angle ranges as the model turns them (the readings' limits plus the offsets)
+        self.model_limits = (None if m.actuator_limits is None
+                             else np.asarray(m.actuator_limits, dtype=float) + self.offsets[:, None])
+
+    def _actuated_leg_joints(self, i: int) -> list:
+        base, leg = self.base_link, lambda part: self.leg_link(i, part)
+        a = tuple(float(v) for v in self.base_m[i])
+        tip = tuple(float(v) for v in self.crank_m[i])
+        full = (-math.pi, math.pi)
+        motor = full if self.model_limits is None else tuple(float(v) for v in self.model_limits[i])
+
+        def joint(part, parent, child, origin=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), limits=full):
+            return JointSpec(self.name(f"leg{i + 1}_{part}"), REVOLUTE, parent, child, origin, axis, limits, i, part)
+        actuator = joint("actuator", base, leg("crank"), a, tuple(float(v) for v in self.axis_3d[i]), motor)
+        rod = float(self.rods_m[i])
+        if self.planar:
+            return [actuator, joint("elbow", leg("crank"), leg("rod"), tip),
+                    joint("platform", leg("rod"), leg("end"), (rod, 0.0, 0.0))]
+        half = 0.5 * math.pi
+        return [actuator,
+                joint("u1", leg("crank"), leg("u_cross"), tip, (1.0, 0.0, 0.0)),
+                joint("u2", leg("u_cross"), leg("rod"), axis=(0.0, 1.0, 0.0), limits=(-half, half)),
+                joint("s1", leg("rod"), leg("s_cross1"), (0.0, 0.0, rod), (1.0, 0.0, 0.0)),
+                joint("s2", leg("s_cross1"), leg("s_cross2"), axis=(0.0, 1.0, 0.0), limits=(-half, half)),
+                joint("s3", leg("s_cross2"), leg("end"))]
+
     def _leg_joints(self, i: int) -> list:
+        if self.actuated:
+            return self._actuated_leg_joints(i)
         base, leg, lim = self.base_link, lambda part: self.leg_link(i, part), self._limit
         a = tuple(float(v) for v in self.base_m[i])
         actuator, stroke = self.name(f"leg{i + 1}_actuator"), self._actuator_limits()
@@ -178,6 +246,8 @@ class Mechanism:
         platform at ``position_m`` (metres) / ``orientation`` (unit quaternion x, y, z, w, platform
         to base).  Raises :class:`InputError` for a leg of zero length (its direction is undefined).
         Every leg at once (NumPy over the legs: the extras thread computes this for every pose)."""
+        if self.actuated:
+            return self._actuated_positions(position_m, orientation)
         R, _, d, L = self.legs_at(position_m, orientation)
         if np.any(L <= 0.0):
             raise InputError("a leg has zero length: its joints are undefined")
@@ -197,6 +267,70 @@ class Mechanism:
         q[:, 4] = np.arctan2(M[:, 0, 2], np.hypot(M[:, 0, 0], M[:, 0, 1]))
         q[:, 5] = np.arctan2(-M[:, 0, 1], M[:, 0, 0])
         return q.ravel()
+
+    def motor_angles(self, B) -> np.ndarray:
+        """The actuated legs' motor angles (radians, as the model turns them: reading + offset) that put
+        each rod's end at the platform joint ``B`` (base frame, metres): the model's inverse kinematics
+        per leg (:func:`~glpma_ros.models.legs.actuator_roots`, the branch of ``choose_root``)."""
+        m = self.model
+        distal = np.asarray(B, dtype=float)[:, :int(m.dim)] / self.metres
+        out = np.empty(self.n_legs)
+        for i in range(self.n_legs):
+            roots = actuator_roots(int(m.actuators[i]), m.origin[i], m.axis[i], m.crank[i], float(m.rods[i]),
+                                   distal[i])
+            root = choose_root(roots, None if self.model_limits is None else self.model_limits[i])
+            if root is None:
+                raise InputError(f"leg {i + 1} cannot reach the pose within its actuator limits")
+            out[i] = root
+        return out
+
+    def _crank_rotations(self, angles) -> np.ndarray:
+        """Rot(axis_i, angle_i) for every leg, shape (n, 3, 3): the crank links' orientations."""
+        return _axis_rotations(self.axis_3d, angles)
+
+    def _actuated_positions(self, position_m, orientation) -> np.ndarray:
+        R, B, _, _ = self.legs_at(position_m, orientation)
+        qa = self.motor_angles(B)
+        Rc = self._crank_rotations(qa)
+        P = self.base_m + np.einsum("nij,nj->ni", Rc, self.crank_m)        # the crank tips
+        e = B - P
+        L = np.sqrt((e * e).sum(axis=1))
+        if np.any(L <= 0.0):
+            raise InputError("a rod has zero length: its joints are undefined")
+        q = np.empty((self.n_legs, self.per_leg))
+        q[:, 0] = qa
+        if self.planar:
+            phi = np.arctan2(e[:, 1], e[:, 0])
+            theta = math.atan2(R[1, 0], R[0, 0])
+            q[:, 1] = wrap(phi - qa)
+            q[:, 2] = wrap(theta - phi)
+            return q.ravel()
+        u = np.einsum("nji,nj->ni", Rc, e) / L[:, None]                      # the rod in the crank's frame
+        q[:, 1] = np.arctan2(-u[:, 1], u[:, 2])                               # u = Rx(u1) Ry(u2) e_z
+        q[:, 2] = np.arctan2(u[:, 0], np.hypot(u[:, 1], u[:, 2]))
+        rod = np.einsum("nij,njk->nik", Rc, self._rod_rotations(q[:, 1], q[:, 2]))
+        M = np.einsum("nji,jk->nik", rod, R)                                  # end link relative to the rod
+        q[:, 3] = np.arctan2(-M[:, 1, 2], M[:, 2, 2])                         # M = Rx(s1) Ry(s2) Rz(s3)
+        q[:, 4] = np.arctan2(M[:, 0, 2], np.hypot(M[:, 0, 0], M[:, 0, 1]))
+        q[:, 5] = np.arctan2(-M[:, 0, 1], M[:, 0, 0])
+        return q.ravel()
+
+    def _actuated_velocities(self, q, B, v_B, w):
+        """The actuated legs' joint rates: each leg's chain Jacobian (revolute joint at o with axis a:
+        (a x (B - o), a); planar: its x, y and z rows) solved for its end link's twist (v_B, w).  The
+        chain's frames are composed joint by joint, every leg at once."""
+        n, k = self.n_legs, self.per_leg
+        rows = [0, 1, 5] if self.planar else list(range(6))
+        origins, axes = self._chains
+        J = np.empty((n, len(rows), k))
+        Ri, o = np.broadcast_to(np.eye(3), (n, 3, 3)), np.zeros((n, 3))
+        for c in range(k):
+            o = o + np.einsum("nij,nj->ni", Ri, origins[:, c])
+            a = np.einsum("nij,nj->ni", Ri, axes[:, c])
+            J[:, :, c] = np.hstack((np.cross(a, B - o), a))[:, rows]
+            Ri = np.einsum("nij,njk->nik", Ri, _axis_rotations(axes[:, c], q[:, c]))
+        rhs = np.hstack((v_B, np.broadcast_to(w, v_B.shape)))[:, rows]
+        return self._solve(J, rhs)
 
     @staticmethod
     def _rod_rotations(a, b) -> np.ndarray:
@@ -222,6 +356,8 @@ class Mechanism:
         v, w = np.asarray(linear, dtype=float), np.asarray(angular, dtype=float)
         w_rows = np.broadcast_to(w, B.shape)
         vB = v + cross_rows(w_rows, B - np.asarray(position_m, dtype=float))   # each platform joint's velocity
+        if self.actuated:
+            return self._actuated_velocities(q, B, vB, w)
         u = d / L[:, None]
         n = self.n_legs
         if self.planar:
@@ -263,3 +399,14 @@ class Mechanism:
             return np.linalg.solve(A, b[..., None])[..., 0].ravel()
         except np.linalg.LinAlgError:
             return None
+
+
+def _axis_rotations(axes, angles) -> np.ndarray:
+    """The rotations by ``angles`` (n,) about the unit ``axes`` (n, 3), shape (n, 3, 3) (Rodrigues' formula
+    ``I + sin(t) K + (1 - cos(t)) K^2``, ``K`` the cross-product matrix of the axis)."""
+    a = np.asarray(axes, dtype=float)
+    t = np.asarray(angles, dtype=float)
+    K = np.zeros((len(a), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
+    return np.eye(3) + np.sin(t)[:, None, None] * K + (1.0 - np.cos(t))[:, None, None] * (K @ K)

@@ -4,7 +4,8 @@ plain URDF 1.0 (no xacro), metres and radians, valid for urdfdom (``check_urdf``
 
 Geometry without meshes: a disc for the base and one for the platform (through their joints),
 a sphere at every joint, a tube from each base joint and a rod to each platform joint (the
-prismatic actuator's two parts, so that a leg visibly gets longer).  With ``meshes`` (a folder)
+prismatic actuator's two parts, so that a leg visibly gets longer); for an actuated family
+(Delta, 6-RUS, 3-RRR) a bar for each crank (origin to tip) and each rod (its whole length).  With ``meshes`` (a folder)
 a link whose mesh file is there shows the mesh instead: ``<link>.stl`` (or ``.dae``, ``.obj``),
 the link named without the prefix (``base_link.stl``, ``platform_link.dae``, ``leg3_rod.stl``),
 and for the legs also ``leg_<part>.<ext>`` shared by every leg (``leg_cylinder.stl``,
@@ -124,7 +125,9 @@ class UrdfWriter:
 
         def on_axis(t):
             return (t, 0.0, 0.0) if axis_x else (0.0, 0.0, t)
-        if role == "base":
+        if m.actuated and role in ("crank", "rod"):
+            self._bar(el, name, role)
+        elif role == "base":
             self._disc(el, m.base_m, m.name("glpma_base"), below=True)
             for a in m.base_m:
                 self._sphere(el, a)
@@ -138,6 +141,23 @@ class UrdfWriter:
                          on_axis(-0.5 * self.part_length), along)
         elif role == "end":
             self._sphere(el)
+
+    def _bar(self, link_el, name: str, role: str) -> None:
+        """An actuated leg's crank (from the link's origin to the crank tip) or rod (from the link's origin
+        along its +z axis, planar +x, the rod's length) as a cylinder."""
+        m = self.mech
+        leg = next(j.leg for j in m.joints if j.child == name)
+        if role == "crank":
+            tip = m.crank_m[leg]
+        else:
+            length = float(m.rods_m[leg])
+            tip = np.array([length, 0.0, 0.0]) if m.planar else np.array([0.0, 0.0, length])
+        length = float(np.linalg.norm(tip))
+        pitch = math.atan2(math.hypot(tip[0], tip[1]), tip[2])       # the cylinder's z axis turned onto tip:
+        yaw = math.atan2(tip[1], tip[0])                              # Rz(yaw) Ry(pitch) e_z = tip / |tip|
+        radius, material = (self.tube_r, "glpma_tube") if role == "crank" else (self.rod_r, "glpma_rod")
+        self._visual(link_el, "cylinder", {"radius": radius, "length": length}, m.name(material), 0.5 * tip,
+                     (0.0, pitch, yaw))
 
     def _joint(self, robot, j) -> None:
         el = ET.SubElement(robot, "joint", name=j.name, type=j.type)
