@@ -136,6 +136,8 @@ README_CHECKS = {
     "glpma-fk solve-all delta_irb360 --legs 0.021727 0.008779 0.199391": (0, ["2 distinct real assembly modes",
                                                                              "closed form"]),
     "glpma-fk solve delta_irb360 --legs 0.021727 0.008779 0.199391": (0, ["converged", "position"]),
+    "glpma-fk solve-all linear_delta_kossel_mini --legs 286.699199 296.251580 274.211481": (
+        0, ["2 distinct real assembly modes", "closed form"]),
     "glpma-fk urdf planar_3rpr_seed": (0, ["<robot", "leg1_actuator", "platform_mount"]),
 }
 #: README commands that need a running node: checked by test_readme_node_and_modes
