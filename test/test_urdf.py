@@ -46,9 +46,21 @@ def known_modes(name: str) -> list:
         q0 = np.asarray(doc["example_actuator_positions"], dtype=float)
         # 1e-6 of the scale: the modes are written to 1e-9 mm, a reading of the other branch is far off
         return [x for x in doc["known_solutions"]
-                if np.abs(model.actuator_positions(np.asarray(x, dtype=float)) - q0).max() < 1e-6 * model.scale]
+                if np.abs(model.actuator_positions(np.asarray(x, dtype=float)) - q0).max() < 1e-6 * model.scale
+                and _in_reach(model, x)]
     modes = doc["published_solutions"]
     return [modes[k] for k in ROLLAND_MODES] if name == "hexapod_66_rolland" else modes
+
+
+def _in_reach(model, x0) -> bool:
+    """The legs reach every pose of the test trajectory about ``x0`` within their actuator limits (a mode near
+    the limits' edge may leave them: it is not a mode the test can drive)."""
+    try:
+        for x in trajectory(model, x0):
+            model.actuator_positions(x)
+    except ValueError:
+        return False
+    return True
 
 
 def is_planar(model) -> bool:

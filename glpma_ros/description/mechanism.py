@@ -109,7 +109,7 @@ class Mechanism:
                                  f"prismatic)")
         elif model.kind not in ("hexapod_66", "planar_3rpr"):
             raise InputError(f"no URDF for manipulator kind {model.kind!r} (known: hexapod_66, planar_3rpr, "
-                             f"delta, rus_6, planar_3rrr)")
+                             f"the actuated families: delta, rus_6, planar_3rrr, linear_delta, pus_6, planar_3prr)")
         self.model = model
         self.prefix = str(prefix)
         self.planar = model.kind == "planar_3rpr" or (self.actuated and int(model.dim) == 2)
