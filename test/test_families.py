@@ -365,8 +365,9 @@ def test_spatial_solve_all_matches_the_proximal_point_6_6(family):
     _match([s.x for s in theirs.solutions], model.known_solutions, tol)
 
 
-@pytest.mark.parametrize("family", sorted(FULL_POSE))
-def test_full_pose_cold_estimates_converge_from_random_poses(family):
+@pytest.mark.parametrize("family, solver", [(f, "glpma") for f in sorted(FULL_POSE)]
+                         + [("pus_6", "g3pcx"), ("planar_3prr", "g3pcx")])
+def test_full_pose_cold_estimates_converge_from_random_poses(family, solver):
     """Cold (no previous pose), evaluation-capped: every estimate converges to an assembly mode of its reading
     (leg residuals at round-off); which mode a cold start reports is not determined."""
     from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
@@ -390,7 +391,7 @@ def test_full_pose_cold_estimates_converge_from_random_poses(family):
     evals = 500_000 if model.dim == 3 else 100_000      # the hexapods' and the planar models' caps
     for k, x in enumerate(poses):
         legs = model.legs_from_sensors(model.actuator_positions(x))
-        e = Estimator(model, time_budget_s=CAPPED_BUDGET_S, seed=k, max_evals=evals).estimate(legs)
+        e = Estimator(model, solver=solver, time_budget_s=CAPPED_BUDGET_S, seed=k, max_evals=evals).estimate(legs)
         assert e.converged, e.message
         assert e.max_residual <= ROUND_OFF_REL * model.scale
 
