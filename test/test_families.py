@@ -315,12 +315,16 @@ def test_service_answers_carriage_positions_in_metres():
     from glpma_ros.node.service import FkService
     model = family_model("linear_delta")
     svc = FkService({"manipulator_config": str(CONFIG / "linear_delta_kossel_mini.yaml"),
-                     "time_budget_ms": GENEROUS_BUDGET_S * 1e3})
+                     "joint_names": ["tower_x", "tower_y", "tower_z"], "time_budget_ms": GENEROUS_BUDGET_S * 1e3})
     assert svc.input_topic == "actuator_positions"
-    out = svc.handle((model.example_actuator_positions * 1e-3).tolist(), 1)
+    q_m = model.example_actuator_positions * 1e-3
+    out = svc.handle(q_m.tolist(), 1)
     assert out.pose is not None, out.reason
     # metres; the known solution is written to 1e-9 mm
     assert np.max(np.abs(np.array(out.pose.position) - model.known_solutions[0] * 1e-3)) < 1e-9
+    # a JointState's prismatic joints in metres too, picked by joint_names
+    out = svc.handle_joint_state(["tower_z", "other", "tower_x", "tower_y"], [q_m[2], 7.0, q_m[0], q_m[1]], 3)
+    assert out.pose is not None and np.max(np.abs(np.array(out.pose.position) - model.known_solutions[0] * 1e-3)) < 1e-9
     bad = svc.handle([0.3, 0.5, 0.3], 2)
     assert bad.pose is None and bad.reason == "actuator 2 at 500 mm is outside its limits [80, 437.3] mm"
 
