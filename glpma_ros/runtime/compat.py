@@ -38,7 +38,7 @@ def version_tuple(text: str) -> tuple[int, ...]:
 NUMBA_INLINER_FIXED = (0, 59)
 #: ``inline=`` of the small compiled kernels the solvers' loops call (the residuals, the fitness, the
 #: operators): Numba-IR inlining lets LLVM keep the geometry in registers across the population loop
-#: (the CPU per evaluation with and without it: BENCHMARKS.md, "Compiled code"); where the inliner is
+#: (the CPU per evaluation with and without it: BENCHMARKS.md, "Design measurements"); where the inliner is
 #: slow, the calls stay calls and LLVM inlines what it judges worth it
 def inline_for(version: str) -> str:
     """The ``inline=`` option of the small kernels for Numba ``version``."""
