@@ -1,8 +1,9 @@
 """Part 4 of the ``outputs`` section, the rclpy adapter (imported only where rclpy is): :func:`variants` runs
-the node in this process under each set-up of :data:`VARIANTS` against :func:`main`, the client, in a process
-of its own: it publishes ``leg_lengths`` along the simulated loop, takes ``pose_estimate`` (and ``/tf`` and
-``pose_estimate_cov`` as any TF listener or RViz does, where asked), pairs each pose with its input and prints
-inputs sent, poses received, latency p50 and p99 (ms), poses wrong."""
+the node in this process under each set-up of :data:`PAIR` and :data:`VARIANTS` against :func:`main`, the
+client, in a process of its own: it publishes ``leg_lengths`` along the simulated loop, takes
+``pose_estimate`` (and ``/tf``, ``pose_estimate_cov`` and ``twist_estimate`` as any TF listener or RViz
+does, where asked), pairs each pose with its input and prints inputs sent, poses received, latency p50
+and p99 (ms), poses wrong."""
 from __future__ import annotations
 
 import subprocess
@@ -12,7 +13,7 @@ import time
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -36,17 +37,27 @@ POLL_S = 0.1
 CLIENT_SLACK_S = 300.0
 #: a process that keeps one core busy (the "one core busy" rows)
 BUSY_LOOP = "while True:\n    pass\n"
-#: (label, variant, /tf + covariance subscribed, one core busy): the echo floor and the shipped node with the
-#: usual subscribers, idle and with one core busy, then the shipped node alone and two other executor set-ups
+#: the SCHED_FIFO priority of the "thread_priority" row (ros2_control's default for its controller manager)
+RT_PRIORITY = 50
+#: the client subscribes to the shipped extra outputs as any TF listener or RViz does
+EXTRAS = "/tf + cov + twist subscribed"
+#: (label, variant, extra outputs subscribed, one core busy, parameters over the shipped params file)
+#: :data:`PAIR`: the echo floor and the shipped node, side by side in each of the ``runs``;
+#: :data:`VARIANTS`: once each after them -- both with one core busy, the node also with ``thread_priority``
+#: granted, then the shipped node alone and two other executor set-ups
+PAIR = (
+    (f"echo (the floor: no solve), {EXTRAS}", "echo", True, False, {}),
+    (f"shipped, {EXTRAS}", "shipped", True, False, {}),
+)
 VARIANTS = (
-    ("echo (the floor: no solve), /tf + cov subscribed", "echo", True, False),
-    ("shipped, /tf + cov subscribed", "shipped", True, False),
-    ("echo (the floor), /tf + cov subscribed, one core busy", "echo", True, True),
-    ("shipped, /tf + cov subscribed, one core busy", "shipped", True, True),
+    (f"echo (the floor), {EXTRAS}, one core busy", "echo", True, True, {}),
+    (f"shipped, {EXTRAS}, one core busy", "shipped", True, True, {}),
+    (f"shipped, {EXTRAS}, one core busy, thread_priority {RT_PRIORITY}", "shipped", True, True,
+     {"thread_priority": RT_PRIORITY}),
     ("SingleThreadedExecutor, newest input solved in the callback (shipped), nothing else subscribed",
-     "shipped", False, False),
-    ("SingleThreadedExecutor, hand-off to a solver thread", "submit", False, False),
-    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi", False, False),
+     "shipped", False, False, {}),
+    ("SingleThreadedExecutor, hand-off to a solver thread", "submit", False, False, {}),
+    ("MultiThreadedExecutor(2), reentrant group, solve in the callback", "multi", False, False, {}),
 )
 
 
@@ -92,48 +103,65 @@ def _node(variant: str, values: dict):
     return node
 
 
-def variants(sc, seconds: float, domain) -> tuple[dict, list[dict]]:
-    """Part 4: legs published by the client process at the DDS section's rate -> pose received, per row of
-    :data:`VARIANTS` (``sc``'s shipped params); ``domain()`` claims a fresh ROS domain for each.  Returns
-    (the set-up, the rows)."""
+def run_variant(sc, seconds: float, domain: int, variant: str, extras: bool, busy: bool, values: dict) -> dict:
+    """One row of part 4: the node of ``variant`` with ``values`` in this process on ROS domain ``domain``, the
+    client process publishing ``sc``'s legs at the DDS section's rate for ``seconds``."""
     rate_hz = END_TO_END[sc.model.kind][0]
-    values = {**params_of(sc.model.kind), "manipulator_config": sc.path}
-    rows = []
-    for label, variant, extras, busy in VARIANTS:
-        env = node_environment(domain())
-        rclpy.init()
-        node = _node(variant, values)
-        executor = MultiThreadedExecutor(2) if variant == "multi" else SingleThreadedExecutor()
-        executor.add_node(node)
-        spinner = threading.Thread(target=executor.spin, daemon=True)
-        spinner.start()
-        hog = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if busy else None
-        cpu0 = time.process_time()
-        try:
-            out = subprocess.run([sys.executable, "-m", __name__, sc.path, str(rate_hz), str(seconds),
-                                  "extras" if extras else "-", variant], env=env, capture_output=True, text=True,
-                                 timeout=seconds + CLIENT_SLACK_S, cwd=PACKAGE_PARENT)
-            cpu_s = time.process_time() - cpu0          # this process = the node under test
-            sent, poses, p50, p99, wrong = map(float, out.stdout.split())
-            st = node if variant == "echo" else node.service.stats
-            rows.append({"variant": label, "sent": int(sent), "received": st.handled + st.dropped, "poses": int(poses),
-                         "answered": poses / max(sent, 1), "dropped": st.dropped, "wrong": int(wrong), "p50": p50,
-                         "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6})
-        finally:
-            if hog is not None:
-                hog.kill()
-                hog.wait()
-            executor.shutdown()
-            spinner.join()
-            node.destroy_node()
-            rclpy.try_shutdown()
-    return {"manipulator": sc.label, "rate": rate_hz, "seconds": seconds}, rows
+    env = node_environment(domain)
+    rclpy.init()
+    node = _node(variant, values)
+    executor = MultiThreadedExecutor(2) if variant == "multi" else SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    hog = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if busy else None
+    cpu0 = time.process_time()
+    try:
+        out = subprocess.run([sys.executable, "-m", __name__, sc.path, str(rate_hz), str(seconds),
+                              "extras" if extras else "-", variant], env=env, capture_output=True, text=True,
+                             timeout=seconds + CLIENT_SLACK_S, cwd=PACKAGE_PARENT)
+        cpu_s = time.process_time() - cpu0          # this process = the node under test
+        sent, poses, p50, p99, wrong = map(float, out.stdout.split())
+        st = node if variant == "echo" else node.service.stats
+        return {"sent": int(sent), "received": st.handled + st.dropped, "poses": int(poses),
+                "answered": poses / max(sent, 1), "dropped": st.dropped, "wrong": int(wrong), "p50": p50,
+                "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6}
+    finally:
+        if hog is not None:
+            hog.kill()
+            hog.wait()
+        executor.shutdown()
+        spinner.join()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def variants(sc, seconds: float, domain, runs: int = 1) -> tuple[dict, list[dict]]:
+    """Part 4: legs published by the client process at the DDS section's rate -> pose received, for
+    :data:`PAIR` in each of ``runs`` runs, then each row of :data:`VARIANTS` (``sc``'s shipped params);
+    ``domain()`` claims a fresh ROS domain for each.  Each row of a node is set against the floor measured
+    beside it (``floor_p50`` / ``floor_p99``: the echo of its run, or of the first run, idle or with one core
+    busy as the row).  Returns
+    (the set-up, the rows)."""
+    shipped = {**params_of(sc.model.kind), "manipulator_config": sc.path}
+    plan = [(run, spec) for run in range(1, runs + 1) for spec in PAIR] + [(None, spec) for spec in VARIANTS]
+    rows, floors = [], {}
+    for run, (label, variant, extras, busy, overrides) in plan:
+        row = {"variant": label, "run": run, "busy": busy,
+               **run_variant(sc, seconds, domain(), variant, extras, busy, {**shipped, **overrides})}
+        if variant == "echo":
+            floors[(run, busy)] = row
+        else:               # the rows after the runs: the first run's floor, or their own (one core busy)
+            floor = floors.get((run, busy), floors.get((1, busy)))
+            row.update(floor_p50=floor and floor["p50"], floor_p99=floor and floor["p99"])
+        rows.append(row)
+    return {"manipulator": sc.label, "rate": END_TO_END[sc.model.kind][0], "seconds": seconds, "runs": runs}, rows
 
 
 def main(argv=None) -> int:
     """The client process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``
-    (``EXTRAS`` = ``extras``: also subscribe to ``/tf`` and ``pose_estimate_cov``; ``VARIANT`` = ``echo``:
-    the poses carry the legs they answer)."""
+    (``EXTRAS`` = ``extras``: also subscribe to ``/tf``, ``pose_estimate_cov`` and ``twist_estimate``;
+    ``VARIANT`` = ``echo``: the poses carry the legs they answer)."""
     config, rate, seconds, extras, variant = (argv or sys.argv[1:])[:5]
     rate, plan = float(rate), Plan(config)
     samples = [plan.sample(i / rate) for i in range(int(rate * float(seconds)))]
@@ -150,6 +178,7 @@ def main(argv=None) -> int:
     if extras == "extras":
         node.create_subscription(TFMessage, "/tf", lambda m: None, 100)
         node.create_subscription(PoseWithCovarianceStamped, "pose_estimate_cov", lambda m: None, 100)
+        node.create_subscription(TwistStamped, "twist_estimate", lambda m: None, 100)
     pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
