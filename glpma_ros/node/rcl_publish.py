@@ -40,7 +40,7 @@ class SerializedMessage(ctypes.Structure):
                 ("buffer_capacity", ctypes.c_size_t), ("allocator", _Allocator)]
 
 
-def _load_publish():
+def load_publish():
     """``rcl_publish_serialized_message`` as a ctypes function (which releases the GIL while it runs),
     or None when ``librcl`` does not load."""
     try:
@@ -61,7 +61,7 @@ def rcl_publish_function():
     """The ctypes ``rcl_publish_serialized_message`` (loaded once), None where there is no ``librcl``."""
     global _PUBLISH, _LOADED
     if not _LOADED:
-        _PUBLISH, _LOADED = _load_publish(), True
+        _PUBLISH, _LOADED = load_publish(), True
     return _PUBLISH
 
 

@@ -184,7 +184,7 @@ class FkEndpoints:
                             "markers": self.markers_pub, "joint_states": self.joint_states_pub}
         # the extras thread writes with the interpreter lock released (rcl_publish.RawPublisher): the thread
         # taking the inputs runs meanwhile
-        self._extra_writers = {name: RawPublisher(p).publish for name, p in self._extra_pubs.items()}
+        self.extra_writers = {name: RawPublisher(p) for name, p in self._extra_pubs.items()}
         self._subscribed_cache, self._subscribed_at = set(), -math.inf
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed, stats=service.stats, modes=service.modes)
@@ -208,7 +208,7 @@ class FkEndpoints:
             self.node.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
             self._destroy_publisher(publisher)
-        self._publishers_opened, self._extra_pubs, self._extra_writers, self.service = [], {}, {}, None
+        self._publishers_opened, self._extra_pubs, self.extra_writers, self.service = [], {}, {}, None
 
     def _newest(self, msg):
         """The newest input waiting: ``msg`` or a later one still in the subscription's queue (taken
@@ -294,7 +294,7 @@ class FkEndpoints:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers, ~/mechanism_joint_states of
         :class:`~glpma_ros.node.outputs.ExtraOutputs`, each written with the interpreter lock released."""
         for name, data in self._encode.extras(ex):
-            self._extra_writers[name](data)
+            self.extra_writers[name].publish(data)
 
     def _publish_diagnostics(self, report) -> None:
         if not self.active:
