@@ -256,7 +256,9 @@ def section(res, md_path=None) -> list[str]:
                       seconds=f"{setup['seconds']:g}", runs=setup.get("runs", 1),
                       target=f"{RCLPY_FLOOR_FACTOR:g}", answered=f"{100 * RCLPY_ANSWERED:g}"),
                 table(["variant", "run", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
-                       "latency p50 / p99 (ms)", "against the floor p50 / p99", "node CPU µs per input"], body)]
+                       "latency p50 / p99 (ms)", "against the floor p50 / p99", "node CPU µs per input"], body),
+                "load" in setup and prose("outputs", "rclpy_load", start=f"{setup['load'][0]:.1f}",
+                                          end=f"{setup['load'][1]:.1f}", policy=setup["policy"])]
     return md_blocks(HEADING, *out)
 
 

@@ -6,6 +6,7 @@ does, where asked), pairs each pose with its input and prints inputs sent, poses
 and p99 (ms), poses wrong."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import threading
@@ -35,8 +36,10 @@ SETTLE_S = 1.0
 POLL_S = 0.1
 #: seconds the client may take beyond its run (its start, discovery, the pairing)
 CLIENT_SLACK_S = 300.0
-#: a process that keeps one core busy (the "one core busy" rows)
-BUSY_LOOP = "while True:\n    pass\n"
+#: a process that keeps one core busy (the "one core busy" rows), at normal priority even where the bench runs
+#: under a real-time policy (``chrt``, to shield it from other processes): a real-time busy loop would
+#: starve its core instead
+BUSY_LOOP = "import os\nos.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))\nwhile True:\n    pass\n"
 #: the SCHED_FIFO priority of the "thread_priority" row (ros2_control's default for its controller manager)
 RT_PRIORITY = 50
 #: the client subscribes to the shipped extra outputs as any TF listener or RViz does
@@ -139,11 +142,13 @@ def run_variant(sc, seconds: float, domain: int, variant: str, extras: bool, bus
 def variants(sc, seconds: float, domain, runs: int = 1) -> tuple[dict, list[dict]]:
     """Part 4: legs published by the client process at the DDS section's rate -> pose received, for
     :data:`PAIR` in each of ``runs`` runs, then each row of :data:`VARIANTS` (``sc``'s shipped params);
-    ``domain()`` claims a fresh ROS domain for each.  Each row of a node is set against the floor measured
+    ``domain()`` claims a fresh ROS domain for each; the set-up says the load average (1 min) at the start and
+    end, and how the bench was scheduled.  Each row of a node is set against the floor measured
     beside it (``floor_p50`` / ``floor_p99``: the echo of its run, or of the first run, idle or with one core
     busy as the row).  Returns
     (the set-up, the rows)."""
     shipped = {**params_of(sc.model.kind), "manipulator_config": sc.path}
+    load_start, policy = os.getloadavg()[0], scheduling()
     plan = [(run, spec) for run in range(1, runs + 1) for spec in PAIR] + [(None, spec) for spec in VARIANTS]
     rows, floors = [], {}
     for run, (label, variant, extras, busy, overrides) in plan:
@@ -155,7 +160,16 @@ def variants(sc, seconds: float, domain, runs: int = 1) -> tuple[dict, list[dict
             floor = floors.get((run, busy), floors.get((1, busy)))
             row.update(floor_p50=floor and floor["p50"], floor_p99=floor and floor["p99"])
         rows.append(row)
-    return {"manipulator": sc.label, "rate": END_TO_END[sc.model.kind][0], "seconds": seconds, "runs": runs}, rows
+    return {"manipulator": sc.label, "rate": END_TO_END[sc.model.kind][0], "seconds": seconds, "runs": runs,
+            "load": (load_start, os.getloadavg()[0]), "policy": policy}, rows
+
+
+def scheduling() -> str:
+    """How this process (the node under test; the client inherits it) is scheduled, for the report."""
+    if os.sched_getscheduler(0) == os.SCHED_FIFO:
+        priority = os.sched_getparam(0).sched_priority
+        return f"SCHED_FIFO priority {priority} (shielded from the machine's other processes)"
+    return "normal scheduling"
 
 
 def main(argv=None) -> int:
