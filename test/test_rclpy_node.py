@@ -139,6 +139,8 @@ def test_tf_covariance_twist_and_markers(ros):
                                        Parameter("time_budget_ms", value=50.0),
                                        Parameter("publish_markers", value=True),
                                        Parameter("markers_period_s", value=0.0)])
+    # the extra outputs go through rcl's C call with the interpreter lock released (rcl_publish), here too
+    assert all(w.direct for w in node.endpoints.extra_writers.values())
     client = rclpy.create_node("glpma_fk_outputs_client")
     got = {"pose": [], "tf": [], "cov": [], "twist": [], "markers": []}
     pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
