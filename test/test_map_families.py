@@ -6,10 +6,12 @@ import sys
 
 import numpy as np
 import pytest
+from test_families_outputs import FAMILY_CONFIGS
 
 from conftest import CONFIG, ROOT
 from glpma_ros.config import load_manipulator
 from glpma_ros.modes.multistart import solve_all
+from glpma_tools.bench.report import APART
 from glpma_tools.workspace_map.grid import OUTSIDE, coordinates_of, pose_variables
 
 DELTA_YAML = CONFIG / "delta_irb360.yaml"
@@ -84,3 +86,19 @@ def test_full_pose_families_map_by_the_multistart(tmp_path, config):
 def test_bad_family_maps_are_one_line(tmp_path, args, words):
     p = _map(*args, "--out", tmp_path / "out", "--resolution", 2)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and words in p.stderr, p.stderr
+
+
+def test_bench_families_script_reports_every_family(tmp_path):
+    """tools/bench_families.py: a row per family beside the leg-length models, measured in one run, kept in
+    BENCHMARKS.md when glpma-fk bench rewrites it (report.APART)."""
+    assert "doc/bench/families.md" in APART
+    out = tmp_path / "families.md"
+    r = subprocess.run([sys.executable, str(ROOT / "tools" / "bench_families.py"), "--steps", "40", "--cold", "2",
+                        "--markdown", str(out)], capture_output=True, text=True, timeout=900, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    for label in ("3-RPR", "6-6 hexapod", "load average", "closed_form", *(c[:-5] for c in FAMILY_CONFIGS)):
+        assert label in text
+    bad = subprocess.run([sys.executable, str(ROOT / "tools" / "bench_families.py"), "--cold", "0"],
+                         capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1
