@@ -71,19 +71,23 @@ def measure(name: str, steps: int, cold: int, rng) -> dict:
     warm_ok = sum(e.status == STATUS_CONVERGED for e in calls.results)
     err = max(model.distance(e.x, x) for e, x in zip(calls.results, xs[1:]) if e.x is not None)
     picks = rng.choice(len(xs), size=cold, replace=cold > len(xs))
-    cold_ok, cold_evals, cold_s = 0, [], []
+    cold_ok, cold_evals, cold_s, cold_other = 0, [], [], {}
     for k, i in enumerate(picks):
         e0 = Estimator(model, seed=int(k), time_budget_s=BUDGET_MS / 1e3)
         t0 = time.perf_counter()
         e = e0.estimate(legs[i])
         cold_s.append(time.perf_counter() - t0)
         cold_ok += e.status == STATUS_CONVERGED
+        if e.status != STATUS_CONVERGED:
+            cold_other[e.status] = cold_other.get(e.status, 0) + 1
         cold_evals.append(e.evaluations)
     method = default_method(model)
     t0 = time.perf_counter()
     modes = solve_all(model, legs[0], method=method, seed=0)
     all_s = time.perf_counter() - t0
+    calm = us[~calls.preempted] if np.any(~calls.preempted) else us
     return {"legs": model.n_legs, "p50": np.percentile(us, 50), "p99": np.percentile(us, 99), "max": us.max(),
+            "p99_calm": np.percentile(calm, 99), "cold_other": cold_other,
             "preempted": 100.0 * calls.preempted.mean(), "warm_ok": warm_ok, "steps": steps,
             "error_rel": err / model.scale, "cold": cold, "cold_ok": cold_ok,
             "cold_evals": float(np.mean(cold_evals)), "cold_p50_ms": 1e3 * float(np.median(cold_s)),
@@ -101,15 +105,16 @@ def report(rows, args, load_before, load_after, elapsed_s) -> str:
              f"new `Estimator` (no previous pose; the Delta: its closed form) under the node's default budget "
              f"({BUDGET_MS:g} ms): converged share, mean evaluations, median time. Solve-all: `solve_all` with the "
              f"family's default method at the loop's start.", "",
-             "| manipulator | legs | warm p50 (µs) | warm p99 (µs) | warm max (µs) | preempted | warm converged | "
-             "warm error (rel.) | cold converged | cold evaluations (mean) | cold p50 (ms) | solve-all method | "
-             "modes | solve-all (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| manipulator | legs | warm p50 (µs) | warm p99 (µs) | warm p99 not preempted (µs) | warm max (µs) | "
+             "preempted | warm converged | warm error (rel.) | cold converged | cold, other statuses | "
+             "cold evaluations (mean) | cold p50 (ms) | solve-all method | modes | solve-all (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, r in rows:
-        lines.append(f"| {label} | {r['legs']} | {r['p50']:.1f} | {r['p99']:.1f} | {r['max']:.0f} | "
-                     f"{r['preempted']:.1f} % | {r['warm_ok']}/{r['steps']} | {r['error_rel']:.1e} | "
-                     f"{r['cold_ok']}/{r['cold']} | {r['cold_evals']:.0f} | {r['cold_p50_ms']:.2f} | {r['method']} | "
-                     f"{r['modes']} | {r['all_s']:.2f} |")
+        other = ", ".join(f"{s} {n}" for s, n in sorted(r["cold_other"].items())) or "none"
+        lines.append(f"| {label} | {r['legs']} | {r['p50']:.1f} | {r['p99']:.1f} | {r['p99_calm']:.1f} | "
+                     f"{r['max']:.0f} | {r['preempted']:.1f} % | {r['warm_ok']}/{r['steps']} | {r['error_rel']:.1e} | "
+                     f"{r['cold_ok']}/{r['cold']} | {other} | {r['cold_evals']:.0f} | {r['cold_p50_ms']:.2f} | "
+                     f"{r['method']} | {r['modes']} | {r['all_s']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
