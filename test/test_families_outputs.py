@@ -155,3 +155,5 @@ def test_service_publishes_covariance_and_twist_of_the_joint_velocities(family):
                        atol=1e-6 * np.abs(jac.covariance[np.ix_(jac.columns, jac.columns)]).max())
     got = np.concatenate(extras.twist)
     assert np.allclose(got, true_twist, rtol=0, atol=1e-5 * np.abs(true_twist).max())   # FD Jacobian error
+    values = svc.diagnostics().as_dict()
+    assert float(values["actuator noise std (rad)"]) == DEFAULT_ANGLE_NOISE_RAD      # the parameter, as set
