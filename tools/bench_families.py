@@ -36,7 +36,7 @@ from glpma_ros.models.families import is_family
 from glpma_ros.models.rotations import quaternion_from_matrix
 from glpma_ros.modes.multistart import default_method, solve_all
 from glpma_tools.sim.trajectories import start_pose, variables_along
-from glpma_tools.timing import timed_calls, warm_up
+from glpma_tools.timing import git_revision, timed_calls, warm_up
 
 #: the leg-length models, measured in the same run as the families
 LEG_LENGTH_CONFIGS = (("3-RPR", "planar_3rpr_seed.yaml"), ("6-6 hexapod", "hexapod_66_rolland.yaml"))
@@ -104,7 +104,9 @@ def report(rows, args, load_before, load_after, elapsed_s) -> str:
              f"true pose over the geometry's scale. Cold: {args.cold} inputs at random points of the loop, each by a "
              f"new `Estimator` (no previous pose; the Delta: its closed form) under the node's default budget "
              f"({BUDGET_MS:g} ms): converged share, mean evaluations, median time. Solve-all: `solve_all` with the "
-             f"family's default method at the loop's start.", "",
+             f"family's default method at the loop's start. A cold status `budget_exhausted` is the node's wall-clock "
+             f"budget running out (the only status that depends on time: on a loaded machine less work fits in it); "
+             f"the tests check cold success with a generous budget. Revision {git_revision()}.", "",
              "| manipulator | legs | warm p50 (µs) | warm p99 (µs) | warm p99 not preempted (µs) | warm max (µs) | "
              "preempted | warm converged | warm error (rel.) | cold converged | cold, other statuses | "
              "cold evaluations (mean) | cold p50 (ms) | solve-all method | modes | solve-all (s) |",
