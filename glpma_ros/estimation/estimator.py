@@ -300,8 +300,9 @@ class Estimator:
     @property
     def decision_reserve_s(self) -> float:
         """The time (s) the deciding work is expected to take, with its margin: the settle of a
-        search's end point and the whole probe."""
-        return DECISION_MARGIN * (self._settle_s.s + self._chunk_s.s * math.ceil(PROBE_STARTS / PROBE_CHUNK))
+        search's end point and the whole probe; with redundant legs also the isolation of a faulty leg."""
+        return DECISION_MARGIN * (self._settle_s.s + self._chunk_s.s * math.ceil(PROBE_STARTS / PROBE_CHUNK)
+                                  + self.redundant.isolation_s)
 
     @property
     def smallest_deciding_budget_s(self) -> float:
@@ -336,6 +337,8 @@ class Estimator:
             t2 = time.thread_time()
         self._settle_s.note(t1 - t0)
         self._chunk_s.note(t2 - t1)
+        if self.redundant.active:
+            self.redundant.isolator.calibrate(legs, self._probe_starts[0])
 
     # -- solving ------------------------------------------------------------------
     def estimate(self, legs) -> Estimate:
@@ -396,7 +399,7 @@ class Estimator:
         near = math.inf
         if self.last_x is not None:
             near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
-        advance = self.redundant.judge(e, legs, leg_fitness, self.last_x, near)
+        advance = self.redundant.judge(e, legs, leg_fitness, self.last_x, near, deadline=t0 + self.time_budget_s)
         if advance is not None:
             self._advance(advance, legs)
         e.elapsed_s = time.perf_counter() - t0
