@@ -135,6 +135,7 @@ def test_the_estimator_does_no_work_after_its_deadline(kind, warm, clock, monkey
     model = request.getfixturevalue(kind)
     start_x = request.getfixturevalue("rpr_solutions" if kind == "rpr" else "hex_published")[1] if warm else None
     statuses = set()
+    above = {}                # legs -> statuses at budgets above the smallest deciding budget
     for legs in RPR_CASES if kind == "rpr" else HEX_CASES:
         for budget in BUDGETS_S:
             est = Estimator(model, time_budget_s=budget, initial_pose=start_x, max_evals=10**9)
@@ -151,7 +152,11 @@ def test_the_estimator_does_no_work_after_its_deadline(kind, warm, clock, monkey
             if budget == 0.0:
                 assert e.status == "budget_exhausted" and not clock.starts
             statuses.add(e.status)
+            if budget >= est.smallest_deciding_budget_s:
+                # above the smallest deciding budget the deciding work fits: the status is the work's
+                above.setdefault(tuple(legs), set()).add(e.status)
     assert "budget_exhausted" in statuses and statuses & {"converged", "no_solution"}, statuses
+    assert above and all(len(s) == 1 and s <= {"converged", "no_solution"} for s in above.values()), above
 
 
 def _eight_legs():
