@@ -466,9 +466,10 @@ class Estimator:
                 break
         return best._replace(nfev=nfev, nit=nit), True
 
-    def _closed_form(self, legs):
+    def _closed_form(self, legs, deadline):
         """A model with a closed-form forward kinematics (the three-leg Delta's sphere intersection,
-        :meth:`~glpma_ros.models.actuated.DeltaTranslation.closed_form`): every mode polished, as candidates
+        :meth:`~glpma_ros.models.actuated.DeltaTranslation.closed_form`): every mode polished (a polish
+        expected to end after ``deadline`` is not run: the mode is evaluated where it is), as candidates
         ``(key, point, "cold")``; the key is the distance from the previous pose, or without one the model's
         preference (its working mode first).  None for the other models."""
         modes = getattr(self.model, "closed_form", None)
@@ -477,7 +478,8 @@ class Estimator:
             return None
         found = []
         for rank, x in enumerate(self.model.preferred_order(xs)):
-            p = self._polish(x, legs)
+            fits = time.perf_counter() + self._settle_s.s <= deadline
+            p = self._polish(x, legs, max_iter=SETTLE_MAX_ITER if fits else 0)
             found.append((p.distance if self.last_x is not None else float(rank), p, "cold"))
         return found
 
@@ -524,7 +526,7 @@ class Estimator:
             spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
-        closed = self._closed_form(legs)
+        closed = self._closed_form(legs, deadline)
         if closed is not None:    # a closed form gives every mode: no search
             evaluations += sum(p.nfev for _, p, _ in closed)
             tried += [(p, stage) for _, p, stage in closed]
