@@ -225,7 +225,10 @@ class Costs:
         c0 = time.thread_time()
         p = refine.polish(model, x, legs, rng, tolerance=tolerance, max_iter=max_iter, deadline=deadline)
         if p.nfev > 0 and deadline is not None:
-            self.per_iteration = self._track(self.per_iteration or 0.0, (time.thread_time() - c0) / p.nfev)
+            # per iteration of the Levenberg-Marquardt (at most max_iter), the round-off search's cheaper
+            # evaluations included: what the next cap divides the time left by
+            self.per_iteration = self._track(self.per_iteration or 0.0,
+                                             (time.thread_time() - c0) / min(p.nfev, max(max_iter, 1)))
         self.term.nfev += p.nfev
         return p
 
