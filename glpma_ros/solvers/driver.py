@@ -109,7 +109,7 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     last_polish_f = np.inf
     refined = None              # best refinement result (a stationary point unless cut short)
     warm = None
-    costs = Costs(term, model)
+    costs = Costs(term, name, model)
     if polish and center is not None:
         warm = costs.polish(model, np.asarray(center, dtype=float), problem.legs, rng, tolerance)
         refined = warm[:2] if math.isfinite(warm[1]) else None
@@ -152,6 +152,7 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
         c0, nfev = time.thread_time(), term.nfev
         gens = state.step(chunk, term)
         costs.note_evals(time.thread_time() - c0, term.nfev - nfev)
+        costs.on_chunks = costs.on_chunks or term.nfev > nfev
         nit += gens
         if term.nfev == nfev and term.status(state.best()[1]) is None:
             break  # fewer evaluations left than one generation needs
@@ -162,8 +163,9 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
                    stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
 
 
-#: the costs measured by the last solve under a deadline, per model (kind, legs): the next solve's first
-#: estimates, before it has measured its own (the compiled work costs the same from one solve to the next)
+#: the costs measured by the last solve under a deadline, per solver and model (kind, legs): the next solve's
+#: first estimates, before it has measured its own (the compiled work costs the same from one solve to the
+#: next; a generation of one solver costs per evaluation what another's does not)
 _LAST_COSTS: dict = {}
 
 
@@ -174,15 +176,18 @@ class Costs:
     of the refinement.  Each estimate is the latest measure, or :data:`COST_DECAY` less than the previous
     estimate when that is larger."""
 
-    def __init__(self, term: Termination, model):
+    def __init__(self, term: Termination, name: str, model):
         self.term = term
-        self.key = (model.kind, model.n_legs)
+        self.key = (name, model.kind, model.n_legs)
         # s per fitness evaluation (0: not measured yet), s per refinement iteration (None: not measured yet)
         self.per_eval, self.per_iteration = _LAST_COSTS.get(self.key, (0.0, None))
+        # the time per evaluation was measured on a chunk of generations (the initial population's evaluation
+        # alone, one vectorised call, says nothing of what a generation adds around its evaluations)
+        self.on_chunks = self.key in _LAST_COSTS
 
     def keep(self) -> None:
         """These estimates become the next solve's first ones."""
-        if self.term.deadline is not None and self.per_eval > 0.0:
+        if self.term.deadline is not None and self.on_chunks:
             _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration)
 
     @staticmethod
@@ -198,10 +203,13 @@ class Costs:
 
     def generations(self, state) -> int:
         """Generations of the next chunk: as many as fit in :data:`CHUNK_SHARE` of the time left (at most
-        :data:`CHUNK_GENERATIONS`), at least one; 0 when not even one fits before the deadline."""
+        :data:`CHUNK_GENERATIONS`; one until a chunk has been measured), at least one; 0 when not even one
+        fits before the deadline."""
         left = self.left()
         if self.per_eval * state.evals_in(1) > left:
             return 0
+        if not self.on_chunks:
+            return 1
         n = 1
         while n < CHUNK_GENERATIONS and self.per_eval * state.evals_in(2 * n) <= CHUNK_SHARE * left:
             n *= 2
