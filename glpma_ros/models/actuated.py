@@ -55,6 +55,24 @@ class ActuatedLegs:
     actuator_limits: np.ndarray | None = None
     actuator_offsets: np.ndarray | None = None
 
+    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
+        """The legs, then the pose model this mixin precedes (built on the actuators' origins as base joints),
+        then the compiled kernels' data (:meth:`_actuated_data`) and the cold start's box
+        (:meth:`_initial_range` of :meth:`reach_box`), both the family's own."""
+        self.kind = kind
+        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
+        super().__init__(self.origin, platform, unit, None)
+        self.data = self._actuated_data()
+        self.initial_range = self._initial_range(*self.reach_box())
+
+    def _actuated_data(self) -> tuple:
+        """The model's data as the compiled kernels take it (:meth:`~.base.Manipulator._make_data`)."""
+        raise NotImplementedError
+
+    def _initial_range(self, lo, hi) -> tuple:
+        """The uniform initial range of a cold start's variables, from the platform origin's reach box."""
+        raise NotImplementedError
+
     def _set_legs(self, actuators, origin, axis, crank, rods, actuator_limits=None):
         self.actuators = np.ascontiguousarray(actuators, dtype=np.int64)
         self.origin = np.ascontiguousarray(origin, dtype=float)
@@ -246,15 +264,13 @@ class DeltaTranslation(ActuatedLegs, Manipulator):
     kind_id = KIND_ACTUATED_TRANSLATION
     settings_like = "planar_3rpr"        # the papers' population sizes for three variables
 
-    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
-        self.kind = kind
-        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
-        super().__init__(self.origin, platform, unit, None)
+    def _actuated_data(self) -> tuple:
         self.n_res = self.n_legs
-        self.data = self._make_data(self.platform, self.platform)
         self.pose_column_scale = np.ones(3)
-        lo, hi = self.reach_box()
-        self.initial_range = (lo, hi)
+        return self._make_data(self.platform, self.platform)
+
+    def _initial_range(self, lo, hi) -> tuple:
+        return lo, hi
 
     def joints(self, x) -> np.ndarray:
         return np.asarray(x, dtype=float)[:3] + self.platform
@@ -330,14 +346,12 @@ class ActuatedSpatial(ActuatedLegs, Hexapod66):
     kind_id = KIND_ACTUATED_SPATIAL
     settings_like = "hexapod_66"
 
-    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
-        self.kind = kind
-        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
-        super().__init__(self.origin, platform, unit, None)
-        self.data = self._make_data(self.abc, self.platform, self.d0sq)
-        lo, hi = self.reach_box()
+    def _actuated_data(self) -> tuple:
+        return self._make_data(self.abc, self.platform, self.d0sq)
+
+    def _initial_range(self, lo, hi) -> tuple:
         arm = float(np.linalg.norm(self.frame, axis=1).max())     # a frame joint is this far from the origin
-        self.initial_range = (np.tile(lo - arm, 3), np.tile(hi + arm, 3))
+        return np.tile(lo - arm, 3), np.tile(hi + arm, 3)
 
     def pose_residuals_jacobian(self, state, legs):
         R, p = state
@@ -354,15 +368,13 @@ class ActuatedPlanar(ActuatedLegs, Planar3RPR):
     kind_id = KIND_ACTUATED_PLANAR
     settings_like = "planar_3rpr"
 
-    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
-        self.kind = kind
-        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
-        super().__init__(self.origin, platform, unit, None)
-        self.data = self._make_data(self.platform, self.platform)
-        lo, hi = self.reach_box()
-        arm = float(np.linalg.norm(self.platform, axis=1).max())
-        self.initial_range = (np.array([lo[0] - arm, lo[1] - arm, -math.pi]),
-                              np.array([hi[0] + arm, hi[1] + arm, math.pi]))
+    def _actuated_data(self) -> tuple:
+        return self._make_data(self.platform, self.platform)
+
+    def _initial_range(self, lo, hi) -> tuple:
+        arm = float(np.linalg.norm(self.platform, axis=1).max())   # a platform joint is this far from its origin
+        return (np.array([lo[0] - arm, lo[1] - arm, -math.pi]),
+                np.array([hi[0] + arm, hi[1] + arm, math.pi]))
 
     def pose_residuals_jacobian(self, state, legs):
         c, s = math.cos(state[2]), math.sin(state[2])
