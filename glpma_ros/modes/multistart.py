@@ -112,7 +112,7 @@ from ..models.pose_kernels import joint_distance
 from ..solvers import refine
 from ..solvers.common import CONVERGED, SolveResult
 from ..solvers.lm import I_LEG_FITNESS, I_NFEV, solve_one
-from ..solvers.local import LocalSolver, make_settings
+from ..solvers.local import POSE_OUT, LocalSolver, make_settings
 
 METHODS = ("homotopy", "multistart", "g3pcx", "exact", "closed_form")
 
@@ -341,7 +341,7 @@ def _multistart_batch(kind, data, platform, frame, legs, ref, starts, settings, 
     ``counters[C_STOP]`` says why it returned
     (``GOING``: the batch is used up; ``STALL_RULE``; ``FULL``: ``modes`` has no room left)."""
     n_vars = modes.shape[1]
-    info = n_vars + 7
+    info = n_vars + POSE_OUT
     counters[C_STOP] = GOING
     for k in range(starts.shape[0]):
         if counters[C_MODES] == modes.shape[0]:
