@@ -219,22 +219,16 @@ class ActuatedLegs:
         q = np.zeros(self.n_legs) if self.actuator_limits is None else self.actuator_limits.mean(axis=1)
         return self.legs_from_sensors(q)
 
-    def home_variables(self) -> np.ndarray:
+    def home_variables(self) -> np.ndarray | None:
         """A pose inside the workspace (warm-ups, demos): the config's first known solution, else the working
-        mode at the actuators' mid-range (zero without limits)."""
+        mode at the actuators' mid-range (zero without limits) by the closed form; None where that needs a
+        solve of :meth:`reference_legs` (:func:`~glpma_ros.runtime.precompile.warm_up_pose` does it)."""
         known = getattr(self, "known_solutions", None)
         if known is not None:
             return np.array(known[0], dtype=float)
-        legs = self.reference_legs()
         closed = getattr(self, "closed_form", None)
-        xs = closed(legs) if closed is not None else None
-        if xs:
-            return self.preferred_order(xs)[0]
-        from ..estimation.estimator import Estimator  # the estimator imports the models
-        e = Estimator(self, seed=0).estimate(legs)
-        if e.x is None:
-            raise ValueError(f"{self.kind}: no assembly at the actuators' mid-range; give known_solutions")
-        return np.array(e.x, dtype=float)
+        xs = closed(self.reference_legs()) if closed is not None else None
+        return self.preferred_order(xs)[0] if xs else None
 
     def reach_box(self) -> tuple[np.ndarray, np.ndarray]:
         """A box holding every platform joint's reachable region shifted to the platform origin: the

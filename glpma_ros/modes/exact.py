@@ -82,6 +82,7 @@ import time
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import reduce
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -295,7 +296,6 @@ def msolve_executable() -> str:
     """Path of the msolve executable of the ``exact`` extra (or on PATH), or
     :class:`ExactUnavailableError`."""
     try:
-        from importlib import metadata
         for file in metadata.files(MSOLVE_DISTRIBUTION) or ():
             if str(file).replace(os.sep, "/").endswith(MSOLVE_WHEEL_PATH):
                 path = Path(file.locate()).resolve()

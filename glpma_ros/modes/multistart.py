@@ -113,6 +113,7 @@ from ..solvers import refine
 from ..solvers.common import CONVERGED, SolveResult
 from ..solvers.lm import I_LEG_FITNESS, I_NFEV, solve_one
 from ..solvers.local import POSE_OUT, LocalSolver, make_settings
+from . import exact, homotopy
 
 METHODS = ("homotopy", "multistart", "g3pcx", "exact", "closed_form")
 
@@ -283,7 +284,6 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
 def default_method(model) -> str:
     """``"closed_form"`` where the model has one (the Delta), ``"homotopy"`` where the model's family has a
     start system, else ``"multistart"``."""
-    from . import homotopy
     if has_closed_form(model):
         return "closed_form"
     return "homotopy" if homotopy.has_start_system(model) else "multistart"
@@ -634,7 +634,6 @@ def multistart(model, legs, *, seed=0, max_starts=MAX_STARTS, budget_s=None, pol
 # -- certified ----------------------------------------------------------------------------------
 def exact_modes(model, legs, *, seed=0) -> AllSolutions:
     """Every real mode certified by msolve (:mod:`glpma_ros.modes.exact`), each polished."""
-    from . import exact
     t0 = time.perf_counter()
     sol = exact.solve_exact(model, legs)
     rng = np.random.default_rng(seed)
@@ -678,7 +677,6 @@ def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None) -> AllSolutions:
     """Every real mode by the parameter homotopy (:mod:`glpma_ros.modes.homotopy`), each polished with every
     leg; redundant legs: those the polish leaves consistent (:func:`consistent_fitness`).  Incomplete and
     msolve installed (not with redundant legs): msolve's modes instead, ``fallback = "exact"``."""
-    from . import homotopy
     t0 = time.perf_counter()
     res = homotopy.solve(model, legs, seed=seed)
     rng = np.random.default_rng(seed)

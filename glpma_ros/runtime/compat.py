@@ -31,7 +31,7 @@ def check_numba(version: str | None = None) -> None:
     ``version``: the version to judge (default: the installed one)."""
     if version is None:
         try:
-            import numba
+            import numba  # whether it imports is what is checked
         except ImportError:
             raise GlpmaError(f"numba is not installed; glpma_ros needs numba >= "
                              f"{'.'.join(map(str, NUMBA_FLOOR))}: {NUMBA_HOWTO}") from None
