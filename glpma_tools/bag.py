@@ -281,7 +281,7 @@ def _exit_status(summaries) -> int:
 
 def run_fleet(job: BagJob, pairs: list, args) -> int:
     """Every (input, output) pair as a task on the engine; the summary table in the inputs' order."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # the tools extra: optional, imported where used
     workers = min(os.cpu_count() or 1, len(pairs)) if args.workers is None else args.workers
     engine = engine_name(workers, args.scheduler)
     Path(args.out_dir).mkdir(parents=True, exist_ok=True)

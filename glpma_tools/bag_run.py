@@ -33,6 +33,7 @@ from glpma_ros.node.dds.rosbag import (
     open_bag,
 )
 from glpma_ros.node.diagnostics import ERROR, OK, WARN
+from glpma_ros.node.service import FkService
 
 #: the ROS 2 types the tool writes besides those it reads (glpma_ros.node.dds.rosbag)
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
@@ -142,6 +143,7 @@ def topic_name(name: str, node_name: str, remaps: dict) -> str:
 
 
 def _qos(depth: int):
+    # the bag extra: optional, imported where used
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
     infinite = QosTime(*INFINITE_DURATION)
     return Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, QosDurability.VOLATILE, infinite, infinite,
@@ -149,7 +151,7 @@ def _qos(depth: int):
 
 
 def _storage_of(reader) -> str:
-    from rosbags.rosbag2.storage_mcap import McapReader
+    from rosbags.rosbag2.storage_mcap import McapReader  # the bag extra: optional, imported where used
     storages = getattr(reader.storage, "storages", None) or [reader.storage]
     return "mcap" if isinstance(storages[0], McapReader) else "sqlite3"
 
@@ -160,7 +162,7 @@ class BagRun:
     def __init__(self, service, input_path: Path, output_path: Path, *, input_topic: str, pose_topic: str,
                  tf_topic: str | None, status_topic: str, child_frame_id: str, storage: str | None,
                  progress: bool, log):
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import Stores, get_typestore  # the bag extra: optional, imported where used
         self.service, self.log = service, log
         self.model = service.model
         self.joint_state = service.input_type == P.INPUT_JOINT_STATE
@@ -213,7 +215,7 @@ class BagRun:
     # -- output connections ------------------------------------------------------------------------
     def _copy_connections(self, writer) -> dict:
         """Input connection id -> output connection, for every topic that can be copied."""
-        from rosbags.interfaces import MessageDefinitionFormat
+        from rosbags.interfaces import MessageDefinitionFormat  # the bag extra: optional, imported where used
         from rosbags.rosbag2 import WriterError
         out, made = {}, {}
         for c in self.reader.connections:
@@ -268,8 +270,8 @@ class BagRun:
 
     # -- the loop --------------------------------------------------------------------------------------
     def run(self) -> Summary:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        from tqdm import tqdm
+        from rosbags.rosbag2 import StoragePlugin, Writer  # the bag extra: optional, imported where used
+        from tqdm import tqdm  # the tools extra: optional, imported where used
         parent = self.output_path.parent
         parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{self.output_path.name}.", dir=parent))
@@ -278,6 +280,7 @@ class BagRun:
                             storage_plugin=StoragePlugin.MCAP if self.storage == "mcap" else StoragePlugin.SQLITE3)
             mode = self.reader.compression_mode
             if mode in ("file", "message"):
+                # the bag extra: optional, imported where used
                 from rosbags.rosbag2 import CompressionFormat, CompressionMode
                 writer.set_compression(CompressionMode[mode.upper()], CompressionFormat.ZSTD)
             writer.open()
@@ -375,7 +378,7 @@ class _TqdmHandler(logging.Handler):
     """Log lines that do not break the progress bar."""
 
     def emit(self, record):
-        from tqdm import tqdm
+        from tqdm import tqdm  # the tools extra: optional, imported where used
         tqdm.write(self.format(record), file=sys.stderr)
 
 
@@ -406,7 +409,6 @@ class BagJob:
     log_level: int = logging.WARNING
 
     def service(self, log):
-        from glpma_ros.node.service import FkService
         try:
             return FkService(self.values, logger=log, node_name=self.node_name)
         except ValueError as exc:

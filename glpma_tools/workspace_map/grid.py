@@ -21,6 +21,7 @@ import yaml
 
 from glpma_ros.config import model_from_dict
 from glpma_ros.errors import InputError
+from glpma_ros.modes.multistart import DOUBLE_CONDITIONING, solve_all
 
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
 COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
@@ -109,7 +110,6 @@ def double_modes(model, found, legs) -> int:
     (the multistart reports it; the G3-PCX runs' modes are measured here).  Such a mode stands for two
     real modes met at a singularity (a double root), for two closer than the tolerance, or for the real
     shadow of a complex pair: the count of distinct modes there is decided by round-off."""
-    from glpma_ros.modes.multistart import DOUBLE_CONDITIONING
     if found.conditioning:
         return found.double_modes
     return sum(model.conditioning(s.x, legs) < DOUBLE_CONDITIONING for s in found.solutions)
@@ -119,7 +119,6 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int]
     """(real assembly modes, conditioning, sign of det J, double modes among them) at grid point
     ``index``; the sign is 0 with redundant legs (a non-square J: the singularities are where the
     conditioning vanishes)."""
-    from glpma_ros.modes.multistart import solve_all
     x = pose_variables(model, spec.coordinates(index))
     try:
         legs = model.check_legs(model.inverse_kinematics(x))
