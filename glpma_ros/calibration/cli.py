@@ -22,7 +22,8 @@ from ..estimation.estimator import STATIONARY
 from ..models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from ..solvers.local import LocalSolver
 from . import data as D
-from .identify import GROUPS, NAMED_COMPONENT, WEAK_SE_SHARE, Geometry, Measurements, identify, leg_residuals
+from .identify import GROUPS, WEAK_SE_SHARE, Geometry, Measurements, identify, leg_residuals
+from .parameters import NAMED_COMPONENT
 from .yaml_edit import check_edit, edit_config
 
 PROG = "glpma-fk calibrate"
