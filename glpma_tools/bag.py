@@ -60,7 +60,8 @@ from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.node import params as P
 from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 
-from .bag_run import OFFLINE_BUDGET_MS, BagJob, Summary, make_logger, process_bag, topic_name
+from .bag_outcome import OFFLINE_BUDGET_MS, Summary
+from .bag_run import BagJob, make_logger, process_bag, topic_name
 from .extras import require
 from .parallel import EngineError, engine_name, run_tasks
 from .tables import fmt, table
