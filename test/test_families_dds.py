@@ -1,5 +1,8 @@
 """An actuated family through the node: the DDS twin (real processes, the test's claimed domain) answers a
 Delta's actuator angles on ``actuator_positions`` with the right poses, driven by the mock controller."""
+import json
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -7,25 +10,36 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not installed")
 
-from conftest import CONFIG
+from conftest import CONFIG, ROOT
 from glpma_ros.config import load_manipulator
+from glpma_ros.node.dds import endpoints
+from glpma_ros.node.dds.messages import Float64MultiArray, PoseStamped
 from test_dds_integration import check_tracking, run_mock, start_node  # noqa: F401 - start_node: a fixture
 
 DELTA = CONFIG / "delta_irb360.yaml"
+#: (config, label, started warm at its working mode): the Delta starts cold (its closed form), the others at
+#: ``initial_pose`` = their first known solution
+TRACKED = [("delta_irb360.yaml", "delta", False), ("rus6_simulator.yaml", "6-RUS", True),
+           ("planar_3rrr_symmetric.yaml", "3-RRR", True)]
 
 
 @pytest.mark.timing
-def test_delta_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # noqa: F811 - the fixture
-    node = start_node("-p", f"manipulator_config:={DELTA}", "-p", "diagnostics_period_s:=0.2")
-    summary = run_mock(dds_env, str(DELTA), 100, 3)
-    check_tracking(summary, capsys, "delta 100 Hz")
+@pytest.mark.parametrize("config, label, warm", TRACKED, ids=[label for _, label, _ in TRACKED])
+def test_family_node_tracks_the_mock_controller(start_node, dds_env, capsys, config, label, warm):  # noqa: F811
+    """The node (at 100 Hz from the mock controller) answers every input of the family with the right pose."""
+    path = CONFIG / config
+    warm_start = []
+    if warm:
+        x0 = load_manipulator(path).known_solutions[0]
+        warm_start = ["-p", "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]"]
+    node = start_node("-p", f"manipulator_config:={path}", "-p", "diagnostics_period_s:=0.2", *warm_start)
+    summary = run_mock(dds_env, str(path), 100, 3)
+    check_tracking(summary, capsys, f"{label} 100 Hz")
     assert node.proc.poll() is None
 
 
 def test_delta_node_answers_three_angles(start_node):  # noqa: F811 - the fixture
     """Three angles (radians) on actuator_positions -> the pose of the config's known solution (metres)."""
-    from glpma_ros.node.dds import endpoints
-    from glpma_ros.node.dds.messages import Float64MultiArray, PoseStamped
     model = load_manipulator(DELTA)
     start_node("-p", f"manipulator_config:={DELTA}")
     participant = endpoints.Participant()
@@ -46,11 +60,6 @@ def test_delta_node_answers_three_angles(start_node):  # noqa: F811 - the fixtur
 
 @pytest.mark.timing
 def test_demo_drives_the_delta(tmp_path, dds_env, dds_domain):
-    import json
-    import subprocess
-    import sys
-
-    from conftest import ROOT
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--duration", "2", "--out", str(tmp_path),
                         "--manipulator", "delta", "--domain-id", str(dds_domain)],
                        cwd=ROOT, env=dds_env, capture_output=True, text=True, timeout=400)
@@ -58,26 +67,3 @@ def test_demo_drives_the_delta(tmp_path, dds_env, dds_domain):
     s = json.loads((tmp_path / "demo_delta.json").read_text())
     assert s["ok"] and s["poses_wrong"] == 0 and s["poses_received"] >= 1
     assert s["tracking_error"]["position_m"]["max"] <= 1e-6
-
-
-@pytest.mark.timing
-def test_rus6_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # noqa: F811 - the fixture
-    """A 6-RUS started warm at its working mode (``initial_pose``) tracks the controller's cranks."""
-    rus = CONFIG / "rus6_simulator.yaml"
-    x0 = load_manipulator(rus).known_solutions[0]
-    node = start_node("-p", f"manipulator_config:={rus}", "-p", "diagnostics_period_s:=0.2",
-                      "-p", "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]")
-    summary = run_mock(dds_env, str(rus), 100, 3)
-    check_tracking(summary, capsys, "6-RUS 100 Hz")
-    assert node.proc.poll() is None
-
-
-@pytest.mark.timing
-def test_3rrr_node_tracks_the_mock_controller(start_node, dds_env, capsys):  # noqa: F811 - the fixture
-    rrr = CONFIG / "planar_3rrr_symmetric.yaml"
-    x0 = load_manipulator(rrr).known_solutions[0]
-    node = start_node("-p", f"manipulator_config:={rrr}", "-p", "diagnostics_period_s:=0.2",
-                      "-p", "initial_pose:=[" + ", ".join(repr(float(v)) for v in x0) + "]")
-    summary = run_mock(dds_env, str(rrr), 100, 3)
-    check_tracking(summary, capsys, "3-RRR 100 Hz")
-    assert node.proc.poll() is None
