@@ -12,6 +12,10 @@ import math
 import numpy as np
 from numba import njit
 
+from ..runtime import numba_cache
+
+numba_cache.install()      # before the first compiled function (see numba_cache): this module may be imported first
+
 #: rejection sampling of the reachable region: candidate rounds before falling back to its bounding box
 REJECTION_ROUNDS = 20
 #: rejection sampling: candidates drawn per round = still needed / acceptance so far x this margin (one
