@@ -332,7 +332,7 @@ def config_dir() -> Path:
     for candidate in (here.parent / "config", Path(sys.prefix) / "share" / "glpma_ros" / "config"):
         if candidate.is_dir():
             return candidate
-    try:  # a sourced ROS 2 workspace
+    try:  # a sourced ROS 2 workspace: optional, imported where used
         from ament_index_python.packages import get_package_share_directory
         return Path(get_package_share_directory("glpma_ros")) / "config"
     except Exception:  # noqa: BLE001 - not a ROS environment

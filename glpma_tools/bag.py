@@ -60,7 +60,8 @@ from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.node import params as P
 from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 
-from .bag_run import OFFLINE_BUDGET_MS, BagJob, Summary, make_logger, process_bag, topic_name
+from .bag_outcome import OFFLINE_BUDGET_MS, Summary
+from .bag_run import BagJob, make_logger, process_bag, topic_name
 from .extras import require
 from .parallel import EngineError, engine_name, run_tasks
 from .tables import fmt, table
@@ -281,7 +282,7 @@ def _exit_status(summaries) -> int:
 
 def run_fleet(job: BagJob, pairs: list, args) -> int:
     """Every (input, output) pair as a task on the engine; the summary table in the inputs' order."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # the tools extra: optional, imported where used
     workers = min(os.cpu_count() or 1, len(pairs)) if args.workers is None else args.workers
     engine = engine_name(workers, args.scheduler)
     Path(args.out_dir).mkdir(parents=True, exist_ok=True)

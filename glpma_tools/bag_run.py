@@ -3,8 +3,8 @@ with the node's :class:`~glpma_ros.node.service.FkService`, write the output bag
 
 :func:`open_bag` opens the input read-only; :class:`BagRun` checks the topics, copies
 every connection, adds the pose / ``/tf`` / status connections, runs the loop and moves
-the staged output into place; :class:`BranchWatch` counts assembly-mode changes;
-:class:`Summary` is what the run reports.
+the staged output into place (what it reports: :mod:`glpma_tools.bag_outcome`); :class:`BagJob` and
+:func:`process_bag` make a run a task of the engines (one or several input bags).
 """
 from __future__ import annotations
 
@@ -14,14 +14,11 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from glpma_ros.errors import InputError
-from glpma_ros.estimation.estimator import CONTINUITY_FACTOR, MIN_SPREAD, STATUS_CONVERGED
-from glpma_ros.models.pose_kernels import joint_distance
+from glpma_ros.estimation.estimator import STATUS_CONVERGED
 from glpma_ros.node import params as P
 from glpma_ros.node.dds import cdr
 from glpma_ros.node.dds.rosbag import (
@@ -33,6 +30,9 @@ from glpma_ros.node.dds.rosbag import (
     open_bag,
 )
 from glpma_ros.node.diagnostics import ERROR, OK, WARN
+from glpma_ros.node.service import FkService
+
+from .bag_outcome import BranchWatch, Summary
 
 #: the ROS 2 types the tool writes besides those it reads (glpma_ros.node.dds.rosbag)
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
@@ -48,9 +48,6 @@ INFINITE_DURATION = (9223372036, 854775807)
 PROGRESS_EVERY = 500
 #: distinct status messages kept serialized (converged ones repeat; rejections rarely do)
 STATUS_CACHE_SIZE = 1024
-#: offline time budget per input: the largest the parameter accepts (ms), so that every status is
-#: decided by the work done
-OFFLINE_BUDGET_MS = P.SPECS["time_budget_ms"].range[1]
 
 
 def _leg_values(est, service) -> tuple:
@@ -58,78 +55,6 @@ def _leg_values(est, service) -> tuple:
     names = service.joint_names
     legs = (("suspect_leg", est.suspect_leg), ("excluded_leg", est.excluded_leg))
     return tuple((key, names[leg]) for key, leg in legs if leg is not None)
-
-
-@dataclass
-class Summary:
-    """What a run did."""
-
-    input: str
-    output: str
-    storage: str
-    input_topic: str
-    messages: int = 0                  # messages read (all topics)
-    inputs: int = 0                    # messages of the input topic
-    converged: int = 0                 # poses written
-    rejected: Counter = field(default_factory=Counter)   # reason -> inputs
-    mode_changes: int = 0
-    skipped_topics: dict = field(default_factory=dict)   # topic -> why it could not be copied
-    budget_ms: float = 0.0             # time budget per input
-    warm_up_s: float = 0.0
-    elapsed_s: float = 0.0             # reading, solving and writing (after the warm-up)
-    cpu_s: float = 0.0                 # this process' CPU time meanwhile (a shared machine's wall clock runs ahead)
-    solve_s: float = 0.0               # in the service alone
-
-    @property
-    def poses_per_s(self) -> float:
-        return self.converged / self.elapsed_s if self.elapsed_s > 0 else 0.0
-
-    def as_dict(self) -> dict:
-        return {"input": self.input, "output": self.output, "storage": self.storage,
-                "input_topic": self.input_topic, "messages": self.messages, "inputs": self.inputs,
-                "converged": self.converged, "rejected": sum(self.rejected.values()),
-                "rejected_by_reason": dict(self.rejected.most_common()), "assembly_mode_changes": self.mode_changes,
-                "skipped_topics": self.skipped_topics, "budget_ms": self.budget_ms, "warm_up_s": self.warm_up_s,
-                "elapsed_s": self.elapsed_s, "cpu_s": self.cpu_s, "solve_s": self.solve_s,
-                "poses_per_s": self.poses_per_s}
-
-    def text(self) -> str:
-        budget = (f"budget {self.budget_ms:g} ms per input, the parameter's maximum: statuses from the work done"
-                  if self.budget_ms >= OFFLINE_BUDGET_MS else f"budget {self.budget_ms:g} ms per input (--budget-ms)")
-        lines = [f"{self.output} ({self.storage}): {self.messages} messages copied, {self.inputs} inputs on "
-                 f"{self.input_topic}: {self.converged} converged, {sum(self.rejected.values())} rejected, "
-                 f"{self.mode_changes} assembly-mode changes",
-                 f"  {self.elapsed_s:.2f} s, CPU {self.cpu_s:.2f} s ({self.poses_per_s:,.0f} poses/s; solving "
-                 f"{self.solve_s:.2f} s, warm-up {self.warm_up_s:.1f} s before; {budget})"]
-        lines += [f"  rejected {n}: {reason}" for reason, n in self.rejected.most_common()]
-        lines += [f"  not copied: {topic}: {why}" for topic, why in self.skipped_topics.items()]
-        return "\n".join(lines)
-
-
-class BranchWatch:
-    """Counts assembly-mode changes: a converged pose farther from the previous one than
-    the estimator's continuity bound (``CONTINUITY_FACTOR`` times the leg movement) jumped
-    to another branch instead of following the legs.  The distance is the compiled
-    ``Manipulator.distance`` (:func:`~glpma_ros.models.pose_kernels.joint_distance`): it runs
-    for every input of a bag."""
-
-    def __init__(self, model, x=None, legs=None):
-        self.model = model
-        self.kind, self.platform = int(model.kind_id), np.ascontiguousarray(model.platform, dtype=float)
-        self.floor = MIN_SPREAD * model.scale
-        self.x = None if x is None else np.array(x, dtype=float)
-        self.legs = None if legs is None else np.array(legs, dtype=float).tolist()
-
-    def __call__(self, x, legs) -> bool:
-        x = np.array(x, dtype=float)
-        legs = np.asarray(legs, dtype=float).tolist()
-        jumped = False
-        if self.x is not None:
-            movement = max(abs(a - b) for a, b in zip(legs, self.legs))
-            bound = max(CONTINUITY_FACTOR * movement, self.floor)
-            jumped = joint_distance(self.kind, self.platform, x, self.x) > bound
-        self.x, self.legs = x, legs
-        return jumped
 
 
 def topic_name(name: str, node_name: str, remaps: dict) -> str:
@@ -142,6 +67,7 @@ def topic_name(name: str, node_name: str, remaps: dict) -> str:
 
 
 def _qos(depth: int):
+    # the bag extra: optional, imported where used
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
     infinite = QosTime(*INFINITE_DURATION)
     return Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, QosDurability.VOLATILE, infinite, infinite,
@@ -149,7 +75,7 @@ def _qos(depth: int):
 
 
 def _storage_of(reader) -> str:
-    from rosbags.rosbag2.storage_mcap import McapReader
+    from rosbags.rosbag2.storage_mcap import McapReader  # the bag extra: optional, imported where used
     storages = getattr(reader.storage, "storages", None) or [reader.storage]
     return "mcap" if isinstance(storages[0], McapReader) else "sqlite3"
 
@@ -160,7 +86,7 @@ class BagRun:
     def __init__(self, service, input_path: Path, output_path: Path, *, input_topic: str, pose_topic: str,
                  tf_topic: str | None, status_topic: str, child_frame_id: str, storage: str | None,
                  progress: bool, log):
-        from rosbags.typesys import Stores, get_typestore
+        from rosbags.typesys import Stores, get_typestore  # the bag extra: optional, imported where used
         self.service, self.log = service, log
         self.model = service.model
         self.joint_state = service.input_type == P.INPUT_JOINT_STATE
@@ -213,7 +139,7 @@ class BagRun:
     # -- output connections ------------------------------------------------------------------------
     def _copy_connections(self, writer) -> dict:
         """Input connection id -> output connection, for every topic that can be copied."""
-        from rosbags.interfaces import MessageDefinitionFormat
+        from rosbags.interfaces import MessageDefinitionFormat  # the bag extra: optional, imported where used
         from rosbags.rosbag2 import WriterError
         out, made = {}, {}
         for c in self.reader.connections:
@@ -268,8 +194,8 @@ class BagRun:
 
     # -- the loop --------------------------------------------------------------------------------------
     def run(self) -> Summary:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-        from tqdm import tqdm
+        from rosbags.rosbag2 import StoragePlugin, Writer  # the bag extra: optional, imported where used
+        from tqdm import tqdm  # the tools extra: optional, imported where used
         parent = self.output_path.parent
         parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{self.output_path.name}.", dir=parent))
@@ -278,6 +204,7 @@ class BagRun:
                             storage_plugin=StoragePlugin.MCAP if self.storage == "mcap" else StoragePlugin.SQLITE3)
             mode = self.reader.compression_mode
             if mode in ("file", "message"):
+                # the bag extra: optional, imported where used
                 from rosbags.rosbag2 import CompressionFormat, CompressionMode
                 writer.set_compression(CompressionMode[mode.upper()], CompressionFormat.ZSTD)
             writer.open()
@@ -375,7 +302,7 @@ class _TqdmHandler(logging.Handler):
     """Log lines that do not break the progress bar."""
 
     def emit(self, record):
-        from tqdm import tqdm
+        from tqdm import tqdm  # the tools extra: optional, imported where used
         tqdm.write(self.format(record), file=sys.stderr)
 
 
@@ -406,7 +333,6 @@ class BagJob:
     log_level: int = logging.WARNING
 
     def service(self, log):
-        from glpma_ros.node.service import FkService
         try:
             return FkService(self.values, logger=log, node_name=self.node_name)
         except ValueError as exc:

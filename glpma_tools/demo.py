@@ -17,13 +17,17 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from glpma_ros.cli.api import OneLineParser, command_main
-from glpma_ros.config import config_dir
+from glpma_ros.config import config_dir, load_document, load_manipulator, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError
+from glpma_ros.models.rotations import quaternion_from_matrix
 from glpma_ros.node.params import SOLVER_CHOICES
 from glpma_tools import mock_controller
 from glpma_tools.sim.domains import claim_domain
 from glpma_tools.sim.node_process import NodeProcess, node_environment
+from glpma_tools.sim.trajectories import start_pose
 from glpma_tools.stats import distribution
 from glpma_tools.tables import fmt, spread, table
 
@@ -48,9 +52,6 @@ def manipulator_spec(name: str) -> tuple[str, dict]:
     if name in MANIPULATORS:
         return name, MANIPULATORS[name]
     name = FAMILY_CONFIGS.get(name, name)
-    from glpma_ros.config import load_document, model_from_dict, resolve_config
-    from glpma_ros.models.rotations import quaternion_from_matrix
-    from glpma_tools.sim.trajectories import start_pose
     path = resolve_config(name)
     doc = load_document(path)
     model = model_from_dict(doc, str(path))
@@ -84,10 +85,9 @@ def _parser() -> OneLineParser:
 
 
 def _figure(summary: dict, path: Path) -> None:
-    import matplotlib
+    import matplotlib  # the tools extra: optional, imported where used
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     s = summary["samples"]
     true = np.array(s["true_position_m"]) * 1e3
@@ -137,7 +137,7 @@ def _table(summary: dict, node_alive: bool) -> str:
 
 @command_main
 def main(argv=None) -> int:
-    from tqdm import tqdm
+    from tqdm import tqdm  # the tools extra: optional, imported where used
 
     args = _parser().parse_args(argv)
     if args.duration <= 0 or (args.rate is not None and args.rate <= 0):
@@ -152,7 +152,6 @@ def main(argv=None) -> int:
         print(f"error: glpma-fk demo: --manipulator: {exc}", file=sys.stderr)
         return 2
     if args.fault is not None:
-        from glpma_ros.config import load_manipulator, resolve_config
         n_legs = load_manipulator(resolve_config(spec["config"])).n_legs
         if not 1 <= args.fault[0] <= n_legs:
             print(f"error: glpma-fk demo: --fault LEG must be 1 to {n_legs}, got {args.fault[0]:g}", file=sys.stderr)

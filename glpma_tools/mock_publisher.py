@@ -25,6 +25,10 @@ from __future__ import annotations
 import sys
 
 from glpma_ros.errors import GlpmaError
+from glpma_ros.node.input_topic import input_topic, model_is_actuated, readings_in_si
+from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_JOINT_STATE, INPUT_TYPES
+from glpma_ros.node.service import default_joint_names
+from glpma_tools.sim.trajectories import Plan
 
 NODE_NAME = "glpma_mock_publisher"
 #: the trajectory's default solution (index of the config's known solutions): -1 = the tools' default
@@ -33,7 +37,6 @@ DEFAULT_SOLUTION = -1
 
 def _parameters():
     """(name, default, description, (min, max) or None) of the declared parameters."""
-    from glpma_ros.node.params import INPUT_FLOAT64_MULTI_ARRAY, INPUT_TYPES
     return (
         ("config", "planar_3rpr_seed", "Manipulator YAML (a path or a shipped name) whose legs are published", None),
         ("input_type", INPUT_FLOAT64_MULTI_ARRAY,
@@ -53,7 +56,7 @@ def _parameters():
 
 
 def main(args=None) -> int:
-    import rclpy
+    import rclpy  # a sourced ROS 2 (rclpy and the messages): optional, imported where used
     from geometry_msgs.msg import PoseStamped
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
     from rclpy.exceptions import ParameterException, ParameterUninitializedException
@@ -63,10 +66,6 @@ def main(args=None) -> int:
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-    from glpma_ros.node.input_topic import input_topic, model_is_actuated, readings_in_si
-    from glpma_ros.node.params import INPUT_JOINT_STATE, INPUT_TYPES
-    from glpma_ros.node.service import default_joint_names
-    from glpma_tools.sim.trajectories import Plan
 
     class MockPublisher(Node):
         def __init__(self):

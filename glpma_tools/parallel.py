@@ -13,6 +13,9 @@ depend on the engine, only the order in which ``done`` sees them.
 """
 from __future__ import annotations
 
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
 from glpma_ros.errors import GlpmaError, InputError
 
 #: how long to try to reach a Dask scheduler
@@ -33,8 +36,6 @@ def run_serial(fn, shared: tuple, tasks, done) -> None:
 
 
 def run_processes(fn, shared: tuple, tasks, done, workers: int) -> None:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
     with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = [pool.submit(fn, *shared, *task) for task in tasks]
         try:
@@ -47,7 +48,7 @@ def run_processes(fn, shared: tuple, tasks, done, workers: int) -> None:
 
 
 def run_dask(fn, shared: tuple, tasks, done, scheduler: str) -> None:
-    from dask.distributed import Client, as_completed
+    from dask.distributed import Client, as_completed  # the map extra: optional, imported where used
     try:
         client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as exc:

@@ -39,14 +39,14 @@ def progress_bar(iterable, desc, progress: bool, total=None):
     """``iterable`` with a tqdm progress bar when ``progress``."""
     if not progress:
         return iterable
-    from tqdm import tqdm
+    from tqdm import tqdm  # the tools extra: optional, imported where used
     return tqdm(iterable, desc=desc, total=total, leave=False, dynamic_ncols=True)
 
 
 def involuntary_switches() -> int:
     """Involuntary context switches of this thread so far (Linux; 0 elsewhere)."""
     try:
-        import resource
+        import resource  # POSIX only: optional, imported where used
         who = getattr(resource, "RUSAGE_THREAD", resource.RUSAGE_SELF)
         return int(resource.getrusage(who).ru_nivcsw)
     except (ImportError, OSError):

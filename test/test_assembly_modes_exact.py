@@ -16,7 +16,7 @@ from glpma_ros.errors import GlpmaError
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS
 from glpma_ros.modes import exact
-from glpma_ros.modes import multistart as SA
+from glpma_ros.modes import multistart_search as SA
 from glpma_ros.modes.multistart import solve_all
 from glpma_ros.node.service import FkService
 

@@ -201,7 +201,7 @@ def test_readme_ros_commands_name_real_executables():
     """The README's ``ros2 run glpma_ros X`` executables are installed by this package."""
     from importlib.metadata import entry_points
     scripts = {e.name for e in entry_points(group="console_scripts")}
-    for exe in set(re.findall(r"ros2 run glpma_ros (\S+)", README.read_text())):
+    for exe in set(re.findall(r"ros2 run glpma_ros ([\w-]+)", README.read_text())):
         assert exe in scripts, exe
 
 

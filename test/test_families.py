@@ -202,7 +202,7 @@ def test_cold_iterative_solves_succeed_from_random_starts(translating, solver):
 def test_local_solver_from_random_starts_in_reach(translating):
     """The compiled Levenberg-Marquardt from starts drawn in the legs' reach (solve-all's multistart starts)
     converges to a mode from every start within its iteration cap."""
-    from glpma_ros.modes.multistart import StartSampler
+    from glpma_ros.modes.starts import StartSampler
     rng = np.random.default_rng(7)
     solver = LocalSolver(translating)
     for p in random_poses(translating, rng, 5):

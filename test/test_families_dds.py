@@ -1,6 +1,9 @@
 """The actuated families through the node: the DDS twin (real processes, the test's claimed domain) answers each
 family's actuator positions on ``actuator_positions`` (radians; metres for rails) with the right poses, driven by
 the mock controller and the demo."""
+import json
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -10,8 +13,17 @@ pytest.importorskip("cyclonedds", reason="Cyclone DDS Python binding not install
 
 from test_families_outputs import FAMILY_CONFIGS, LEG_NOISE_M, actuators_si, numeric_jacobian
 
-from conftest import CONFIG
+from conftest import CONFIG, ROOT
 from glpma_ros.config import load_manipulator
+from glpma_ros.estimation.covariance import PoseJacobian
+from glpma_ros.node.dds import endpoints
+from glpma_ros.node.dds.messages import (
+    Float64MultiArray,
+    JointState,
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    TwistStamped,
+)
 from glpma_ros.node.params import DEFAULT_ANGLE_NOISE_RAD
 from test_dds_integration import check_tracking, run_mock, start_node  # noqa: F401 - start_node: a fixture
 
@@ -46,8 +58,6 @@ def test_node_tracks_the_mock_controller(family, start_node, dds_env, capsys):  
 def test_node_answers_actuator_positions(family, start_node):  # noqa: F811 - the fixture
     """The config's example reading in SI (radians; a rail's carriages in metres) on actuator_positions -> the
     pose of the config's known working mode (metres)."""
-    from glpma_ros.node.dds import endpoints
-    from glpma_ros.node.dds.messages import Float64MultiArray, PoseStamped
     path, args = _node_args(family)
     model = load_manipulator(path)
     start_node(*args)
@@ -72,11 +82,6 @@ def test_node_answers_actuator_positions(family, start_node):  # noqa: F811 - th
 @pytest.mark.parametrize("family, label", [("delta", "delta"), ("linear_delta", "linear_delta_kossel_mini"),
                                            ("pus_6", "pus6_rail_hexapod"), ("planar_3prr", "planar_3prr_triangle")])
 def test_demo_drives_the_family(family, label, tmp_path, dds_env, dds_domain):
-    import json
-    import subprocess
-    import sys
-
-    from conftest import ROOT
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "demo", "--duration", "2", "--out", str(tmp_path),
                         "--manipulator", family, "--domain-id", str(dds_domain)],
                        cwd=ROOT, env=dds_env, capture_output=True, text=True, timeout=400)
@@ -90,9 +95,6 @@ def test_demo_drives_the_family(family, label, tmp_path, dds_env, dds_domain):
 def test_covariance_and_twist_topics_of_every_family(start_node, config):  # noqa: F811 - the fixture
     """A JointState of the actuators' positions (rad) and velocities (rad/s) -> pose_estimate_cov with the covariance
     of the actuators' noise and twist_estimate from the joint velocities, the in-process model's at the pose."""
-    from glpma_ros.estimation.covariance import PoseJacobian
-    from glpma_ros.node.dds import endpoints
-    from glpma_ros.node.dds.messages import JointState, PoseWithCovarianceStamped, TwistStamped
     path = CONFIG / config
     model = load_manipulator(path)
     x = np.array(model.known_solutions[0])

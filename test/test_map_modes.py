@@ -11,7 +11,7 @@ import pytest
 
 from conftest import ROOT, RPR_YAML
 from glpma_ros.modes import exact
-from glpma_ros.modes import multistart as SA
+from glpma_ros.modes import multistart_search as SA
 from glpma_ros.modes.multistart import solve_all
 from glpma_tools import workspace_map as W
 from glpma_tools.workspace_map.cli import DEFAULT_RESOLUTION, Z_DEFAULT, default_limits

@@ -15,14 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli.api import OneLineParser, command_main, require, seed_type
+from ..cli.api import command_main, manipulator_parser, require, seed_type
 from ..config import load_document, model_from_dict, resolve_config
 from ..errors import GlpmaError, InputError
 from ..estimation.estimator import STATIONARY
 from ..models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from ..solvers.local import LocalSolver
 from . import data as D
-from .identify import GROUPS, NAMED_COMPONENT, WEAK_SE_SHARE, Geometry, Measurements, identify, leg_residuals
+from .identify import GROUPS, WEAK_SE_SHARE, Geometry, Measurements, identify, leg_residuals
+from .parameters import NAMED_COMPONENT
 from .yaml_edit import check_edit, edit_config
 
 PROG = "glpma-fk calibrate"
@@ -45,8 +46,8 @@ HOLDOUT_FK_MAX_ITER = 50
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(
-        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = manipulator_parser(
+        PROG, metavar="CONFIG", formatter_class=argparse.RawDescriptionHelpFormatter,
         usage=f"{PROG} CONFIG DATA --out NEW.yaml [--identify base platform offsets] [--holdout SHARE] "
               f"[--legs-topic T --pose-topic T --max-dt S] [--seed N] [--strict] [--json]",
         description=textwrap.fill(
@@ -62,7 +63,6 @@ def build_parser() -> argparse.ArgumentParser:
             "campaign's observability and the directions the data see badly. Exit 2 with one line for too few "
             "measurements or a malformed file, and with --strict for a direction left at nominal.", HELP_WIDTH,
             break_on_hyphens=False))
-    p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
     p.add_argument("data", metavar="DATA",
                    help="CSV with a header row: leg_1 .. leg_n (sensor readings, config unit), then the measured "
                         "pose in the base frame, planar x y theta (radians), hexapod x y z qx qy qz qw (unit "

@@ -188,7 +188,7 @@ def nearest_pairs(t_legs: np.ndarray, t_pose: np.ndarray, max_dt_ns: int) -> tup
 def read_bag(path: Path, n_legs: int, dim: int, metres_per_unit: float, legs_topic: str | None,
              pose_topic: str | None, max_dt_s: float) -> tuple[Measurements, BagInfo]:
     """The measurements of a rosbag2 (config unit), paired as the module docstring says."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # the bag extra: optional, imported where used
 
     ts = get_typestore(Stores.ROS2_JAZZY)
     reader = open_bag(Path(path))

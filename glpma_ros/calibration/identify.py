@@ -65,10 +65,8 @@ standard errors are those of their estimated part (the covariance over the kept 
 parameter's share in the directions left at nominal, ``sum_{k left} v_kj^2`` (0: fully identified,
 1: fully at nominal), says how much of it is nominal.  Not modelled: the geometry's error along the
 directions left at nominal also reaches the estimated ones through the residuals' curvature (of order
-error^2 / leg length), a bias that matters on a small manipulator: in simulated campaigns near home
-(3-RPR within 10 mm and 0.2 rad, hexapods within 20 mm and 8 degrees; 10 seeds each) the errors in the
-estimated directions over their standard errors spread 1.19 on the seed 3-RPR (legs of 100-150 mm), 1.02
-on Rolland's hexapod and 1.08 on its 7-leg variant.
+error^2 / leg length), a bias that matters on a small manipulator (the errors over their standard
+errors in simulated campaigns: BENCHMARKS.md, "Design measurements").
 
 **Observability** of the campaign (the indices compared by Sun & Hollerbach 2008): the singular
 values of the whole (block-diagonal) identification Jacobian per pose, ``sigma_k / sqrt(m)`` -- the
@@ -97,9 +95,18 @@ ICRA 2008.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
+
+from .parameters import (
+    Geometry,
+    Identification,
+    Measurements,
+    Observability,
+    Parameter,
+    describe_direction,
+)
 
 #: parameter groups of a leg, in the order of the Jacobian's columns
 GROUPS = ("base", "platform", "offsets")
@@ -136,116 +143,6 @@ WEAK_SE_SHARE = 1e-4
 #: joints closer than this share of the scale in the nominal geometry are one physical joint that
 #: their legs share (6-3, 3-6, 3-3 designs), identified once (the config's own coincidence rule)
 COINCIDENT_RTOL = 1e-9
-#: components of a direction (a unit vector) at least this large in magnitude are named in its
-#: description (1/sqrt(k) of a k-parameter direction spread evenly is 0.38 for k = 7)
-NAMED_COMPONENT = 0.3
-
-
-@dataclass
-class Geometry:
-    """Base joints A (n, d), platform joints B (n, d) and sensor offsets (n,), config unit."""
-
-    base: np.ndarray
-    platform: np.ndarray
-    offsets: np.ndarray
-
-    @property
-    def n_legs(self) -> int:
-        return self.base.shape[0]
-
-    @property
-    def dim(self) -> int:
-        return self.base.shape[1]
-
-    def copy(self) -> "Geometry":
-        return Geometry(self.base.copy(), self.platform.copy(), self.offsets.copy())
-
-
-@dataclass
-class Measurements:
-    """``legs`` (m, n): the sensors' readings; ``position`` (m, d) and ``rotation`` (m, d, d): the
-    measured platform poses in the base frame (platform -> base); config unit."""
-
-    legs: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-
-    def __len__(self) -> int:
-        return self.legs.shape[0]
-
-    def subset(self, index) -> "Measurements":
-        return Measurements(self.legs[index], self.position[index], self.rotation[index])
-
-
-@dataclass
-class Parameter:
-    legs: tuple               # the legs it belongs to, 1-based (several for a joint they share)
-    group: str                # base | platform | offsets
-    axis: str                 # x | y | z, "" for an offset
-    nominal: float
-    value: float
-    se: float
-    #: the parameter's share in the directions left at nominal, sum_k v_kj^2 over them: 0 = fully
-    #: identified (``se`` is its whole standard error), 1 = fully at nominal
-    fixed_share: float = 0.0
-
-    @property
-    def leg(self) -> int:
-        return self.legs[0]
-
-    @property
-    def name(self) -> str:
-        if self.group == "offsets":
-            return f"leg {self.leg} offset"
-        return f"{_legs_text(self.legs)} {self.group} {self.axis}"
-
-
-@dataclass
-class Direction:
-    """A direction of parameter space the data see badly: the legs it concerns, its unit vector over
-    their identified parameters (names -> component), its singular value per pose (``sigma_k /
-    sqrt(m)``), the standard error along it (inf when ``rank_deficient``: sigma at round-off), in words."""
-
-    legs: tuple
-    components: dict
-    singular_value: float
-    se: float
-    text: str
-    rank_deficient: bool = False
-
-    @property
-    def leg(self) -> int:
-        return self.legs[0]
-
-
-@dataclass
-class Observability:
-    """How well the campaign sees the parameters: the singular values of the identification Jacobian
-    per pose (``sigma_k / sqrt(m)``, ascending), O1 (Borm & Menq), O3 (the smallest), the condition
-    number (O2)."""
-
-    singular_values: np.ndarray
-    o1: float
-    o3: float
-    condition_number: float
-
-
-@dataclass
-class Identification:
-    geometry: Geometry                   # identified (the groups not identified as given)
-    parameters: list                     # Parameter, in GROUPS order, joints in leg order
-    residual_std: np.ndarray             # s_i per leg (config unit)
-    condition_number: float
-    unidentifiable: list = field(default_factory=list)   # Direction left at nominal (rank-deficient or se > limit)
-    weak: list = field(default_factory=list)             # Direction estimated, se above WEAK_SE_SHARE
-    iterations: int = 0
-    converged: bool = False
-    observability: Observability | None = None
-    se_limit: float = math.inf           # standard error above which a direction is left at nominal
-
-
-def _legs_text(legs) -> str:
-    return f"leg {legs[0]}" if len(legs) == 1 else "legs " + ", ".join(map(str, legs[:-1])) + f" and {legs[-1]}"
 
 
 def leg_residuals(geometry: Geometry, meas: Measurements) -> np.ndarray:
@@ -520,42 +417,8 @@ def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, 
     for (sub, s, V), (dir_se, keep) in zip(spectra, kept):
         for c in range(len(s)):
             if not keep[c] or dir_se[c] > WEAK_SE_SHARE * scale:
-                d = _direction(V[:, c], [lay.labels[j] for j in sub], float(s[c]) / math.sqrt(m), float(dir_se[c]),
-                               geometry.dim, rank_deficient=not s[c] > RANK_RTOL * s_max)
+                d = describe_direction(V[:, c], [lay.labels[j] for j in sub], float(s[c]) / math.sqrt(m),
+                                       float(dir_se[c]), geometry.dim, rank_deficient=not s[c] > RANK_RTOL * s_max)
                 (weak if keep[c] else unident).append(d)
     return Identification(geometry, params, resid_std, cond, unident, weak, iterations, converged,
                           Observability(per_pose, o1, float(per_pose[0]), cond), se_limit)
-
-
-def _direction(v, labels, sigma, se, dim, rank_deficient=False) -> Direction:
-    """Name direction ``v`` (unit vector over the distinct parameters ``labels``: (legs, group, axis))
-    in words, with the kind of pose that would separate what moves together."""
-    v = v if v[int(np.argmax(np.abs(v)))] > 0 else -v
-    comps = {Parameter(legs, g, a, 0.0, 0.0, 0.0).name: float(x) for (legs, g, a), x in zip(labels, v)}
-    big = [(legs, g, a) for (legs, g, a), x in zip(labels, v) if abs(x) >= NAMED_COMPONENT]
-    all_legs = tuple(sorted({leg for legs, _, _ in labels for leg in legs}))
-    one_leg = len({legs for legs, _, _ in big}) == 1 and len(big[0][0]) == 1
-    words, said = [], False
-    for legs, g, a in big:
-        if g == "offsets":
-            words.append(f"the offset of leg {legs[0]}")
-        elif one_leg and said:
-            words.append(f"the {a} of its {g} joint")
-        elif len(legs) == 1:
-            words.append(f"the {a} of leg {legs[0]}'s {g} joint")
-            said = True
-        else:
-            words.append(f"the {a} of the {g} joint of {_legs_text(legs)}")
-    involved = {g for _, g, _ in big}
-    alone = f"{words[0]} is {'not seen' if rank_deficient else 'seen badly'}"
-    what = alone if len(words) == 1 else ", ".join(words[:-1]) + f" and {words[-1]} move together"
-    legs_text = _legs_text(tuple(sorted({leg for legs, _, _ in big for leg in legs})))
-    if {"base", "platform"} <= involved and "offsets" not in involved:
-        advice = "add poses that rotate the platform"
-    elif "offsets" in involved:
-        advice = (f"add poses that tilt the platform and move it sideways ({legs_text} must change direction)"
-                  if dim == 3 else f"add poses that move and rotate the platform so that {legs_text} changes "
-                                   f"direction")
-    else:
-        advice = "add poses spread wider over the workspace"
-    return Direction(all_legs, comps, sigma, se, f"{what}: {advice}", rank_deficient)

@@ -5,7 +5,7 @@ A command is an entry point of the group :data:`COMMANDS` naming a :class:`Comma
 ``main(argv) -> exit status``, which parses its own arguments with a :class:`OneLineParser` (a usage error is one
 line, exit 2) and is wrapped in :func:`command_main` (the one place where its outcomes become exit
 statuses); the argument types :data:`seed_type`, :data:`count_type` and :data:`positive_float` refuse a
-bad number in one line."""
+bad number in one line; :func:`manipulator_parser` starts the parser of a command on one manipulator."""
 from __future__ import annotations
 
 import argparse
@@ -27,11 +27,30 @@ COMMANDS = "glpma_fk.commands"
 DISTRIBUTION = "glpma_ros"
 
 
+#: the help of a command's manipulator argument
+CONFIG_HELP = "manipulator YAML (or the name of a shipped one)"
+#: the help of ``--legs``, the sensor readings a command solves for
+LEGS_HELP = ("leg lengths, in the config's unit (an actuated family, e.g. delta: the actuator positions, radians for "
+             "revolute actuators)")
+
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse, but a usage error is one line on stderr and exit status 2."""
 
     def error(self, message):
         raise SystemExit(fail(f"{self.prog}: {message}"))
+
+
+def manipulator_parser(prog: str, description: str, *, legs: bool = False, metavar: str | None = None,
+                       **kwargs) -> OneLineParser:
+    """The parser of a command on one manipulator: the positional ``config`` (a YAML path or the name of a
+    shipped config, shown as ``metavar``), with ``legs`` also the required ``--legs`` (floats, the config's
+    unit); ``kwargs`` go to :class:`OneLineParser`."""
+    p = OneLineParser(prog=prog, description=description, **kwargs)
+    p.add_argument("config", metavar=metavar, help=CONFIG_HELP)
+    if legs:
+        p.add_argument("--legs", type=float, nargs="+", required=True, help=LEGS_HELP)
+    return p
 
 
 def fail(message: str) -> int:

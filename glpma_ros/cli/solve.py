@@ -10,7 +10,7 @@ from ..estimation.estimator import Estimator
 from ..runtime import precompile
 from ..runtime.compat import check_numba
 from ..solvers import SOLVERS
-from .api import OneLineParser, command_main, count_type, positive_float, seed_type
+from .api import OneLineParser, command_main, count_type, manipulator_parser, positive_float, seed_type
 from .inputs import finite, load, pose_json, sensor_legs
 
 #: ``solve`` without ``--budget-ms``: the evaluation cap ends the search; an hour stands for "no clock"
@@ -24,11 +24,7 @@ DESCRIPTION = ("Solve one set of leg lengths with the estimator the node uses: a
 
 
 def build_parser() -> OneLineParser:
-    s = OneLineParser(prog="glpma-fk solve", description=DESCRIPTION)
-    s.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
-    s.add_argument("--legs", type=float, nargs="+", required=True,
-                   help="leg lengths, in the config's unit (an actuated family, e.g. delta: the actuator "
-                   "positions, radians for revolute actuators)")
+    s = manipulator_parser("glpma-fk solve", DESCRIPTION, legs=True)
     s.add_argument("--solver", choices=list(SOLVERS), default="glpma",
                    help="glpma (default), g3pcx, rcga (the papers'), or the baselines sa, gasa, de")
     s.add_argument("--seed", type=seed_type, default=0, help="random seed, a non-negative integer (default 0)")
@@ -51,7 +47,6 @@ def build_parser() -> OneLineParser:
                         "chi-square consistency test (default: 1e-5 m, the node's leg_noise_std)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     return s
-
 
 
 def run(args) -> int:

@@ -8,7 +8,7 @@ from ..errors import GlpmaError
 from ..modes.multistart import default_method, has_closed_form, solve_all
 from ..runtime import precompile
 from ..runtime.compat import check_numba
-from .api import OneLineParser, command_main, count_type, positive_float, seed_type
+from .api import OneLineParser, command_main, count_type, manipulator_parser, positive_float, seed_type
 from .inputs import load, pose_json, sensor_legs
 
 #: the command's --help text
@@ -21,11 +21,7 @@ DESCRIPTION = ("Every distinct real assembly mode for the given leg lengths, one
 
 
 def build_parser() -> OneLineParser:
-    a = OneLineParser(prog="glpma-fk solve-all", description=DESCRIPTION)
-    a.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
-    a.add_argument("--legs", type=float, nargs="+", required=True,
-                   help="leg lengths, config unit (an actuated family, e.g. delta: the actuator positions, "
-                   "radians for revolute actuators)")
+    a = manipulator_parser("glpma-fk solve-all", DESCRIPTION, legs=True)
     a.add_argument("--method", choices=("homotopy", "multistart", "g3pcx", "closed_form"), default=None,
                    help="closed_form: the Delta's sphere intersection (its default); "
                    "homotopy (default for the 3-RPR and the hexapods): a compiled parameter homotopy, one "

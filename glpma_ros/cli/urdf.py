@@ -8,7 +8,7 @@ from ..config import load_manipulator, resolve_config
 from ..description.urdf import urdf_text
 from ..errors import GlpmaError
 from ..node.params import URDF_PREFIX
-from .api import OneLineParser, command_main
+from .api import OneLineParser, command_main, manipulator_parser
 
 #: the command's --help text
 DESCRIPTION = ("Write the URDF of the manipulator of CONFIG (plain URDF, no xacro; metres, radians): "
@@ -21,8 +21,7 @@ DESCRIPTION = ("Write the URDF of the manipulator of CONFIG (plain URDF, no xacr
 
 
 def build_parser() -> OneLineParser:
-    q = OneLineParser(prog="glpma-fk urdf", description=DESCRIPTION)
-    q.add_argument("config", help="manipulator YAML (or the name of a shipped one)")
+    q = manipulator_parser("glpma-fk urdf", DESCRIPTION)
     q.add_argument("--out", default=None, metavar="FILE", help="write the URDF here (default: stdout)")
     q.add_argument("--prefix", default="", metavar="NAME_",
                    help="put before every link, joint and material name (e.g. left_), for two robots in one tree")

@@ -57,6 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import plausible_band
 from ..errors import InputError
 from ..models.legs import PRISMATIC as PRISMATIC_ACTUATOR
 from ..models.legs import REVOLUTE as REVOLUTE_ACTUATOR
@@ -160,7 +161,6 @@ class Mechanism:
         return joints
 
     def _actuator_limits(self) -> tuple:
-        from ..config import plausible_band
         lo, hi = plausible_band(self.model)
         return (lo * self.metres, hi * self.metres)
 

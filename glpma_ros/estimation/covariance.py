@@ -51,6 +51,7 @@ No ROS import.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 from numba import njit
@@ -294,7 +295,6 @@ class PoseJacobian:
 
 def warm_up() -> None:
     """Compile (or load) the kernels before the first input."""
-    from types import SimpleNamespace
     angles = np.linspace(0.0, 2.0 * np.pi, 7)[:-1]
     ring = np.column_stack((np.cos(angles), np.sin(angles), np.zeros(6)))
     for base in (ring[::2, :2], ring):

@@ -368,15 +368,16 @@ class Estimator:
         lm.lm_kernel(solver.kind, solver.data, solver.platform, solver.frame, arr, self.last_x, self.last_x,
                      self.last_legs, settings, out, solver.work)
         n = self._n
-        info = local.LmInfo.of(out, n)
+        o = local.LmOutput.of(out, n)
+        info = o.info
         if info.input_ok == 0.0:
             model.check_legs(arr)                       # raises with the reason
         if info.converged == 1.0 and info.distance <= max(CONTINUITY_FACTOR * info.movement, self._near_floor):
-            x = out[:n]
+            x = o.x
             cond = info.conditioning
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
             how = "least-squares pose" if self.redundant.active else "leg residuals at round-off"
-            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + 7]), info.fitness,
+            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(o.position, o.orientation), info.fitness,
                          int(info.nfev), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
                          info.max_residual)
             if not self.redundant.active:       # the everyday case, no call more than needed

@@ -32,6 +32,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import chdtri
 
 from ..errors import InputError
 from ..models.base import Pose
@@ -62,11 +63,9 @@ STATUS_INCONSISTENT = "inconsistent_legs"
 
 def chi2_limit(dof: int, level: float = CONSISTENCY_LEVEL) -> float:
     """The ``level`` quantile of the chi-square law with ``dof`` degrees of freedom (0 for ``dof`` 0:
-    an exactly determined pose has no residual to test).  SciPy is imported only here: a manipulator
-    without redundant legs never needs it."""
+    an exactly determined pose has no residual to test)."""
     if dof <= 0:
         return 0.0
-    from scipy.special import chdtri
     return float(chdtri(dof, 1.0 - level))
 
 

@@ -55,6 +55,24 @@ class ActuatedLegs:
     actuator_limits: np.ndarray | None = None
     actuator_offsets: np.ndarray | None = None
 
+    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
+        """The legs, then the pose model this mixin precedes (built on the actuators' origins as base joints),
+        then the compiled kernels' data (:meth:`_actuated_data`) and the cold start's box
+        (:meth:`_initial_range` of :meth:`reach_box`), both the family's own."""
+        self.kind = kind
+        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
+        super().__init__(self.origin, platform, unit, None)
+        self.data = self._actuated_data()
+        self.initial_range = self._initial_range(*self.reach_box())
+
+    def _actuated_data(self) -> tuple:
+        """The model's data as the compiled kernels take it (:meth:`~.base.Manipulator._make_data`)."""
+        raise NotImplementedError
+
+    def _initial_range(self, lo, hi) -> tuple:
+        """The uniform initial range of a cold start's variables, from the platform origin's reach box."""
+        raise NotImplementedError
+
     def _set_legs(self, actuators, origin, axis, crank, rods, actuator_limits=None):
         self.actuators = np.ascontiguousarray(actuators, dtype=np.int64)
         self.origin = np.ascontiguousarray(origin, dtype=float)
@@ -201,22 +219,16 @@ class ActuatedLegs:
         q = np.zeros(self.n_legs) if self.actuator_limits is None else self.actuator_limits.mean(axis=1)
         return self.legs_from_sensors(q)
 
-    def home_variables(self) -> np.ndarray:
+    def home_variables(self) -> np.ndarray | None:
         """A pose inside the workspace (warm-ups, demos): the config's first known solution, else the working
-        mode at the actuators' mid-range (zero without limits)."""
+        mode at the actuators' mid-range (zero without limits) by the closed form; None where that needs a
+        solve of :meth:`reference_legs` (:func:`~glpma_ros.runtime.precompile.warm_up_pose` does it)."""
         known = getattr(self, "known_solutions", None)
         if known is not None:
             return np.array(known[0], dtype=float)
-        legs = self.reference_legs()
         closed = getattr(self, "closed_form", None)
-        xs = closed(legs) if closed is not None else None
-        if xs:
-            return self.preferred_order(xs)[0]
-        from ..estimation.estimator import Estimator  # the estimator imports the models
-        e = Estimator(self, seed=0).estimate(legs)
-        if e.x is None:
-            raise ValueError(f"{self.kind}: no assembly at the actuators' mid-range; give known_solutions")
-        return np.array(e.x, dtype=float)
+        xs = closed(self.reference_legs()) if closed is not None else None
+        return self.preferred_order(xs)[0] if xs else None
 
     def reach_box(self) -> tuple[np.ndarray, np.ndarray]:
         """A box holding every platform joint's reachable region shifted to the platform origin: the
@@ -246,15 +258,13 @@ class DeltaTranslation(ActuatedLegs, Manipulator):
     kind_id = KIND_ACTUATED_TRANSLATION
     settings_like = "planar_3rpr"        # the papers' population sizes for three variables
 
-    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
-        self.kind = kind
-        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
-        super().__init__(self.origin, platform, unit, None)
+    def _actuated_data(self) -> tuple:
         self.n_res = self.n_legs
-        self.data = self._make_data(self.platform, self.platform)
         self.pose_column_scale = np.ones(3)
-        lo, hi = self.reach_box()
-        self.initial_range = (lo, hi)
+        return self._make_data(self.platform, self.platform)
+
+    def _initial_range(self, lo, hi) -> tuple:
+        return lo, hi
 
     def joints(self, x) -> np.ndarray:
         return np.asarray(x, dtype=float)[:3] + self.platform
@@ -330,14 +340,12 @@ class ActuatedSpatial(ActuatedLegs, Hexapod66):
     kind_id = KIND_ACTUATED_SPATIAL
     settings_like = "hexapod_66"
 
-    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
-        self.kind = kind
-        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
-        super().__init__(self.origin, platform, unit, None)
-        self.data = self._make_data(self.abc, self.platform, self.d0sq)
-        lo, hi = self.reach_box()
+    def _actuated_data(self) -> tuple:
+        return self._make_data(self.abc, self.platform, self.d0sq)
+
+    def _initial_range(self, lo, hi) -> tuple:
         arm = float(np.linalg.norm(self.frame, axis=1).max())     # a frame joint is this far from the origin
-        self.initial_range = (np.tile(lo - arm, 3), np.tile(hi + arm, 3))
+        return np.tile(lo - arm, 3), np.tile(hi + arm, 3)
 
     def pose_residuals_jacobian(self, state, legs):
         R, p = state
@@ -354,15 +362,13 @@ class ActuatedPlanar(ActuatedLegs, Planar3RPR):
     kind_id = KIND_ACTUATED_PLANAR
     settings_like = "planar_3rpr"
 
-    def __init__(self, kind, actuators, origin, axis, crank, rods, platform, unit="mm", actuator_limits=None):
-        self.kind = kind
-        self._set_legs(actuators, origin, axis, crank, rods, actuator_limits)
-        super().__init__(self.origin, platform, unit, None)
-        self.data = self._make_data(self.platform, self.platform)
-        lo, hi = self.reach_box()
-        arm = float(np.linalg.norm(self.platform, axis=1).max())
-        self.initial_range = (np.array([lo[0] - arm, lo[1] - arm, -math.pi]),
-                              np.array([hi[0] + arm, hi[1] + arm, math.pi]))
+    def _actuated_data(self) -> tuple:
+        return self._make_data(self.platform, self.platform)
+
+    def _initial_range(self, lo, hi) -> tuple:
+        arm = float(np.linalg.norm(self.platform, axis=1).max())   # a platform joint is this far from its origin
+        return (np.array([lo[0] - arm, lo[1] - arm, -math.pi]),
+                np.array([hi[0] + arm, hi[1] + arm, math.pi]))
 
     def pose_residuals_jacobian(self, state, legs):
         c, s = math.cos(state[2]), math.sin(state[2])

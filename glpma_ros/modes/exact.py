@@ -81,13 +81,14 @@ import tempfile
 import time
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import reduce
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import GlpmaError
 from ..models.hexapod_66 import matrix_from_quaternion
+from .polynomials import Poly, qconj, qdot, qmul, rational
 
 #: bits of precision of msolve's isolating boxes (its ``-p``; its default)
 ISOLATION_BITS = 128
@@ -120,100 +121,6 @@ class ExactSolutions:
     complex_solutions: int
     distinct_complex: int    # degree of msolve's eliminating polynomial (distinct solutions)
     elapsed_s: float
-
-
-# -- polynomials with rational coefficients ------------------------------------------------------
-class Poly:
-    """A polynomial as ``{exponent tuple: Fraction}`` (just what the formulations need)."""
-
-    __slots__ = ("n", "terms")
-
-    def __init__(self, n: int, terms=None):
-        self.n = n
-        self.terms = {m: c for m, c in (terms or {}).items() if c != 0}
-
-    @classmethod
-    def const(cls, n: int, c) -> "Poly":
-        return cls(n, {(0,) * n: Fraction(c)})
-
-    @classmethod
-    def var(cls, n: int, i: int) -> "Poly":
-        return cls(n, {tuple(int(k == i) for k in range(n)): Fraction(1)})
-
-    def _coerce(self, other) -> "Poly":
-        return other if isinstance(other, Poly) else Poly.const(self.n, other)
-
-    def __add__(self, other):
-        other = self._coerce(other)
-        t = dict(self.terms)
-        for m, c in other.terms.items():
-            t[m] = t.get(m, 0) + c
-        return Poly(self.n, t)
-
-    __radd__ = __add__
-
-    def __neg__(self):
-        return Poly(self.n, {m: -c for m, c in self.terms.items()})
-
-    def __sub__(self, other):
-        return self + (-self._coerce(other))
-
-    def __rsub__(self, other):
-        return self._coerce(other) - self
-
-    def __mul__(self, other):
-        other = self._coerce(other)
-        t = {}
-        for m1, c1 in self.terms.items():
-            for m2, c2 in other.terms.items():
-                m = tuple(a + b for a, b in zip(m1, m2))
-                t[m] = t.get(m, 0) + c1 * c2
-        return Poly(self.n, t)
-
-    __rmul__ = __mul__
-
-    def to_msolve(self, names) -> str:
-        """Integer coefficients (denominators cleared, content removed), expanded, no spaces."""
-        if not self.terms:
-            return "0"
-        lcm = reduce(lambda a, b: a * b // math.gcd(a, b), (c.denominator for c in self.terms.values()), 1)
-        ints = {m: int(c * lcm) for m, c in self.terms.items()}
-        g = reduce(math.gcd, (abs(v) for v in ints.values()))
-        out = []
-        for m in sorted(ints, reverse=True):
-            c = ints[m] // g
-            mono = "*".join(f"{v}^{k}" if k > 1 else v for v, k in zip(names, m) if k)
-            if not mono:
-                out.append(f"{c:+d}")
-            elif c in (1, -1):
-                out.append(("+" if c > 0 else "-") + mono)
-            else:
-                out.append(f"{c:+d}*{mono}")
-        s = "".join(out)
-        return s[1:] if s.startswith("+") else s
-
-
-def rational(v: float) -> Fraction:
-    """The shortest decimal that reads back as ``v`` (the documented rounding of the input)."""
-    return Fraction(repr(float(v)))
-
-
-# -- quaternions of polynomials (scalar first) ----------------------------------------------------
-def qmul(p, q):
-    p0, p1, p2, p3 = p
-    q0, q1, q2, q3 = q
-    return (p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3,
-            p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2,
-            p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1,
-            p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0)
-
-
-def _qconj(p):
-    return (p[0], -p[1], -p[2], -p[3])
-
-
-def _qdot(p, q):
-    return sum(a * b for a, b in zip(p, q))
 
 
 # -- formulations ---------------------------------------------------------------------------------
@@ -250,8 +157,8 @@ def hexapod_system(model, legs, exclude_null=False) -> list:
     n = len(HEXAPOD_NAMES) + (1 if exclude_null else 0)
     v = [Poly.var(n, i) for i in range(n)]
     e, f = tuple(v[0:4]), tuple(v[4:8])
-    ec = _qconj(e)
-    D = _qdot(e, e)
+    ec = qconj(e)
+    D = qdot(e, e)
     f_ec = qmul(f, ec)
     a1 = [rational(t) for t in model.base[0]]
     b1 = [rational(t) for t in model.platform[0]]
@@ -263,9 +170,9 @@ def hexapod_system(model, legs, exclude_null=False) -> list:
         eb = qmul(e, b)
         ebe = qmul(eb, ec)
         const = sum(t * t for t in a) + sum(t * t for t in b) - L * L
-        polys.append(const * D + 4 * _qdot(f, f) + 4 * _qdot(eb, f)
-                     - 2 * _qdot(a, ebe) - 4 * _qdot(a, f_ec))
-    polys.append(_qdot(e, f))                                     # Study's quadric
+        polys.append(const * D + 4 * qdot(f, f) + 4 * qdot(eb, f)
+                     - 2 * qdot(a, ebe) - 4 * qdot(a, f_ec))
+    polys.append(qdot(e, f))                                     # Study's quadric
     polys.append(sum(k * t for k, t in zip(CHART, e)) - 1)        # affine chart
     if exclude_null:
         polys.append(v[8] * D - 1)                                # D != 0
@@ -284,7 +191,7 @@ def hexapod_pose(model, root):
     e = np.asarray(root[0:4], dtype=float)
     f = np.asarray(root[4:8], dtype=float)
     D = float(e @ e)
-    t = np.array(qmul(tuple(2.0 * f), _qconj(tuple(e)))[1:]) / D
+    t = np.array(qmul(tuple(2.0 * f), qconj(tuple(e)))[1:]) / D
     q = np.array([e[1], e[2], e[3], e[0]]) / math.sqrt(D)
     R = matrix_from_quaternion(q)
     return q, model.base[0] + t - R @ model.platform[0]
@@ -295,7 +202,6 @@ def msolve_executable() -> str:
     """Path of the msolve executable of the ``exact`` extra (or on PATH), or
     :class:`ExactUnavailableError`."""
     try:
-        from importlib import metadata
         for file in metadata.files(MSOLVE_DISTRIBUTION) or ():
             if str(file).replace(os.sep, "/").endswith(MSOLVE_WHEEL_PATH):
                 path = Path(file.locate()).resolve()

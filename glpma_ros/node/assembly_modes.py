@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import InputError
 from .input_topic import input_topic, model_is_actuated
+from .modes_worker import ModesWorker, find_modes
 
 #: ``last_input`` argument: the last input received so far
 CURRENT = object()
@@ -101,11 +102,9 @@ class AssemblyModes:
 
     def worker(self):
         """A :class:`~glpma_ros.node.modes_worker.ModesWorker` (not started) for this manipulator."""
-        from .modes_worker import ModesWorker
         return ModesWorker(self.config_path, warm_legs=self._warm_legs)
 
     def _solve_here(self, legs, runs, seed, leg_noise_std) -> list:
-        from .modes_worker import find_modes
         return find_modes(self.model, legs, runs, seed, leg_noise_std)
 
     def note(self, result: PoseArrayOutput | None = None, failure: str | None = None, coalesced: int = 0) -> None:

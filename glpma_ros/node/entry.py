@@ -10,6 +10,8 @@ import importlib
 import sys
 
 from ..errors import GlpmaError
+from . import qos
+from .params import PARAMETERS
 from .ros_args import ROS_ARGS_HELP, TRANSPORTS, check_params_files, split_transport
 
 
@@ -23,8 +25,6 @@ def rclpy_available() -> bool:
 
 def usage() -> str:
     """``glpma-fk node --help``: the syntax and every declared parameter."""
-    from . import qos
-    from .params import PARAMETERS
     lines = ["usage: glpma-fk node [--transport auto|rclpy|dds] [--ros-args -p NAME:=VALUE ... "
              "--params-file FILE]", "",
              "Run the glpma_fk node: leg lengths in, poses out (topics in metres). SIGINT/SIGTERM stop it; "
@@ -67,10 +67,10 @@ def main(argv=None) -> int:
             print("glpma-fk node: error: rclpy is not importable (source ROS 2 Jazzy first, "
                   "or use --transport dds)", file=sys.stderr)
             return 2
-        from .ros_node import main as ros_main
+        from .ros_node import main as ros_main  # needs rclpy (a sourced ROS 2): optional, imported here
         return ros_main(rest)
     try:
-        from .dds.node import main as dds_main
+        from .dds.node import main as dds_main  # needs cyclonedds: optional here, imported where used
     except ImportError as exc:
         print(f"glpma-fk node: error: the DDS transport needs the cyclonedds Python package ({exc}); "
               f"pip install cyclonedds, or source ROS 2 and use --transport rclpy", file=sys.stderr)

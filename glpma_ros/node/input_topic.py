@@ -10,6 +10,8 @@ Every name is remappable (``--ros-args -r actuator_positions:=/my/topic``).  No 
 """
 from __future__ import annotations
 
+from ..config import load_document, resolve_config
+from ..models.families import is_family
 from . import params as P
 
 LEG_LENGTHS = "leg_lengths"
@@ -39,8 +41,6 @@ def readings_in_si(model, values) -> list:
 def config_is_actuated(config_name: str) -> bool:
     """The manipulator config ``config_name`` (a path or a shipped name) is an actuated family's; False
     when it cannot be read (the node's start reports that)."""
-    from ..config import load_document, resolve_config
-    from ..models.families import is_family
     try:
         return is_family(load_document(resolve_config(config_name)))
     except Exception:  # noqa: BLE001 - an unreadable config is reported where it is loaded

@@ -5,7 +5,7 @@ off the real-time path; :class:`AssemblyModesLoop` answers ``~/request_assembly_
 :class:`ReportLoop` publishes ``/diagnostics`` from a thread of its own.  Each is handed the
 collaborators it reads -- the :class:`~glpma_ros.node.service.FkService` that solves and builds
 the extra outputs, its statistics (``service.stats``), its assembly modes (``service.modes``), its
-diagnostics reporter (``service.reporter``) -- which the transport wires together."""
+diagnostics reporter (``service.reporter``) -- wired alike for both transports by :func:`node_loops`."""
 from __future__ import annotations
 
 import queue
@@ -411,3 +411,14 @@ class ReportLoop:
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout)
+
+
+def node_loops(service: FkService, *, publish_pose, publish_extras, subscribed, publish_modes, publish_report,
+               modes_solve=None) -> tuple[SolveLoop, AssemblyModesLoop, ReportLoop]:
+    """The loops of a node over ``service``, not started, handed the collaborators each reads; the transport
+    gives how its outputs are written (``publish_*``), whether an extra output has subscribers and, for the
+    assembly modes, where they are computed (``modes_solve``, default in the node's process)."""
+    return (SolveLoop(service, publish_pose, publish_extras=publish_extras, subscribed=subscribed,
+                      stats=service.stats, modes=service.modes),
+            AssemblyModesLoop(service.modes, publish_modes, solve=modes_solve, log=service.log),
+            ReportLoop(service.reporter, publish_report, service.params["diagnostics_period_s"], log=service.log))

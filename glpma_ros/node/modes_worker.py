@@ -26,7 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import load_manipulator
 from ..errors import InputError
+from ..modes.multistart import default_method, solve_all
 
 #: scheduling priority of the child relative to the node (higher = yields more)
 NICE = 5
@@ -60,7 +62,6 @@ def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
     where the model's family has a start system (``runs`` unused for both), else the multistart, at most
     ``runs`` starts; ``leg_noise_std`` (config unit): redundant legs, the noise a mode's leg residuals are
     tested against (the node's parameter)."""
-    from ..modes.multistart import default_method, solve_all
     method = default_method(model)
     if method == "closed_form":
         return modes_of(solve_all(model, legs, method="closed_form", seed=int(seed)))
@@ -89,7 +90,6 @@ def child_main(argv=None) -> int:
         pass
     out = sys.stdout
     sys.stdout = sys.stderr          # nothing but replies on the pipe
-    from ..config import load_manipulator
     model = load_manipulator(argv[0])
     if len(argv) > 2:
         try:

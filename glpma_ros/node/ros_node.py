@@ -58,7 +58,7 @@ from . import input_topic as inputs
 from . import params as P
 from . import qos
 from .dds import cdr
-from .loops import AssemblyModesLoop, ReportLoop, SolveLoop
+from .loops import node_loops
 from .rcl_publish import RawPublisher
 from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput
@@ -186,9 +186,10 @@ class FkEndpoints:
         # taking the inputs runs meanwhile
         self.extra_writers = {name: RawPublisher(p) for name, p in self._extra_pubs.items()}
         self._subscribed_cache, self._subscribed_at = set(), -math.inf
-        self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
-                              subscribed=self._subscribed, stats=service.stats, modes=service.modes)
-        self.modes = AssemblyModesLoop(service.modes, self._publish_modes, log=service.log).start()
+        self.loop, self.modes, self.reports = node_loops(
+            service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
+            subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_diagnostics)
+        self.modes.start()
         # the input is taken as bytes and read with struct (cdr): no message object per input
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
             self.input_sub = sub(JointState, "joint_states", self._on_joint_state, raw=True)
@@ -196,8 +197,7 @@ class FkEndpoints:
             self.input_sub = sub(Float64MultiArray, input_topic, self._on_legs, raw=True)
         self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
         # /diagnostics from a thread of its own, off the executor's (ReportLoop)
-        self.reports = ReportLoop(service.reporter, self._publish_diagnostics, values["diagnostics_period_s"],
-                                  log=service.log).start()
+        self.reports.start()
 
     def close(self) -> None:
         """Stop the loops (logging the summary) and destroy what :meth:`open` created."""

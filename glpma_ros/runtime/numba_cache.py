@@ -102,7 +102,7 @@ def install() -> bool:
     (no ``flock``, or a Numba without ``IndexDataCacheFile.save``)."""
     global numba_save, numba_stamp
     try:
-        from numba.core.caching import IndexDataCacheFile, _SourceFileBackedLocatorMixin
+        from numba.core.caching import IndexDataCacheFile, _SourceFileBackedLocatorMixin  # internals: may be absent
     except ImportError:
         return False
     if _SourceFileBackedLocatorMixin.get_source_stamp is not stamp_with_package:

@@ -14,9 +14,13 @@ import sys
 import time
 
 import numpy as np
+from numba.core.registry import CPUDispatcher
 
 from .. import solvers
 from ..config import load_manipulator, resolve_config
+from ..estimation.estimator import Estimator
+from ..modes import homotopy
+from ..modes.multistart import solve_all
 
 #: the package whose compiled functions :func:`cache_counts` counts
 PACKAGE = __name__.partition(".")[0]
@@ -40,10 +44,17 @@ SOLVE_ALL_STARTS = 64
 
 def warm_up_pose(model) -> np.ndarray:
     """Solver variables of a pose clear of the base joints (platform lifted by the scale); an actuated
-    family's home pose (:meth:`~glpma_ros.models.actuated.ActuatedLegs.home_variables`), inside its workspace."""
+    family's home pose (:meth:`~glpma_ros.models.actuated.ActuatedLegs.home_variables`, else the solve of its
+    reference legs), inside its workspace."""
     home = getattr(model, "home_variables", None)
     if home is not None:
-        return home()
+        x = home()
+        if x is not None:
+            return x
+        e = Estimator(model, seed=0).estimate(model.reference_legs())
+        if e.x is None:
+            raise ValueError(f"{model.kind}: no assembly at the actuators' mid-range; give known_solutions")
+        return np.array(e.x, dtype=float)
     s = model.scale
     return model.variables_from_pose([0.25 * s, 0.25 * s, s], [0.0, 0.0, 0.0, 1.0])
 
@@ -62,7 +73,6 @@ def exercise(model, solver: str) -> float:
     at once reaches the code a quick one never does, e.g. GLPMA's local search) -- so that every
     compiled function it uses is loaded (or compiled).  The results are thrown away; returns
     the seconds spent."""
-    from ..estimation.estimator import Estimator
     t0 = time.perf_counter()
     feasible = warm_up_legs(model)
     infeasible = np.full(model.n_legs, INFEASIBLE_SCALE * model.scale)
@@ -81,8 +91,6 @@ def exercise(model, solver: str) -> float:
 def exercise_solve_all(model, methods=("homotopy", "multistart", "g3pcx")) -> float:
     """Load what :func:`~glpma_ros.modes.multistart.solve_all` uses for ``methods`` (default the homotopy,
     the multistart and the G3-PCX runs); returns the seconds spent."""
-    from ..modes import homotopy
-    from ..modes.multistart import solve_all
     t0 = time.perf_counter()
     legs = warm_up_legs(model)
     if "homotopy" in methods and homotopy.has_start_system(model):
@@ -103,7 +111,6 @@ def cache_counts() -> tuple[int, int]:
     """``(loaded, compiled)``: how many compiled functions of this package Numba has loaded from its
     cache and how many it has compiled (cache misses) in this process so far, from each
     dispatcher's own statistics (``Dispatcher.stats``)."""
-    from numba.core.registry import CPUDispatcher
     seen, loaded, compiled = set(), 0, 0
     for name, module in list(sys.modules.items()):
         if not name.startswith(PACKAGE) or module is None:

@@ -48,6 +48,12 @@ def make_settings(model, *, max_iter=None, rtol=None, ftol=math.inf) -> np.ndarr
     return np.ascontiguousarray(np.concatenate((head, model.pose_column_scale)), dtype=float)
 
 
+#: one output vector of :func:`lm_kernel` for a model of n solver variables: the variables x (n), then these
+#: slots -- the platform's position (3) and unit quaternion (4) --, then the info (``N_INFO``, the ``I_*``
+#: layout); read by name through :class:`LmOutput`
+POSE_OUT = 7
+
+
 class LmInfo(NamedTuple):
     """The ``info`` part of :func:`lm_kernel`'s output, by name (fields in the order of the ``I_*``
     layout, checked below): what the estimator's warm path reads of one compiled call."""
@@ -68,7 +74,7 @@ class LmInfo(NamedTuple):
     @classmethod
     def of(cls, out, n_vars: int) -> "LmInfo":
         """The info of ``out`` (one output vector of a model with ``n_vars`` solver variables)."""
-        return cls._make(out[n_vars + 7:].tolist())
+        return cls._make(out[n_vars + POSE_OUT:].tolist())
 
 
 assert [LmInfo._fields.index(name) for name in ("leg_fitness", "max_residual", "fitness", "conditioning",
@@ -76,6 +82,20 @@ assert [LmInfo._fields.index(name) for name in ("leg_fitness", "max_residual", "
                                                   "converged", "input_ok", "progress")] == [
     I_LEG_FITNESS, I_MAX_RESIDUAL, I_FITNESS, I_CONDITIONING, I_STATIONARITY, I_DISTANCE, I_MOVEMENT, I_NFEV,
     I_NIT, I_CONVERGED, I_INPUT_OK, I_PROGRESS] and len(LmInfo._fields) == N_INFO, "LmInfo out of step with lm.I_*"
+
+
+class LmOutput(NamedTuple):
+    """One output vector of :func:`lm_kernel`, by name (layout: :data:`POSE_OUT`)."""
+
+    x: np.ndarray             # solver variables
+    position: np.ndarray      # platform origin
+    orientation: np.ndarray   # unit quaternion [qx, qy, qz, qw]
+    info: LmInfo
+
+    @classmethod
+    def of(cls, out, n_vars: int) -> "LmOutput":
+        """The parts of ``out`` (views, not copies) for a model of ``n_vars`` solver variables."""
+        return cls(out[:n_vars], out[n_vars:n_vars + 3], out[n_vars + 3:n_vars + POSE_OUT], LmInfo.of(out, n_vars))
 
 
 class LocalResult(NamedTuple):
@@ -113,8 +133,7 @@ class LocalSolver:
         self.platform = np.ascontiguousarray(model.platform, dtype=float)
         self.frame = np.ascontiguousarray(model.frame, dtype=float)
         self.n_vars = int(model.n_vars)
-        self.n_out = self.n_vars + 7 + N_INFO
-        self.info_at = self.n_vars + 7
+        self.n_out = self.n_vars + POSE_OUT + N_INFO
         self.work = np.zeros(workspace_size(model.n_legs, model.n_pose, model.n_res) + self.n_out)
         self.settings = make_settings(model)
         self._limits = model.leg_limits
@@ -169,14 +188,13 @@ class LocalSolver:
         return self.result(out)
 
     def result(self, out) -> LocalResult | None:
-        n, info = self.n_vars, out[self.info_at:]
-        if info[I_INPUT_OK] == 0.0:
+        o = LmOutput.of(out, self.n_vars)
+        i = o.info
+        if i.input_ok == 0.0:
             return None
-        return LocalResult(out[:n], out[n:n + 3], out[n + 3:n + 7], info[I_CONVERGED] == 1.0,
-                           float(info[I_MAX_RESIDUAL]), float(info[I_LEG_FITNESS]), float(info[I_FITNESS]),
-                           float(info[I_CONDITIONING]), float(info[I_STATIONARITY]), float(info[I_PROGRESS]),
-                           float(info[I_DISTANCE]),
-                           float(info[I_MOVEMENT]), int(info[I_NFEV]), int(info[I_NIT]))
+        return LocalResult(o.x, o.position, o.orientation, i.converged == 1.0, i.max_residual, i.leg_fitness,
+                           i.fitness, i.conditioning, i.stationarity, i.progress, i.distance, i.movement,
+                           int(i.nfev), int(i.nit))
 
 
 def local_solve(model, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.inf) -> LocalResult:

@@ -16,6 +16,11 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
+from ..config import load_manipulator, resolve_config
+from .matching import compare, legs_for
+
 #: the mock publisher's node name and its true-pose topic
 MOCK_NODE_NAME = "glpma_mock_publisher"
 TRUE_POSE_TOPIC = f"/{MOCK_NODE_NAME}/true_pose"
@@ -41,6 +46,7 @@ def fk_with_mock(manipulator: str = "3rpr", *, managed: bool = False, autostart:
     "Running secured").  ``launch_arguments``: more arguments of ``fk.launch.py`` (e.g.
     ``{"robot_description": "true"}``).  Add ``launch_testing.actions.ReadyToTest()`` (or launch_pytest's)
     after them."""
+    # launch and launch_ros: a sourced ROS 2, optional, imported where used
     from launch.actions import IncludeLaunchDescription
     from launch.launch_description_sources import PythonLaunchDescriptionSource
     from launch.substitutions import PathJoinSubstitution
@@ -77,9 +83,8 @@ class TrackingMonitor:
 
     def __init__(self, node, config: str = "planar_3rpr_seed", input_type: str = "float64_multi_array",
                  pose_topic: str = "pose_estimate", true_pose_topic: str = TRUE_POSE_TOPIC):
-        from geometry_msgs.msg import PoseStamped
+        from geometry_msgs.msg import PoseStamped  # a sourced ROS 2: optional, imported where used
 
-        from ..config import load_manipulator, resolve_config
         self.node = node
         self.model = load_manipulator(resolve_config(MANIPULATOR_CONFIGS.get(config, config)))
         self.by_stamp = input_type == "joint_state"
@@ -90,7 +95,6 @@ class TrackingMonitor:
 
     @staticmethod
     def _fields(msg):
-        import numpy as np
         p, q = msg.pose.position, msg.pose.orientation
         return (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, msg.header.frame_id,
                 np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]))
@@ -99,7 +103,6 @@ class TrackingMonitor:
         self.poses.append((self.node.get_clock().now().nanoseconds, *self._fields(msg)))
 
     def _on_truth(self, msg) -> None:
-        from .matching import legs_for
         stamp_ns, _, position_m, q = self._fields(msg)
         legs = legs_for(self.model, position_m / self.model.metres_per_unit, q)
         self.truths.append(_Truth(stamp_ns, legs, position_m, q))
@@ -121,7 +124,6 @@ class TrackingMonitor:
 
     def comparison(self):
         """:class:`~glpma_ros.testing.matching.Comparison` of the judged poses with their inputs."""
-        from .matching import compare
         return compare(self.model, list(self.truths), self.judged(), self.by_stamp)
 
     def assert_tracking(self, min_poses: int = 1, position_tol_m: float = POSITION_TOL_M,

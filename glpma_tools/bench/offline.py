@@ -24,7 +24,7 @@ from glpma_ros.node.dds.rosbag import FLOAT64_MULTI_ARRAY, decode_float64_multi_
 from glpma_ros.node.ros_args import parse_ros_args
 from glpma_ros.node.service import FkService
 from glpma_tools import bag, workspace_map
-from glpma_tools.bag_run import OFFLINE_BUDGET_MS, BranchWatch
+from glpma_tools.bag_outcome import OFFLINE_BUDGET_MS, BranchWatch
 from glpma_tools.sim.calibration_data import simulate, true_readings, write_csv
 from glpma_tools.sim.trajectories import start_pose
 

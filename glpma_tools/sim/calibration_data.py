@@ -39,7 +39,7 @@ JOINT_ERROR_M = 1e-3
 OFFSET_ERROR_M = 0.5e-3
 #: standard deviation of the leg readings and of each coordinate of the measured position (m)
 NOISE_M = 1e-5
-#: measurements of the issue's protocol
+#: measurements of a simulated campaign (BENCHMARKS.md, "Calibration", times 200 of them)
 POSES = 200
 #: 3-RPR poses: position uniform within this share of the scale around the known solution, angle
 #: uniform within +- PLANAR_ANGLE_RAD (a calibration run moves the platform over its workspace)

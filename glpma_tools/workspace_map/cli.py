@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from glpma_ros.cli.api import OneLineParser
+from glpma_ros.cli.api import manipulator_parser
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
 
@@ -100,8 +100,8 @@ def make_spec(model, args) -> MapSpec:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(
-        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = manipulator_parser(
+        PROG, metavar="CONFIG", formatter_class=argparse.RawDescriptionHelpFormatter,
         description=textwrap.fill(
             "Assembly-mode map of a 2-D slice of the workspace: at every point of a grid over two pose coordinates "
             "(the others fixed), the number of real assembly modes of the legs of that pose (solve_all) and the "
@@ -113,7 +113,6 @@ def build_parser() -> argparse.ArgumentParser:
                "+- half the geometry's size, z range 0 .. 2 sizes,\nangles -180 .. 180; fixed angles 0 and z = the "
                "geometry's size; an actuated family: the box its platform can reach, z of its home pose.\n"
                "Finished chunks are kept in DIR/chunks/: a rerun of the same map (same config and grid) skips them.")
-    p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (created; reused to resume)")
     p.add_argument("--axes", nargs=2, default=("x", "y"), metavar=("A", "B"),
                    help="pose coordinates along the columns and the rows (default x y)")

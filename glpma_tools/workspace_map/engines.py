@@ -107,7 +107,7 @@ class MapResult:
 
 def available_memory() -> int:
     """Bytes of memory available to a new process without swapping (psutil: Linux ``MemAvailable``)."""
-    import psutil
+    import psutil  # the tools extra: optional, imported where used
     return psutil.virtual_memory().available
 
 
@@ -123,7 +123,7 @@ def check_memory(n_points: int) -> None:
 def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, workers: int = 1,
                 scheduler: str | None = None, chunk_size: int | None = None, progress: bool = True) -> MapResult:
     """Compute (or resume) the map and write ``assembly_modes.npz`` and ``.png`` in ``out_dir``."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # the tools extra: optional, imported where used
     check_memory(spec.n_points)
     chunk_size = chunk_size or spec.shape[0]
     chunk_dir = out_dir / "chunks" / spec.key(config_text)

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from glpma_ros.errors import GlpmaError, InputError
+from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
+from glpma_ros.modes.multistart import solve_all
 
 from .grid import OUTSIDE, MapSpec, pose_variables
 
@@ -45,7 +47,6 @@ class ExactCheck:
 
 def require_exact() -> None:
     """:class:`InputError` (exit 2) before the map is computed when msolve is missing."""
-    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
     try:
         msolve_executable()
     except ExactUnavailableError as exc:
@@ -65,7 +66,6 @@ def sample(spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None 
 
 def exact_check(model, spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None = None) -> ExactCheck:
     """Certified counts at ``k`` sampled points (none with a double mode) compared with the map's ``counts``."""
-    from glpma_ros.modes.multistart import solve_all
     t0 = time.perf_counter()
     flat = counts.reshape(-1)
     check = ExactCheck(list(sample(spec, counts, k, double)))

@@ -5,7 +5,7 @@ point is solved; :func:`solve_point` gives the number of real assembly modes
 (:func:`glpma_ros.modes.multistart.solve_all`: by default its multistart, counted without polishing
 the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX searches; seeded from the
 point's index by :func:`point_seed`), how many of those modes are double (a leg Jacobian singular at
-the solver's tolerance, :data:`glpma_ros.modes.multistart.DOUBLE_CONDITIONING`: the point is on a
+the solver's tolerance, :data:`glpma_ros.modes.solutions.DOUBLE_CONDITIONING`: the point is on a
 singularity and its count is decided by round-off), the conditioning and the sign of det J of one point;
 :func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
 """
@@ -21,6 +21,8 @@ import yaml
 
 from glpma_ros.config import model_from_dict
 from glpma_ros.errors import InputError
+from glpma_ros.modes.multistart import solve_all
+from glpma_ros.modes.solutions import DOUBLE_CONDITIONING
 
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
 COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
@@ -34,7 +36,7 @@ METHODS = ("multistart", "homotopy", "g3pcx", "closed_form")
 DEFAULT_METHOD = "multistart"
 #: a model with a closed-form forward kinematics (the three-leg Delta) is counted by it unless told otherwise
 CLOSED_FORM = "closed_form"
-#: independent G3-PCX searches per grid point with method g3pcx (what the maps used before the multistart)
+#: independent G3-PCX searches per grid point with method g3pcx (the papers' method)
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
 OUTSIDE = -1
@@ -132,11 +134,10 @@ def point_seed(seed: int, index: int) -> int:
 
 def double_modes(model, found, legs) -> int:
     """How many modes of ``found`` (an ``AllSolutions``) are double at the solver's tolerance: their leg
-    Jacobian's reciprocal condition number is below :data:`~glpma_ros.modes.multistart.DOUBLE_CONDITIONING`
+    Jacobian's reciprocal condition number is below :data:`~glpma_ros.modes.solutions.DOUBLE_CONDITIONING`
     (the multistart reports it; the G3-PCX runs' modes are measured here).  Such a mode stands for two
     real modes met at a singularity (a double root), for two closer than the tolerance, or for the real
     shadow of a complex pair: the count of distinct modes there is decided by round-off."""
-    from glpma_ros.modes.multistart import DOUBLE_CONDITIONING
     if found.conditioning:
         return found.double_modes
     return sum(model.conditioning(s.x, legs) < DOUBLE_CONDITIONING for s in found.solutions)
@@ -146,7 +147,6 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int]
     """(real assembly modes, conditioning, sign of det J, double modes among them) at grid point
     ``index``; the sign is 0 with redundant legs (a non-square J: the singularities are where the
     conditioning vanishes)."""
-    from glpma_ros.modes.multistart import solve_all
     x = pose_variables(model, spec.coordinates(index))
     try:
         legs = model.check_legs(model.inverse_kinematics(x))

@@ -30,7 +30,7 @@ def count_colour(count: int):
     """The fixed colour of a mode count, the same in every map: the ``MODE_PALETTES`` colours
     indexed by the count (38 colours; a 6-6 has at most 40 modes, counts beyond wrap), light grey
     (``OUTSIDE_COLOUR``) for a point without valid legs, near black for a point on a singularity."""
-    from matplotlib import colormaps
+    from matplotlib import colormaps  # the tools extra: optional, imported where used
     if count == OUTSIDE:
         return OUTSIDE_COLOUR
     if count == ON_SINGULARITY:
@@ -53,7 +53,7 @@ def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> l
     every class drawn, points without valid legs included; the points with a double mode, ``data``'s
     ``double_modes`` > 0, drawn as their own class ``ON_SINGULARITY``) and the singularity curves (zero
     contour of the signed conditioning).  Returns the legend's ``(label, colour)`` entries."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # the tools extra: optional, imported where used
     from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D

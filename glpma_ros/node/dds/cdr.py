@@ -310,6 +310,7 @@ def _cyclone_calls() -> SimpleNamespace:
     """The binding's raw calls, imported once (the codec above works without Cyclone DDS)."""
     global _cyclone
     if _cyclone is None:
+        # cyclonedds: optional for the codec, imported where the binding is used
         from cyclonedds._clayer import ddspy_take, ddspy_write
         from cyclonedds.core import DDSException, InstanceState, SampleState, ViewState
         _cyclone = SimpleNamespace(take=ddspy_take, write=ddspy_write, error=DDSException,

@@ -44,7 +44,7 @@ def request_modes(node_name: str = "glpma_fk", timeout_s: float = 120.0) -> dict
     """Ask node ``node_name`` for its assembly modes; returns ``{"node", "frame_id", "stamp_ns",
     "modes": [{"position": [x, y, z], "orientation": [qx, qy, qz, qw]}], "wait_s"}`` (metres).
     :class:`ModesError` with the reason when there is no answer."""
-    from . import endpoints
+    from . import endpoints  # these need cyclonedds, optional: main() says when it is missing
     from .messages import DiagnosticArray, Empty, PoseArray
 
     participant = endpoints.Participant()

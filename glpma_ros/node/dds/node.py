@@ -39,7 +39,7 @@ from cyclonedds.util import duration
 from ...errors import GlpmaError, InputError
 from .. import params as P
 from .. import qos
-from ..loops import AssemblyModesLoop, ReportLoop, SolveLoop, pause_report
+from ..loops import node_loops, pause_report
 from ..ros_args import node_values, parse_ros_args, remapped, split_transport
 from ..service import FkService, JointStateInput
 from . import cdr, endpoints
@@ -135,11 +135,10 @@ class DdsNode:
         self._extra_writers = (("tf", self.tf_writer), ("covariance", self.cov_writer),
                                ("twist", self.twist_writer), ("markers", self.markers_writer),
                                ("joint_states", self.joint_states_writer))
-        self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
-                              subscribed=self._subscribed, stats=service.stats, modes=service.modes)
-        self.modes = AssemblyModesLoop(service.modes, self._publish_modes, solve=modes_solve, log=service.log)
-        self.reports = ReportLoop(service.reporter, self._publish_report, service.params["diagnostics_period_s"],
-                                  log=service.log)
+        self.loop, self.modes, self.reports = node_loops(
+            service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
+            subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_report,
+            modes_solve=modes_solve)
         self._stop = threading.Event()
         self._waitset, self._guard = endpoints.reader_waitset(participant, [self.input_reader, self.request_reader])
         self._lead = threading.Lock()           # held by the thread that waits for input
