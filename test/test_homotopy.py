@@ -256,3 +256,33 @@ def test_map_counts_with_the_homotopy(tmp_path, rpr):
         legs = rpr.inverse_kinematics(pose_variables(rpr, spec.coordinates(index)))
         res = solve_all(rpr, legs, method="homotopy", seed=point_seed(0, index))
         assert res.complete and counts.ravel()[index] == res.real_solutions
+
+
+# -- the shipped maps against msolve ------------------------------------------------------------------------------
+MAP_DATA = ROOT / "test" / "data" / "homotopy_map_cases.json"
+MAP_CASES = json.loads(MAP_DATA.read_text())["maps"]
+#: the 6-6 slice's points where the multistart counted 10 and msolve certifies 12 (grid indices)
+SLICE_TEN_POINTS = {5745, 6050}
+
+
+@pytest.mark.parametrize("config", sorted(MAP_CASES))
+def test_default_maps_count_msolve_s_certified_modes(config):
+    """glpma-fk map CONFIG (its defaults: the homotopy) at 50 sampled grid points and the named ones: the count
+    msolve certified there (test/data/homotopy_map_cases.json, tools/homotopy_map_cases.py), certified by the
+    root count, no double mode."""
+    from glpma_tools.workspace_map.cli import build_parser, make_spec
+    from glpma_tools.workspace_map.grid import solve_point
+    model = load_manipulator(resolve_config(config))
+    spec = make_spec(model, build_parser().parse_args([config, "--out", "unused"]))
+    assert spec.method == "homotopy"
+    points = MAP_CASES[config]["points"]
+    assert sum(not c.get("named") for c in points) == 50
+    if config == "hexapod_66_rolland":
+        assert {c["index"] for c in points if c.get("named")} == SLICE_TEN_POINTS
+    for case in points:
+        coords = spec.coordinates(case["index"])
+        # the grid is the one certified: its coordinates are computed by the same linspace, so they agree to
+        # round-off of the config's numbers
+        assert all(abs(coords[k] - v) <= 1e-9 * (1.0 + abs(v)) for k, v in case["coordinates"].items())
+        count, _, _, double, certified = solve_point(model, spec, case["index"])
+        assert (count, double, certified) == (case["real_solutions"], 0, 1), case["index"]

@@ -1,13 +1,14 @@
 """The grid of ``glpma-fk map`` and what is computed at its points.
 
-:class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each
-point is solved; :func:`solve_point` gives the number of real assembly modes
-(:func:`glpma_ros.modes.multistart.solve_all`: by default its multistart, counted without polishing
-the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX searches; seeded from the
-point's index by :func:`point_seed`), how many of those modes are double (a leg Jacobian singular at
-the solver's tolerance, :data:`glpma_ros.modes.multistart.DOUBLE_CONDITIONING`: the point is on a
-singularity and its count is decided by round-off), the conditioning and the sign of det J of one point;
-:func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
+:class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each point is solved;
+:func:`solve_point` gives the number of real assembly modes (:func:`glpma_ros.modes.multistart.solve_all`: by
+default its parameter homotopy, certified by the root count, where the family has a start system, else its
+multistart, counted without polishing the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX
+searches; seeded from the point's index by :func:`point_seed`), whether the homotopy's certificate holds, how
+many of those modes are double (a leg Jacobian singular at the solver's tolerance,
+:data:`glpma_ros.modes.multistart.DOUBLE_CONDITIONING`: the point is on a singularity and its count is decided
+by round-off), the conditioning and the sign of det J of one point; :func:`solve_chunk` a range of points, as
+a worker process or a Dask worker runs it.
 """
 from __future__ import annotations
 
@@ -25,15 +26,16 @@ from glpma_ros.errors import InputError
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
 COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
 ANGLES = ("theta", "roll", "pitch", "yaw")
-#: how the modes of a point are counted: solve_all's multistart (default), its parameter homotopy (certified by
-#: the root count, msolve's modes where it falls short and the exact extra is installed; a point exactly on a
-#: singularity is not yet marked as the multistart marks it, so not the default) or the papers' G3-PCX runs
-METHODS = ("multistart", "homotopy", "g3pcx")
-DEFAULT_METHOD = "multistart"
+#: how the modes of a point are counted: solve_all's parameter homotopy (certified by the root count; the default
+#: where the family has a start system), its multistart (the default elsewhere) or the papers' G3-PCX runs
+METHODS = ("homotopy", "multistart", "g3pcx")
+DEFAULT_METHOD = "homotopy"
 #: independent G3-PCX searches per grid point with method g3pcx (what the maps used before the multistart)
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
 OUTSIDE = -1
+#: ``certified`` of a point whose method has no certificate (multistart, g3pcx) or that has no valid legs
+NOT_CERTIFIABLE = -1
 
 
 @dataclass(frozen=True)
@@ -115,26 +117,32 @@ def double_modes(model, found, legs) -> int:
     return sum(model.conditioning(s.x, legs) < DOUBLE_CONDITIONING for s in found.solutions)
 
 
-def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int]:
-    """(real assembly modes, conditioning, sign of det J, double modes among them) at grid point
+def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int, int]:
+    """(real assembly modes, conditioning, sign of det J, double modes among them, certified) at grid point
     ``index``; the sign is 0 with redundant legs (a non-square J: the singularities are where the
-    conditioning vanishes)."""
-    from glpma_ros.modes.multistart import solve_all
+    conditioning vanishes); certified: 1 when the homotopy's root count certifies the count, 0 when it
+    does not (paths failed or met at a double root: the count is of the modes found), -1 for the methods
+    without a certificate (multistart, g3pcx).  The homotopy does not fall back on msolve here: a map's counts
+    do not depend on the extras installed."""
+    from glpma_ros.modes.multistart import homotopy_modes, solve_all
     x = pose_variables(model, spec.coordinates(index))
     try:
         legs = model.check_legs(model.inverse_kinematics(x))
     except InputError:                       # a leg of length 0 or outside the leg limits: no such pose
-        return OUTSIDE, math.nan, 0, 0
+        return OUTSIDE, math.nan, 0, 0, NOT_CERTIFIABLE
     seed = point_seed(spec.seed, index)
+    certified = NOT_CERTIFIABLE
     if spec.method == "g3pcx":
         modes = solve_all(model, legs, method="g3pcx", runs=spec.runs, seed=seed)
     elif spec.method == "homotopy":
-        modes = solve_all(model, legs, method="homotopy", seed=seed)
+        modes = homotopy_modes(model, legs, seed=seed, fallback=False)
+        certified = int(bool(modes.complete))
     else:
         modes = solve_all(model, legs, method="multistart", seed=seed, max_starts=spec.runs or None, polish=False)
     _, J = model.pose_residuals_jacobian(model.pose_state(x), legs)
     sign = int(np.sign(np.linalg.det(J * model.pose_column_scale))) if J.shape[0] == J.shape[1] else 0
-    return len(modes.solutions), float(model.conditioning(x, legs)), sign, double_modes(model, modes, legs)
+    return (len(modes.solutions), float(model.conditioning(x, legs)), sign, double_modes(model, modes, legs),
+            certified)
 
 
 _MODELS: dict = {}     # per process: configuration text -> model
@@ -147,7 +155,8 @@ def solve_chunk(config_text: str, source: str, spec: MapSpec, start: int, stop: 
         model = _MODELS[config_text] = model_from_dict(yaml.safe_load(config_text), source)
     n = stop - start
     counts, cond, sign, double = np.empty(n, np.int16), np.empty(n), np.empty(n, np.int8), np.empty(n, np.int8)
+    certified = np.empty(n, np.int8)
     for k in range(n):
-        counts[k], cond[k], sign[k], double[k] = solve_point(model, spec, start + k)
+        counts[k], cond[k], sign[k], double[k], certified[k] = solve_point(model, spec, start + k)
     return {"start": start, "stop": stop, "counts": counts, "conditioning": cond, "jacobian_sign": sign,
-            "double_modes": double}
+            "double_modes": double, "certified": certified}
