@@ -55,7 +55,11 @@ Morgan & Sommese 1989, "Coefficient-parameter polynomial continuation", Appl. Ma
   the answer is ``complete = False`` and names the paths.  A design whose count is lower than the family's
   (hexapods with coincident joints: the 6-3, 3-6 and 3-3 have 16, Faugere & Lazard 1995) is certified by
   its own count ``design_root_count``; the other paths end on the component ``e.e = 0`` of non-poses or at
-  infinity.
+  infinity.  Other special designs (the seed 6-6, mirror-symmetric joint pairs: 28 finite poses) are certified
+  when every path is accounted for (:func:`_accounted`: a regular pose endpoint of its own, at infinity, or on
+  the exceptional quadric ``e.e = 0``) and an independent homotopy (another gamma and patch) accounts for every
+  path and ends at the same poses.  A real double root that paths meet (a target on a singularity) leaves the
+  answer incomplete; it is returned apart (``singular``) for the caller to polish and mark as double.
 
 * **Real modes** are the regular endpoints that are real up to ``REAL_TOLERANCE`` (the 6-6's are real up
   to a complex factor, removed first), converted to the model's solver variables; the caller polishes
