@@ -19,7 +19,7 @@ from glpma_ros.cli.main import commands, main
 from glpma_ros.config import load_manipulator, model_from_dict, unit_mistake
 from glpma_ros.errors import ConfigError, GlpmaError, InputError
 from glpma_ros.node.ros_args import check_params_files, load_params_file
-from glpma_ros.runtime.compat import check_numba
+from glpma_ros.runtime.compat import check_numba, inline_for
 
 CONTRACT_SOLVE_KEYS = {"solver", "status", "fitness", "evaluations", "elapsed_s", "variables", "pose"}
 
@@ -269,6 +269,13 @@ def test_numba_floor():
         check_numba("0.56.4+dfsg")
     check_numba("0.58.1")
     check_numba()                            # the installed one
+
+
+def test_numba_ir_inlining_only_where_the_inliner_is_fast():
+    # before 0.59 nested inline="always" sites copy the callee's IR at each level: a precompile of tens of minutes
+    assert inline_for("0.58.1") == "never"
+    assert inline_for("0.59.0") == "always"
+    assert inline_for("0.68.1") == "always"
 
 
 # -- glpma-fk modes against a running node -----------------------------------------------------------------

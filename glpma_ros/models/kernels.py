@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..runtime.compat import NUMBA_INLINE
 from .residuals import (
     KIND_HEXAPOD_66,
     KIND_PLANAR_3RPR,
@@ -27,7 +28,7 @@ from .residuals import (
 )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def residuals_into(x, kind, data, legs, out):
     """Residual vector of individual ``x`` into ``out`` (not counted: callers count)."""
     if kind == KIND_PLANAR_3RPR:
@@ -38,7 +39,7 @@ def residuals_into(x, kind, data, legs, out):
         actuated_residuals(x, kind, data, legs, out)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def _sum_of_squares(x, kind, data, legs, r):
     residuals_into(x, kind, data, legs, r)
     s = 0.0
@@ -55,7 +56,7 @@ def fitness_one(x, kind, data, legs, r):
     return _sum_of_squares(x, kind, data, legs, r)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def population_fitness(X, kind, data, legs, n_res):
     """Fitness of every row of ``X`` (one compiled loop).  Counts one per row."""
     m = X.shape[0]

@@ -18,6 +18,8 @@ import math
 
 from numba import njit
 
+from ..runtime.compat import NUMBA_INLINE
+
 KIND_PLANAR_3RPR = 0
 KIND_HEXAPOD_66 = 1
 #: the actuated families: planar full pose (3-RRR, 3-PRR), spatial full pose (6-RUS, 6-PUS), translation (deltas)
@@ -26,13 +28,13 @@ KIND_ACTUATED_SPATIAL = 3
 KIND_ACTUATED_TRANSLATION = 4
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def split_leg_vector(legs, n, dim):
     """The rods (``n``) and the proximal points (``n x dim``) of an actuated kind's leg vector."""
     return legs[:n], legs[n:n + n * dim].reshape((n, dim))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def planar_rods_residuals(x, base, platform, legs, out):
     """``|C + R(theta) CB_i - A_i| - l_i`` for the planar pose ``x = (x, y, theta)``."""
     c = math.cos(x[2])
@@ -43,12 +45,12 @@ def planar_rods_residuals(x, base, platform, legs, out):
         out[i] = math.sqrt(bx * bx + by * by) - legs[i]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def planar_3rpr_residuals(x, data, legs, out):
     planar_rods_residuals(x, data[0], data[1], legs, out)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def spatial_rods_residuals(x, base, abc, d0sq, legs, out):
     """The nine-variable residuals (leg errors, then the three rigidity terms) of :mod:`.hexapod_66`."""
     e1x = x[3] - x[0]
@@ -81,12 +83,12 @@ def spatial_rods_residuals(x, base, abc, d0sq, legs, out):
     out[n + 2] = d0sq[2] - (e3x * e3x + e3y * e3y + e3z * e3z)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def hexapod_66_residuals(x, data, legs, out):
     spatial_rods_residuals(x, data[0], data[1], data[2], legs, out)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def translation_rods_residuals(x, base, platform, legs, out):
     """``|p + B_i - P_i| - rod_i`` for a platform that only translates, ``x = p``."""
     for i in range(base.shape[0]):
@@ -96,7 +98,7 @@ def translation_rods_residuals(x, base, platform, legs, out):
         out[i] = math.sqrt(bx * bx + by * by + bz * bz) - legs[i]
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def actuated_residuals(x, kind, data, legs, out):
     """The actuated kinds: the same distance residuals with the proximal points of the leg vector.
     ``data`` = (platform joints or frame coefficients, platform joints, rigidity d0^2, counter)."""

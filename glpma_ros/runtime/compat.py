@@ -14,6 +14,11 @@ import re
 
 from ..errors import GlpmaError
 
+try:
+    from numba import __version__ as INSTALLED_NUMBA
+except ImportError:            # check_numba() says so in one line
+    INSTALLED_NUMBA = None
+
 #: oldest Numba the kernels compile with (also in setup.py and package.xml)
 NUMBA_FLOOR = (0, 58)
 #: how to get a newer Numba where the distribution's is too old (PEP 668: no plain pip)
@@ -26,16 +31,31 @@ def version_tuple(text: str) -> tuple[int, ...]:
     return tuple(int(part) for part in re.findall(r"\d+", str(text))[:3])
 
 
+#: first Numba whose IR inliner copies a callee once per call site: before it, ``InlineInlineable``
+#: deep-copied the callee's IR (and every ``Loc`` in it) again at each nested site (numba#8989, fixed by
+#: numba#8990 and numba#9245 in 0.59.0), so the residual dispatch over every kind, inlined through
+#: ``population_fitness`` into each solver's generation loop, takes tens of minutes to compile
+NUMBA_INLINER_FIXED = (0, 59)
+#: ``inline=`` of the small compiled kernels the solvers' loops call (the residuals, the fitness, the
+#: operators): Numba-IR inlining lets LLVM keep the geometry in registers across the population loop
+#: (the CPU per evaluation with and without it: BENCHMARKS.md, "Design measurements"); where the inliner is
+#: slow, the calls stay calls and LLVM inlines what it judges worth it
+def inline_for(version: str) -> str:
+    """The ``inline=`` option of the small kernels for Numba ``version``."""
+    return "always" if version_tuple(version)[:2] >= NUMBA_INLINER_FIXED else "never"
+
+
+NUMBA_INLINE = inline_for(INSTALLED_NUMBA or "0")
+
+
 def check_numba(version: str | None = None) -> None:
     """:class:`GlpmaError` (one line) when Numba is missing or older than :data:`NUMBA_FLOOR`.
     ``version``: the version to judge (default: the installed one)."""
     if version is None:
-        try:
-            import numba
-        except ImportError:
+        if INSTALLED_NUMBA is None:
             raise GlpmaError(f"numba is not installed; glpma_ros needs numba >= "
-                             f"{'.'.join(map(str, NUMBA_FLOOR))}: {NUMBA_HOWTO}") from None
-        version = numba.__version__
+                             f"{'.'.join(map(str, NUMBA_FLOOR))}: {NUMBA_HOWTO}")
+        version = INSTALLED_NUMBA
     if version_tuple(version)[:2] < NUMBA_FLOOR:
         raise GlpmaError(f"numba {version} is too old; glpma_ros needs numba >= "
                          f"{'.'.join(map(str, NUMBA_FLOOR))}: {NUMBA_HOWTO}")

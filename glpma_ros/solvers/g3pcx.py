@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
+from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
 #: Deb et al. (2002) defaults; the papers use "two kids, a family of two parents"
@@ -41,7 +42,7 @@ SIGMA_ZETA = 0.1
 SIGMA_ETA = 0.1
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def _argmin(f):
     b = 0
     for i in range(1, f.shape[0]):
@@ -50,7 +51,7 @@ def _argmin(f):
     return b
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop):
     """``lam`` PCX children of ``parents`` (row 0 is the index parent); ``pop``
     gives the fallback scale when all parents coincide."""
@@ -85,7 +86,7 @@ def pcx_children(parents, lam, sigma_zeta, sigma_eta, rng, pop):
     return children
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def _population_spread(pop):
     n = pop.shape[1]
     s = 0.0
@@ -97,7 +98,7 @@ def _population_spread(pop):
     return s
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def _draw_distinct(rng, N, out, start):
     """Fill ``out[start:]`` with population indices drawn at random, all
     different from each other and from ``out[:start]``."""

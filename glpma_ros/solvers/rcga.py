@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
+from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
 #: the papers' rates (Chandra & Rolland 2014; Chandra, Zhang & Rolland 2009)
@@ -38,7 +39,7 @@ MIN_FITNESS = 1e-300
 MUTATION_B = 5.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def roulette(cum, rng):
     """Roulette-wheel selection: the first index whose cumulative weight ``cum`` exceeds a uniform draw
     in [0, ``cum[-1]``), by bisection."""
@@ -53,7 +54,7 @@ def roulette(cum, rng):
     return lo
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def roulette_cumulative(fit, cum):
     """Cumulative roulette weights ``1 / f`` (floored at ``MIN_FITNESS``) into ``cum``."""
     s = 0.0
@@ -62,7 +63,7 @@ def roulette_cumulative(fit, cum):
         cum[i] = s
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def start_generation(pop, fit, cum, new, new_f, tolerance):
     """Elitism and roulette wheel of a new generation: the best individual into slot 0 of
     ``new`` and the cumulative weights into ``cum``.  False when the best is below ``tolerance``
@@ -76,7 +77,7 @@ def start_generation(pop, fit, cum, new, new_f, tolerance):
     return True
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
 def wright_crossover(pop, fit, a, b, rng, out):
     """Wright's heuristic crossover of ``pop[a]`` and ``pop[b]`` into ``out``:
     ``better + u (better - worse)``, ``u ~ U(0, 1)`` (one draw)."""
