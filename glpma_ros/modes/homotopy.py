@@ -173,6 +173,9 @@ SINGULAR_REAL_TOLERANCE = 1e-5
 #: rounds of tracking again when the count is short: first the paths that failed or met another's endpoint,
 #: carefully (``CAREFUL_SETTINGS``); then every path with a new gamma and patch
 RETRACK_ROUNDS = 4
+#: independent homotopies at most that confirm the poses of a design with fewer than the family's root count
+#: (every path accounted for, the same poses): a disagreement adds the poses found and tries once more
+CONFIRM_ROUNDS = 3
 #: the design's own root count (hexapods whose joints coincide in pairs: 6-3, 3-6, 3-3; Faugere & Lazard
 #: 1995, "Combinatorial classes of parallel manipulators", Mech. Mach. Theory 30(6); msolve agrees)
 COINCIDENT_ROOT_COUNT = 16
@@ -858,24 +861,30 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
     complete = certify > 0 and len(found) == certify
     if not complete and certify > 0 and full_round and _accounted(base_family, ends, good, outcome, t_end):
         # fewer poses than the root count (a special design), every path accounted for: confirmed by an independent
-        # homotopy (another gamma and patch) that accounts for every path and ends at the same poses
-        family = base_family.another_patch(rng)
-        K = family.coefficient_path(start.params, target.params)
-        starts, gammas = base_family.convert(start.solutions, family), np.full(n_paths, random_gammas(rng, 1)[0])
-        ends, jac, outcome, steps, t_end = track(K, starts, gammas, SETTINGS)
-        total_steps += int(steps.sum())
-        retracked += n_paths
-        again = np.flatnonzero((outcome == STEP_FAILED) | (outcome == STEPS_EXHAUSTED))
-        if again.size:              # the same paths, tracked carefully (as the second round above)
-            ends[again], jac[again], outcome[again], steps, t_end[again] = track(K, starts[again], gammas[again],
-                                                                                 CAREFUL_SETTINGS)
+        # homotopy (another gamma and patch) that accounts for every path and ends at the same poses; the poses it
+        # finds that the last did not (a path of the last that jumped) are added and another one confirms
+        for _ in range(CONFIRM_ROUNDS):
+            family = base_family.another_patch(rng)
+            K = family.coefficient_path(start.params, target.params)
+            starts, gammas = base_family.convert(start.solutions, family), np.full(n_paths, random_gammas(rng, 1)[0])
+            ends, jac, outcome, steps, t_end = track(K, starts, gammas, SETTINGS)
             total_steps += int(steps.sum())
-            retracked += again.size
-        good = _regular(jac, outcome)
-        ends = family.convert(ends, base_family)
-        poses = [z for k, z in enumerate(ends) if good[k] and base_family.is_pose(z)]
-        complete = (_accounted(base_family, ends, good, outcome, t_end) and len(poses) == len(found)
-                    and not any(_new(z, found) for z in poses))
+            retracked += n_paths
+            again = np.flatnonzero((outcome == STEP_FAILED) | (outcome == STEPS_EXHAUSTED))
+            if again.size:              # the same paths, tracked carefully (as the second round above)
+                ends[again], jac[again], outcome[again], steps, t_end[again] = track(
+                    K, starts[again], gammas[again], CAREFUL_SETTINGS)
+                total_steps += int(steps.sum())
+                retracked += again.size
+            good = _regular(jac, outcome)
+            ends = family.convert(ends, base_family)
+            poses = [z for k, z in enumerate(ends) if good[k] and base_family.is_pose(z)]
+            new = [z for z in poses if _new(z, found)]
+            if _accounted(base_family, ends, good, outcome, t_end) and len(poses) == len(found) and not new:
+                complete = True
+                break
+            for z in new:
+                found = np.vstack([found, z])
     real, double = [], []
     if not complete:                # a double root: endpoints shared by paths or singular, real up to its accuracy
         for k in distinct(singular, SINGULAR_SAME):
