@@ -247,9 +247,11 @@ def test_map_counts_with_the_homotopy(tmp_path, rpr):
     p = subprocess.run([sys.executable, "-m", "glpma_ros", "map", *map(str, args)], capture_output=True, text=True,
                        cwd=ROOT, timeout=600)
     assert p.returncode == 0, p.stderr
-    assert json.loads(p.stdout)["method"] == "the parameter homotopy"
+    summary = json.loads(p.stdout)
+    assert summary["method"] == "the parameter homotopy" and summary["uncertified"] == {}
     with np.load(tmp_path / "assembly_modes.npz") as f:
         counts = f["counts"]
+        assert np.all(f["certified"] == 1)
     spec = MapSpec("planar_3rpr", ("x", "y"), ((40.0, 80.0), (10.0, 30.0)), (3, 3), (("theta", 0.0),), 0, 0,
                    "homotopy")
     for index in range(spec.n_points):
