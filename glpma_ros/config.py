@@ -2,7 +2,7 @@
 
 Schema (see ``config/*.yaml`` and ``doc/interface.md``)::
 
-    manipulator: planar_3rpr | hexapod_66  (the actuated families, delta | rus_6: :mod:`.models.families`)
+    manipulator: planar_3rpr | hexapod_66  (the actuated families, delta | rus_6 | ...: :mod:`.models.families`)
     unit: mm | cm | m            # required: unit of every length in the file and on the CLI
     base: [[...], ...]           # base joints A_i in the base frame, one per leg (3-RPR: 3 to 12
                                  # legs, hexapod: 6 to 12; more than 3 / 6 are redundant legs)

@@ -33,7 +33,12 @@ MANIPULATORS = {
     "delta": {"config": "delta_irb360", "params": "params_delta.yaml", "rate": 100.0},
 }
 #: a manipulator config given by path (or shipped name) runs with the params file of its kind
-KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod", "delta": "delta", "rus_6": "hexapod"}
+KIND_SPEC = {"planar_3rpr": "3rpr", "hexapod_66": "hexapod", "delta": "delta", "rus_6": "hexapod",
+             "planar_3rrr": "3rpr", "linear_delta": "delta", "pus_6": "hexapod", "planar_3prr": "3rpr"}
+#: ``--manipulator`` by an actuated family's name: its shipped config
+FAMILY_CONFIGS = {"rus_6": "rus6_simulator", "planar_3rrr": "planar_3rrr_symmetric",
+                  "linear_delta": "linear_delta_kossel_mini", "pus_6": "pus6_rail_hexapod",
+                  "planar_3prr": "planar_3prr_triangle"}
 
 
 def manipulator_spec(name: str) -> tuple[str, dict]:
@@ -42,6 +47,7 @@ def manipulator_spec(name: str) -> tuple[str, dict]:
     set to it; :class:`~glpma_ros.errors.ConfigError` for an unreadable or invalid config."""
     if name in MANIPULATORS:
         return name, MANIPULATORS[name]
+    name = FAMILY_CONFIGS.get(name, name)
     from glpma_ros.config import load_document, model_from_dict, resolve_config
     from glpma_ros.models.rotations import quaternion_from_matrix
     from glpma_tools.sim.trajectories import start_pose
@@ -61,8 +67,9 @@ def _parser() -> OneLineParser:
     p = OneLineParser(prog="glpma-fk demo", description=what[0].upper() + what[1:])
     p.add_argument("--manipulator", default="3rpr",
                    help="which manipulator to drive: 3rpr (default), hexapod or delta (the shipped seed 3-RPR, "
-                        "Rolland's 6-6 and the IRB 360-size rotary Delta), or a manipulator config (a path, or a "
-                        "shipped config's name such as hexapod_7legs)")
+                        "Rolland's 6-6 and the IRB 360-size rotary Delta), an actuated family by name (rus_6, "
+                        "planar_3rrr, linear_delta, pus_6, planar_3prr: its shipped config), or a manipulator config "
+                        "(a path, or a shipped config's name such as hexapod_7legs)")
     p.add_argument("--rate", type=float, default=None, help="input rate in Hz (3rpr 200, hexapod and delta 100)")
     p.add_argument("--duration", type=float, default=10.0, help="seconds of driving (default 10)")
     p.add_argument("--solver", choices=SOLVER_CHOICES, default="glpma", help="the node's solver parameter")

@@ -5,7 +5,7 @@ config's known solutions (the loop the DDS mock controller, the demo and the ben
 every ``1 / rate_hz`` seconds, publishes
 
 * the legs of that pose in metres: ``leg_lengths`` (``std_msgs/msg/Float64MultiArray``, leg order;
-  an actuated family's actuator positions, radians, on ``actuator_positions``) or, with
+  an actuated family's actuator positions, radians or metres for rails, on ``actuator_positions``) or, with
   ``input_type:=joint_state``, ``joint_states`` (``sensor_msgs/msg/JointState``: the legs
   under ``joint_names``, ``header.stamp`` = the time of publishing);
 * beside them the true pose, ``~/true_pose`` (``geometry_msgs/msg/PoseStamped``, metres, unit
@@ -121,7 +121,7 @@ def main(args=None) -> int:
             if self.done or self._waiting():
                 return
             legs, position_m, q = self.plan.sample(self.k / self.rate)
-            legs_m = readings_in_si(self.plan.model, legs)     # metres; an actuated family's radians
+            legs_m = readings_in_si(self.plan.model, legs)     # metres; an actuated family's radians (rails: metres)
             stamp = self.get_clock().now().to_msg()
             if self.joint_state:
                 msg = JointState(name=list(self.names), position=legs_m)

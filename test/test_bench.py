@@ -22,7 +22,8 @@ def report(tmp_path_factory):
                "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma",
                "--solve-all-runs", "20",
                "--dds-steps", "20", "--outputs-inputs", "5", "--outputs-seconds", "0.3", "--outputs-profile", "20",
-               "--outputs-rclpy-seconds", "0", "--waits-rounds", "1", "--waits-inputs", "300",
+               "--outputs-rclpy-seconds", "0", "--outputs-rclpy-runs", "1",
+               "--waits-rounds", "1", "--waits-inputs", "300",
                "--no-progress", "--out", str(out), "--markdown", str(md),
                "--reliability", str(out / "none.json"), "--save-data", str(out / "res.pkl"),
                # the hexapod's counts (unused with --only 3rpr, but parsed and checked) and the small ones

@@ -133,9 +133,11 @@ def test_readme_synopses_name_only_real_options():
 README_CHECKS = {
     "glpma-fk --version": (0, ["glpma-fk"]),
     "glpma-fk solve planar_3rpr_seed --legs 100 120 150": (0, ["converged", "position", "orientation"]),
-    "glpma-fk solve-all delta_irb360 --legs 0.044691 0.031328 0.227435": (0, ["2 distinct real assembly modes",
+    "glpma-fk solve-all delta_irb360 --legs 0.021727 0.008779 0.199391": (0, ["2 distinct real assembly modes",
                                                                              "closed form"]),
-    "glpma-fk solve delta_irb360 --legs 0.044691 0.031328 0.227435": (0, ["converged", "position"]),
+    "glpma-fk solve delta_irb360 --legs 0.021727 0.008779 0.199391": (0, ["converged", "position"]),
+    "glpma-fk solve-all linear_delta_kossel_mini --legs 286.699199 296.251580 274.211481": (
+        0, ["2 distinct real assembly modes", "closed form"]),
     "glpma-fk urdf planar_3rpr_seed": (0, ["<robot", "leg1_actuator", "platform_mount"]),
 }
 #: README commands that need a running node: checked by test_readme_node_and_modes

@@ -85,6 +85,38 @@ def test_leg_lengths_in_pose_out(fk_node):
         client.destroy_node()
 
 
+@pytest.mark.parametrize("config", ["delta_irb360", "linear_delta_kossel_mini"])
+def test_actuator_positions_in_pose_out(ros, config):
+    """An actuated family on a real rclpy: the config's example reading in SI on actuator_positions (the Delta's
+    arm angles in radians, the linear Delta's carriage heights in metres) -> its working mode's pose (metres)."""
+    from conftest import CONFIG
+    from glpma_ros.config import load_manipulator
+    from glpma_ros.node.ros_node import FkNode
+    path = CONFIG / f"{config}.yaml"
+    model = load_manipulator(path)
+    node = FkNode(parameter_overrides=[Parameter("manipulator_config", value=str(path)),
+                                       Parameter("time_budget_ms", value=GENEROUS_BUDGET_MS)])
+    client = rclpy.create_node("glpma_fk_actuated_client")
+    poses = []
+    pub = client.create_publisher(Float64MultiArray, "actuator_positions", 10)
+    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    executor.add_node(client)
+    reading = [float(v) for v in model.readings_to_si(model.example_actuator_positions)]
+    try:
+        assert _spin_until(executor, lambda: bool(poses), timeout_s=120.0,   # a bound for a hang
+                           publish=lambda: pub.publish(Float64MultiArray(data=reading)))
+        p = poses[0].pose.position
+        expected = model.known_solutions[0] * model.metres_per_unit
+        # metres; the known solution is written to 1e-9 mm
+        assert [p.x, p.y, p.z] == pytest.approx(list(expected), abs=1e-9)
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+        node.destroy_node()
+
+
 # -- the further outputs ---------------------------------------------------------------------------------
 
 def _spin_until(executor, done, timeout_s=20.0, publish=None):
@@ -107,6 +139,8 @@ def test_tf_covariance_twist_and_markers(ros):
                                        Parameter("time_budget_ms", value=50.0),
                                        Parameter("publish_markers", value=True),
                                        Parameter("markers_period_s", value=0.0)])
+    # the extra outputs go through rcl's C call with the interpreter lock released (rcl_publish), here too
+    assert all(w.direct for w in node.endpoints.extra_writers.values())
     client = rclpy.create_node("glpma_fk_outputs_client")
     got = {"pose": [], "tf": [], "cov": [], "twist": [], "markers": []}
     pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)

@@ -77,6 +77,37 @@ def test_the_solving_thread_gets_fifo_priority_and_affinity():
     assert os.sched_getscheduler(0) == os.SCHED_OTHER          # this (main) thread untouched
 
 
+def test_the_extras_thread_runs_one_priority_below_on_any_core():
+    """The extras thread takes the interpreter lock between two solves: real-time one below the solving
+    thread (so that no normal process preempts it while the solving thread waits for the lock), at least 1,
+    on the process's cores; nothing when the solving thread is not real-time."""
+    assert RealtimeSettings(50, (1,)).helper() == RealtimeSettings(49, ())
+    assert RealtimeSettings(1).helper() == RealtimeSettings(1)
+    assert not RealtimeSettings(0, (1,)).helper().active
+    svc = FkService({"manipulator_config": str(RPR_YAML), "thread_priority": 10})
+    loop = SolveLoop(svc, lambda pose: None, publish_extras=lambda ex: None, stats=svc.stats, modes=svc.modes)
+    assert loop.extras.realtime.settings == RealtimeSettings(9)
+    assert loop.extras.realtime.log is None     # a refusal is the solving thread's one warning line
+
+
+@pytest.mark.skipif(not _may_use_fifo(), reason="this process may not use SCHED_FIFO (no CAP_SYS_NICE, rtprio 0)")
+def test_the_extras_thread_gets_its_priority():
+    svc = FkService({"manipulator_config": str(RPR_YAML), "thread_priority": 10, "publish_tf": True})
+    seen = {}
+
+    def publish_extras(ex):
+        tid = threading.get_native_id()
+        seen.update(policy=os.sched_getscheduler(tid), priority=os.sched_getparam(tid).sched_priority)
+    loop = SolveLoop(svc, lambda pose: None, publish_extras=publish_extras, stats=svc.stats, modes=svc.modes)
+    try:
+        _in_thread(lambda: loop.offer(LEGS_M, 0))
+        assert loop.extras.flush()
+    finally:
+        loop.stop()
+    assert seen == {"policy": os.SCHED_FIFO, "priority": 9}
+    assert loop.extras.realtime.applied == 1
+
+
 def test_a_refused_priority_is_one_warning_and_the_node_runs_on(monkeypatch, caplog):
     """The refusal injected (EPERM from the kernel): one warning line naming why, for any number of solving
     threads; the inputs are solved."""

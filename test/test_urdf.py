@@ -20,6 +20,7 @@ from conftest import CONFIG, GENEROUS_BUDGET_MS, RPR_YAML
 from glpma_ros.cli.main import main
 from glpma_ros.config import load_manipulator, resolve_config, shipped_configs
 from glpma_ros.description.mechanism import Mechanism
+from glpma_ros.models.legs import PRISMATIC
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.node.service import FkService, JointStateInput
 
@@ -40,10 +41,26 @@ def known_modes(name: str) -> list:
     doc = yaml.safe_load((CONFIG / f"{name}.yaml").read_text())
     if "real_solutions" in doc:
         return [[s["x"], s["y"], math.radians(s["theta_deg"])] for s in doc["real_solutions"]]
-    if "known_solutions" in doc:                  # an actuated family
-        return doc["known_solutions"]
+    if "known_solutions" in doc:                  # an actuated family: the modes the inverse kinematics' branch
+        model = load_manipulator(resolve_config(name))    # (choose_root) reads as the example reading
+        q0 = np.asarray(doc["example_actuator_positions"], dtype=float)
+        # 1e-6 of the scale: the modes are written to 1e-9 mm, a reading of the other branch is far off
+        return [x for x in doc["known_solutions"]
+                if np.abs(model.actuator_positions(np.asarray(x, dtype=float)) - q0).max() < 1e-6 * model.scale
+                and _in_reach(model, x)]
     modes = doc["published_solutions"]
     return [modes[k] for k in ROLLAND_MODES] if name == "hexapod_66_rolland" else modes
+
+
+def _in_reach(model, x0) -> bool:
+    """The legs reach every pose of the test trajectory about ``x0`` within their actuator limits (a mode near
+    the limits' edge may leave them: it is not a mode the test can drive)."""
+    try:
+        for x in trajectory(model, x0):
+            model.actuator_positions(x)
+    except ValueError:
+        return False
+    return True
 
 
 def is_planar(model) -> bool:
@@ -100,8 +117,9 @@ def test_every_leg_of_the_urdf_ends_at_its_platform_joint(name, tmp_path):
                          "publish_joint_states": True, "time_budget_ms": GENEROUS_BUDGET_MS})
         for k, x in enumerate(trajectory(model, x0)):
             actuated = getattr(model, "actuated", False)
-            # what the actuators read at x: leg lengths (metres), or the motors' angles (radians)
-            legs = model.actuator_positions(x) if actuated else model.inverse_kinematics(x) * metres
+            # what the actuators read at x: leg lengths (metres), or the motors' angles (radians; rails: metres)
+            legs = (model.readings_to_si(model.actuator_positions(x)) if actuated
+                    else model.inverse_kinematics(x) * metres)
             outcome = svc.handle(list(legs), 1_000_000_000 + k)
             assert outcome.pose is not None, outcome.reason
             ex = svc.extras(outcome)
@@ -134,7 +152,8 @@ def model_platform_m(model) -> np.ndarray:
 
 
 @pytest.mark.parametrize("name", ["planar_3rpr_seed", "hexapod_66_rolland", "hexapod_33_octahedral", "delta_irb360",
-                                  "rus6_simulator", "planar_3rrr_symmetric"])
+                                  "rus6_simulator", "planar_3rrr_symmetric", "linear_delta_kossel_mini",
+                                  "pus6_rail_hexapod", "planar_3prr_triangle"])
 def test_joint_rates_are_the_twist_s(name):
     """Each joint's rate = the finite difference of its position over a small step of the twist
     (central difference: error O(dt^2) ~ 1e-10 of the rates' size, checked to 1e-6)."""
@@ -331,19 +350,29 @@ def test_urdfdom_check_urdf_parses_it(name, tmp_path):
 @pytest.mark.parametrize("name, parts", [
     ("delta_irb360", ("actuator", "u1", "u2", "s1", "s2", "s3")),
     ("rus6_simulator", ("actuator", "u1", "u2", "s1", "s2", "s3")),
-    ("planar_3rrr_symmetric", ("actuator", "elbow", "platform"))])
+    ("planar_3rrr_symmetric", ("actuator", "elbow", "platform")),
+    ("linear_delta_kossel_mini", ("actuator", "u1", "u2", "s1", "s2", "s3")),
+    ("pus6_rail_hexapod", ("actuator", "u1", "u2", "s1", "s2", "s3")),
+    ("planar_3prr_triangle", ("actuator", "elbow", "platform"))])
 def test_actuated_family_joint_names_and_motor_limits(name, parts, tmp_path):
     """The families' joints as doc/interface.md names them, leg by leg; the motors' URDF limits are the
-    config's actuator_limits (written as the shortest repr of the same double: compared exactly)."""
+    config's actuator_limits (written as the shortest repr of the same double: compared exactly; a rail's in
+    metres: the config's times the unit, to round-off); a rail's actuator is prismatic, its link the carriage."""
     model = load_manipulator(resolve_config(name))
+    rails = bool(np.all(model.actuators == PRISMATIC))
     root = ET.fromstring(urdf_of(name, tmp_path, "--prefix", "r_").split("\n", 2)[2])
     moving = [j for j in root.iter("joint") if j.get("type") != "fixed"]
     assert [j.get("name") for j in moving] == [f"r_leg{i}_{p}" for i in range(1, model.n_legs + 1) for p in parts]
-    assert all(j.get("type") == "revolute" for j in moving)
+    assert [j.get("type") for j in moving] == ["prismatic" if rails and p == "actuator" else "revolute"
+                                               for _ in range(model.n_legs) for p in parts]
     for i in range(model.n_legs):
         limit = moving[i * len(parts)].find("limit")
-        assert (float(limit.get("lower")), float(limit.get("upper"))) == tuple(model.actuator_limits[i])
+        got = (float(limit.get("lower")), float(limit.get("upper")))
+        if rails:   # metres: one multiply by the unit, 1e-15 m of round-off
+            assert np.allclose(got, model.actuator_limits[i] * model.metres_per_unit, rtol=0, atol=1e-15)
+        else:
+            assert got == tuple(model.actuator_limits[i])
         assert moving[i * len(parts)].find("parent").get("link") == "r_base_link"
     text = ET.tostring(root, encoding="unicode")
-    assert "r_leg1_crank" in text
+    assert ("r_leg1_carriage" if rails else "r_leg1_crank") in text
     load(text)

@@ -35,6 +35,10 @@ The legs as they are built (``P`` = prefix, ``i`` = leg number from 1, in config
   the crank's angle), ``Pleg<i>_elbow`` (revolute about z at the crank tip, the rod's angle minus the
   crank's: zero with the rod along the crank frame's +x axis), ``Pleg<i>_platform`` (revolute about z
   at B_i, ``rod`` along the rod: the platform's angle minus the rod's).
+* rail-driven families (``linear_delta``, ``pus_6``, ``planar_3prr``): as the crank-driven ones with the
+  crank replaced by a carriage: ``Pleg<i>_actuator`` is prismatic along the rail's ``axis`` from its
+  ``origin`` (position = the carriage's place on the rail in metres, the reading plus the offset; link
+  ``Pleg<i>_carriage``, the base's orientation), the rod's joints at the carriage (no crank tip offset).
 
 Each leg's last link ``Pleg<i>_end`` sits at its platform joint B_i with the platform's
 orientation; ``Pplatform_link`` is fixed to ``Pleg1_end`` (joint ``Pplatform_mount``, origin
@@ -54,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..models.legs import PRISMATIC as PRISMATIC_ACTUATOR
 from ..models.legs import REVOLUTE as REVOLUTE_ACTUATOR
 from ..models.legs import actuator_roots, choose_root
 from ..models.rotations import cross_rows, matrix_from_quaternion
@@ -94,13 +99,17 @@ class Mechanism:
     def __init__(self, model, prefix: str = "", passive_limits=None):
         #: an actuated family: the legs are crank + rod (:mod:`glpma_ros.models.actuated`)
         self.actuated = bool(getattr(model, "actuated", False))
+        self.rails = False
         if self.actuated:
             kinds = np.asarray(model.actuators)
-            if np.any(kinds != REVOLUTE_ACTUATOR):
-                raise InputError(f"no URDF for {model.kind} with non-revolute actuators (known: revolute)")
+            #: a rail-driven family (every actuator prismatic): carriages instead of cranks
+            self.rails = bool(np.all(kinds == PRISMATIC_ACTUATOR))
+            if not (self.rails or np.all(kinds == REVOLUTE_ACTUATOR)):
+                raise InputError(f"no URDF for {model.kind} with mixed actuators (known: all revolute, all "
+                                 f"prismatic)")
         elif model.kind not in ("hexapod_66", "planar_3rpr"):
             raise InputError(f"no URDF for manipulator kind {model.kind!r} (known: hexapod_66, planar_3rpr, "
-                             f"delta, rus_6, planar_3rrr)")
+                             f"the actuated families: delta, rus_6, planar_3rrr, linear_delta, pus_6, planar_3prr)")
         self.model = model
         self.prefix = str(prefix)
         self.planar = model.kind == "planar_3rpr" or (self.actuated and int(model.dim) == 2)
@@ -160,30 +169,42 @@ class Mechanism:
         m, n = self.model, self.n_legs
         crank = np.asarray(m.crank, dtype=float) * self.metres
         self.crank_m = np.hstack((crank, np.zeros((n, 1)))) if self.planar else crank
-        self.axis_3d = (np.tile([0.0, 0.0, 1.0], (n, 1)) if self.planar else np.asarray(m.axis, dtype=float))
+        axis = np.asarray(m.axis, dtype=float)
+        if self.planar and self.rails:           # a planar rail's direction, in the plane
+            self.axis_3d = np.hstack((axis, np.zeros((n, 1))))
+        else:
+            self.axis_3d = np.tile([0.0, 0.0, 1.0], (n, 1)) if self.planar else axis
         self.rods_m = np.asarray(m.rods, dtype=float) * self.metres
         self.offsets = np.zeros(n) if m.actuator_offsets is None else np.asarray(m.actuator_offsets, dtype=float)
-        #: the motors' angle ranges as the model turns them (the readings' limits plus the offsets)
+        #: the motors' angle ranges as the model turns them (the readings' limits plus the offsets; config unit
+        #: for rails)
         self.model_limits = (None if m.actuator_limits is None
                              else np.asarray(m.actuator_limits, dtype=float) + self.offsets[:, None])
+        #: the actuator joints' positions in the joint states per model unit (rails: metres per config unit)
+        self.actuator_scale = self.metres if self.rails else 1.0
 
     def _actuated_leg_joints(self, i: int) -> list:
         base, leg = self.base_link, lambda part: self.leg_link(i, part)
         a = tuple(float(v) for v in self.base_m[i])
         tip = tuple(float(v) for v in self.crank_m[i])
         full = (-math.pi, math.pi)
-        motor = full if self.model_limits is None else tuple(float(v) for v in self.model_limits[i])
+        if self.model_limits is None:
+            motor = (-self.scale_m, self.scale_m) if self.rails else full
+        else:
+            motor = tuple(float(v) * self.actuator_scale for v in self.model_limits[i])
 
         def joint(part, parent, child, origin=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), limits=full):
             return JointSpec(self.name(f"leg{i + 1}_{part}"), REVOLUTE, parent, child, origin, axis, limits, i, part)
-        actuator = joint("actuator", base, leg("crank"), a, tuple(float(v) for v in self.axis_3d[i]), motor)
+        arm = leg("carriage") if self.rails else leg("crank")
+        actuator = JointSpec(self.name(f"leg{i + 1}_actuator"), PRISMATIC if self.rails else REVOLUTE, base, arm, a,
+                             tuple(float(v) for v in self.axis_3d[i]), motor, i, "actuator")
         rod = float(self.rods_m[i])
         if self.planar:
-            return [actuator, joint("elbow", leg("crank"), leg("rod"), tip),
+            return [actuator, joint("elbow", arm, leg("rod"), tip),
                     joint("platform", leg("rod"), leg("end"), (rod, 0.0, 0.0))]
         half = 0.5 * math.pi
         return [actuator,
-                joint("u1", leg("crank"), leg("u_cross"), tip, (1.0, 0.0, 0.0)),
+                joint("u1", arm, leg("u_cross"), tip, (1.0, 0.0, 0.0)),
                 joint("u2", leg("u_cross"), leg("rod"), axis=(0.0, 1.0, 0.0), limits=(-half, half)),
                 joint("s1", leg("rod"), leg("s_cross1"), (0.0, 0.0, rod), (1.0, 0.0, 0.0)),
                 joint("s2", leg("s_cross1"), leg("s_cross2"), axis=(0.0, 1.0, 0.0), limits=(-half, half)),
@@ -285,14 +306,21 @@ class Mechanism:
         return out
 
     def _crank_rotations(self, angles) -> np.ndarray:
-        """Rot(axis_i, angle_i) for every leg, shape (n, 3, 3): the crank links' orientations."""
+        """Rot(axis_i, angle_i) for every leg, shape (n, 3, 3): the crank links' orientations (a carriage keeps
+        the base's)."""
+        if self.rails:
+            return np.broadcast_to(np.eye(3), (self.n_legs, 3, 3))
         return _axis_rotations(self.axis_3d, angles)
 
     def _actuated_positions(self, position_m, orientation) -> np.ndarray:
         R, B, _, _ = self.legs_at(position_m, orientation)
         qa = self.motor_angles(B)
         Rc = self._crank_rotations(qa)
-        P = self.base_m + np.einsum("nij,nj->ni", Rc, self.crank_m)        # the crank tips
+        if self.rails:                                                      # the carriages; the joint in metres
+            qa = qa * self.actuator_scale
+            P = self.base_m + qa[:, None] * self.axis_3d
+        else:
+            P = self.base_m + np.einsum("nij,nj->ni", Rc, self.crank_m)    # the crank tips
         e = B - P
         L = np.sqrt((e * e).sum(axis=1))
         if np.any(L <= 0.0):
@@ -302,7 +330,7 @@ class Mechanism:
         if self.planar:
             phi = np.arctan2(e[:, 1], e[:, 0])
             theta = math.atan2(R[1, 0], R[0, 0])
-            q[:, 1] = wrap(phi - qa)
+            q[:, 1] = wrap(phi - (0.0 if self.rails else qa))
             q[:, 2] = wrap(theta - phi)
             return q.ravel()
         u = np.einsum("nji,nj->ni", Rc, e) / L[:, None]                      # the rod in the crank's frame
@@ -327,6 +355,10 @@ class Mechanism:
         for c in range(k):
             o = o + np.einsum("nij,nj->ni", Ri, origins[:, c])
             a = np.einsum("nij,nj->ni", Ri, axes[:, c])
+            if c == 0 and self.rails:              # the carriage: prismatic along a, (a, 0); it moves o along a
+                J[:, :, c] = np.hstack((a, np.zeros_like(a)))[:, rows]
+                o = o + q[:, c][:, None] * a
+                continue
             J[:, :, c] = np.hstack((np.cross(a, B - o), a))[:, rows]
             Ri = np.einsum("nij,njk->nik", Ri, _axis_rotations(axes[:, c], q[:, c]))
         rhs = np.hstack((v_B, np.broadcast_to(w, v_B.shape)))[:, rows]

@@ -127,6 +127,8 @@ class UrdfWriter:
             return (t, 0.0, 0.0) if axis_x else (0.0, 0.0, t)
         if m.actuated and role in ("crank", "rod"):
             self._bar(el, name, role)
+        elif role == "carriage":
+            self._sphere(el)
         elif role == "base":
             self._disc(el, m.base_m, m.name("glpma_base"), below=True)
             for a in m.base_m:

@@ -300,8 +300,9 @@ class Estimator:
     @property
     def decision_reserve_s(self) -> float:
         """The time (s) the deciding work is expected to take, with its margin: the settle of a
-        search's end point and the whole probe."""
-        return DECISION_MARGIN * (self._settle_s.s + self._chunk_s.s * math.ceil(PROBE_STARTS / PROBE_CHUNK))
+        search's end point and the whole probe; with redundant legs also the isolation of a faulty leg."""
+        return DECISION_MARGIN * (self._settle_s.s + self._chunk_s.s * math.ceil(PROBE_STARTS / PROBE_CHUNK)
+                                  + self.redundant.isolation_s)
 
     @property
     def smallest_deciding_budget_s(self) -> float:
@@ -336,6 +337,8 @@ class Estimator:
             t2 = time.thread_time()
         self._settle_s.note(t1 - t0)
         self._chunk_s.note(t2 - t1)
+        if self.redundant.active:
+            self.redundant.isolator.calibrate(legs, self._probe_starts[0])
 
     # -- solving ------------------------------------------------------------------
     def estimate(self, legs) -> Estimate:
@@ -396,7 +399,7 @@ class Estimator:
         near = math.inf
         if self.last_x is not None:
             near = max(CONTINUITY_FACTOR * float(np.max(np.abs(legs - self.last_legs))), self._near_floor)
-        advance = self.redundant.judge(e, legs, leg_fitness, self.last_x, near)
+        advance = self.redundant.judge(e, legs, leg_fitness, self.last_x, near, deadline=t0 + self.time_budget_s)
         if advance is not None:
             self._advance(advance, legs)
         e.elapsed_s = time.perf_counter() - t0
@@ -463,9 +466,10 @@ class Estimator:
                 break
         return best._replace(nfev=nfev, nit=nit), True
 
-    def _closed_form(self, legs):
+    def _closed_form(self, legs, deadline):
         """A model with a closed-form forward kinematics (the three-leg Delta's sphere intersection,
-        :meth:`~glpma_ros.models.actuated.DeltaTranslation.closed_form`): every mode polished, as candidates
+        :meth:`~glpma_ros.models.actuated.DeltaTranslation.closed_form`): every mode polished (a polish
+        expected to end after ``deadline`` is not run: the mode is evaluated where it is), as candidates
         ``(key, point, "cold")``; the key is the distance from the previous pose, or without one the model's
         preference (its working mode first).  None for the other models."""
         modes = getattr(self.model, "closed_form", None)
@@ -474,7 +478,8 @@ class Estimator:
             return None
         found = []
         for rank, x in enumerate(self.model.preferred_order(xs)):
-            p = self._polish(x, legs)
+            fits = time.perf_counter() + self._settle_s.s <= deadline
+            p = self._polish(x, legs, max_iter=SETTLE_MAX_ITER if fits else 0)
             found.append((p.distance if self.last_x is not None else float(rank), p, "cold"))
         return found
 
@@ -521,7 +526,7 @@ class Estimator:
             spread = min(max(movement, MIN_SPREAD * model.scale), MAX_SPREAD * model.scale)
             stages = [("warm", spread), ("widened", WIDEN_FACTOR * spread)]
         stages.append(("cold", None))
-        closed = self._closed_form(legs)
+        closed = self._closed_form(legs, deadline)
         if closed is not None:    # a closed form gives every mode: no search
             evaluations += sum(p.nfev for _, p, _ in closed)
             tried += [(p, stage) for _, p, stage in closed]

@@ -28,12 +28,14 @@ No ROS import: this is the core.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
 from ..models.base import Pose
+from ..solvers.common import BUDGET_EXHAUSTED
 from ..solvers.local import LocalSolver
 from ..units import UNIT_TO_METRES
 
@@ -48,6 +50,12 @@ DEFAULT_LEG_NOISE_M = 1e-5
 ISOLATION_MARGIN = 3.0
 #: iteration cap of a leave-one-out solve (it starts at the previous pose: a few iterations)
 LEAVE_ONE_OUT_MAX_ITER = 50
+#: starts per compiled call of a leave-one-out solve without history: the deadline is looked at between
+#: two calls, so one call must be short (a few starts, tens of microseconds)
+LEAVE_ONE_OUT_CHUNK = 4
+#: the expected time of one start of a leave-one-out solve (the longest seen) forgets this share of itself
+#: per start that measures less, so that a one-off delay does not hold it high for good
+EXPECTED_DECAY = 0.01
 #: the status of legs that no pose explains within the leg noise
 STATUS_INCONSISTENT = "inconsistent_legs"
 
@@ -82,18 +90,44 @@ class Isolation:
     statistic: float = math.nan   # T of the legs without ``leg``
     evaluations: int = 0
     reason: str = ""
+    cut: bool = False             # the deadline came before every leave-one-out solve it needed had run
 
 
 class FaultIsolator:
     """The leave-one-out solves of one redundant model (a sub-model and a local solver per leg, built
     once).  A sub-model's solver variables may be other joints than the full model's (its frame joints
-    when a frame joint's leg is left out): poses cross between them as position + quaternion."""
+    when a frame joint's leg is left out): poses cross between them as position + quaternion.
+
+    Under a deadline each compiled call (a leave-one-out solve from the previous pose, or
+    :data:`LEAVE_ONE_OUT_CHUNK` of the fixed starts) starts only when its expected time (``start_s`` per
+    start, the longest seen in the thread's CPU time) still ends before it; an isolation cut there is
+    reported as such (``Isolation.cut``)."""
 
     def __init__(self, model):
         self.model = model
         self.dof_left = model.redundancy - 1
         self.limit_left = chi2_limit(self.dof_left)
         self._subs: dict = {}
+        self.start_s = 0.0            # expected CPU time (s) of one start of a leave-one-out solve
+
+    def expected_s(self, n_starts: int) -> float:
+        """The expected time (s) of a whole isolation: every leg left out in turn, each from ``n_starts``
+        starts (1 from the previous pose, the fixed starts' count without history)."""
+        return self.model.n_legs * n_starts * self.start_s
+
+    def _fits(self, n_starts: int, deadline) -> bool:
+        return deadline is None or time.perf_counter() + n_starts * self.start_s < deadline
+
+    def _note(self, seconds: float, n_starts: int) -> None:
+        self.start_s = max(seconds / max(n_starts, 1), (1.0 - EXPECTED_DECAY) * self.start_s)
+
+    def calibrate(self, legs, start) -> None:
+        """A first measure of a leave-one-out solve's time: leg 1 left out of ``legs`` from ``start``
+        (solver variables), twice (the first loads the code)."""
+        for _ in range(2):
+            c = time.thread_time()
+            self.solve_without(0, np.ascontiguousarray(legs, dtype=float), start)
+            self._note(time.thread_time() - c, 1)
 
     def _sub(self, leg: int):
         if leg not in self._subs:
@@ -106,11 +140,13 @@ class FaultIsolator:
                 self._subs[leg] = None
         return self._subs[leg]
 
-    def solve_without(self, leg: int, legs, start_x, starts=None, ftol=math.inf):
+    def solve_without(self, leg: int, legs, start_x, starts=None, ftol=math.inf, deadline=None):
         """``(LocalResult in the full model's variables, T * sigma^2)`` of the legs without ``leg``
         from the full model's variables ``start_x`` -- or, without a start (no history), from the rows of
-        ``starts`` until one converges with a leg fitness below ``ftol``; None when that sub-model is
-        undetermined."""
+        ``starts``, :data:`LEAVE_ONE_OUT_CHUNK` per compiled call, until one converges with a leg fitness below
+        ``ftol``; None when that sub-model is undetermined; False when the ``deadline`` (a
+        ``time.perf_counter`` value) came before a call that was needed (a partial result is kept only if
+        it converged)."""
         entry = self._sub(leg)
         if entry is None:
             return None
@@ -118,25 +154,46 @@ class FaultIsolator:
         m = self.model
         mine = np.ascontiguousarray(legs[keep])
         if start_x is None:
-            r = solver.multistart(starts, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER, ftol=ftol)
+            r, nfev, nit = None, 0, 0
+            for k in range(0, len(starts), LEAVE_ONE_OUT_CHUNK):
+                chunk = starts[k:k + LEAVE_ONE_OUT_CHUNK]
+                if not self._fits(len(chunk), deadline):
+                    return False
+                c = time.thread_time()
+                part = solver.multistart(chunk, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER, ftol=ftol)
+                self._note(time.thread_time() - c, len(chunk))
+                if part is None:
+                    return None
+                nfev, nit = nfev + part.nfev, nit + part.nit
+                if r is None or part.converged or part.leg_fitness < r.leg_fitness:
+                    r = part
+                if part.converged:
+                    break
+            r = r._replace(nfev=nfev, nit=nit)
         else:
+            if not self._fits(1, deadline):
+                return False
             pose = m.pose(start_x)
             x0 = np.ascontiguousarray(sub.variables_from_pose(pose.position, pose.orientation))
+            c = time.thread_time()
             r = solver.solve(x0, mine, max_iter=LEAVE_ONE_OUT_MAX_ITER)
+            self._note(time.thread_time() - c, 1)
         if r is None:
             return None
         x = m.variables_from_pose(r.position, r.orientation)
         return r._replace(x=x), r.leg_fitness
 
     def isolate(self, legs, start_x, sigma: float, predicted=None, near: float = math.inf,
-                first: int | None = None, starts=None) -> Isolation:
+                first: int | None = None, starts=None, deadline=None) -> Isolation:
         """The most likely faulty leg of ``legs`` (config unit) whose least-squares pose failed the
         consistency test.  ``start_x``: where the leave-one-out solves start (the previous pose), or
         None without history: then each solve tries the rows of ``starts`` (fixed starts over the
         pose space) until it finds a pose consistent with its legs; ``predicted``: the pose expected
         from the history (full model's variables) or None; ``near``: the largest distance from it a
         continuing pose may have; ``first``: the leg left out last time, tried first (a leg that stays
-        faulty is left out again without solving for the others)."""
+        faulty is left out again without solving for the others); ``deadline``: no compiled call starts
+        unless it is expected to end before it (a ``time.perf_counter`` value; an isolation cut there is
+        ``cut``, no leg named)."""
         m = self.model
         s2 = sigma * sigma
         if start_x is None and self.dof_left <= 0:
@@ -150,7 +207,10 @@ class FaultIsolator:
         tried = []                  # (leg, result, T)
         nfev = 0
         for leg in order:
-            out = self.solve_without(leg, legs, start_x, starts, ftol)
+            out = self.solve_without(leg, legs, start_x, starts, ftol, deadline)
+            if out is False:
+                return Isolation(None, False, None, math.nan, nfev, "finding the faulty leg did not fit in the budget",
+                                 cut=True)
             if out is None:
                 continue
             r, fit = out
@@ -226,6 +286,14 @@ class RedundantLegs:
     def note_input(self) -> None:
         self.inputs += 1
 
+    @property
+    def isolation_s(self) -> float:
+        """The expected time (s) of the longest isolation (no history: every leg left out, from every fixed
+        start); 0 without redundant legs."""
+        if not self.active:
+            return 0.0
+        return self.isolator.expected_s(1 if self.starts is None else len(self.starts))
+
     def consistent(self, leg_fitness: float) -> bool:
         """A converged point with this leg fitness passes the consistency test (always without redundant legs)."""
         return leg_fitness <= self.consistent_fitness
@@ -235,12 +303,13 @@ class RedundantLegs:
         self.prev_x = old_x
         self.advanced_at = self.inputs
 
-    def judge(self, e, legs, leg_fitness: float, last_x, near: float):
+    def judge(self, e, legs, leg_fitness: float, last_x, near: float, deadline=None):
         """Test the converged least-squares estimate ``e`` (changed in place: its consistency, and for
         inconsistent legs its status, message, suspect and, when isolated, the pose without the faulty
         leg).  ``last_x``: the warm state (None: no history); ``near``: the largest distance a
-        continuing pose may have from the prediction.  Returns the variables the warm state should
-        advance to, or None."""
+        continuing pose may have from the prediction; ``deadline``: the isolation's (a ``time.perf_counter``
+        value; when the isolation does not fit before it the status is ``budget_exhausted``).  Returns the
+        variables the warm state should advance to, or None."""
         T = leg_fitness / self.leg_noise_std ** 2
         e.consistency, e.consistency_limit = T, self.consistency_limit
         if T <= self.consistency_limit:
@@ -254,8 +323,8 @@ class RedundantLegs:
             steps = max(self.inputs - self.advanced_at, 1)
             predicted = last_x if self.prev_x is None else last_x + steps * (last_x - self.prev_x)
         iso = self.isolator.isolate(legs, last_x, self.leg_noise_std, predicted, near, first=self.excluded,
-                                    starts=self.starts)
-        e.status, e.suspect_leg = STATUS_INCONSISTENT, iso.leg
+                                    starts=self.starts, deadline=deadline)
+        e.status, e.suspect_leg = (BUDGET_EXHAUSTED if iso.cut else STATUS_INCONSISTENT), iso.leg
         e.evaluations += iso.evaluations
         head = f"legs inconsistent (chi-square {e.consistency:.3g} > {e.consistency_limit:.3g})"
         x_ls, advance = e.x, None

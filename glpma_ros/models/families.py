@@ -2,15 +2,16 @@
 
 Schema (see ``config/delta_*.yaml``, ``config/rus6_*.yaml`` and the README's "Your robot")::
 
-    manipulator: delta | rus_6 | planar_3rrr   # the family (FAMILIES)
+    manipulator: delta | rus_6 | planar_3rrr | linear_delta | pus_6 | planar_3prr   # the family (FAMILIES)
     unit: mm | cm | m                  # every length in the file; prismatic actuators move in it too
-    platform_motion: translation       # optional; the family's (delta: translation, rus_6: full,
-                                       # planar_3rrr: planar, its points 2-D and no axis)
+    platform_motion: translation       # optional; the family's (delta, linear_delta: translation; rus_6,
+                                       # pus_6: full; planar_3rrr, planar_3prr: planar, 2-D points)
     legs:                              # leg order = actuator order
       - actuator: revolute             # revolute: q in radians | prismatic: q in the config unit
-        origin: [x, y, z]              # the actuated joint, base frame
-        axis: [ax, ay, az]             # revolute: rotation axis (q > 0 turns right-handed about it)
-        crank: [cx, cy, cz]            # revolute: the crank's tip at q = 0, relative to origin
+        origin: [x, y, z]              # the actuated joint (prismatic: the rail's zero), base frame
+        axis: [ax, ay, az]             # revolute: rotation axis (q > 0 turns right-handed about it; none
+                                       # in the plane: +z) | prismatic: the rail's direction (q > 0 along it)
+        crank: [cx, cy, cz]            # revolute only: the crank's tip at q = 0, relative to origin
         rod: 800.0                     # the distal link's length, crank tip to platform joint
         platform: [bx, by, bz]         # the distal joint on the platform, platform frame
     actuator_limits: [[lo, hi], ...]   # optional, per leg (rad / config unit): readings outside are rejected
@@ -36,8 +37,12 @@ FAMILIES = {
     "delta": (DeltaTranslation, 3, "revolute", "translation"),
     "rus_6": (ActuatedSpatial, 6, "revolute", "full"),
     "planar_3rrr": (ActuatedPlanar, 3, "revolute", "planar"),
+    # the rail-driven ones: the proximal point is a carriage, P_i(q) = origin_i + q axis_i
+    "linear_delta": (DeltaTranslation, 3, "prismatic", "translation"),
+    "pus_6": (ActuatedSpatial, 6, "prismatic", "full"),
+    "planar_3prr": (ActuatedPlanar, 3, "prismatic", "planar"),
 }
-#: a planar family's legs: 2-D points, the cranks turn about +z (no axis)
+#: a planar family's legs: 2-D points, the cranks turn about +z (no axis; a planar rail has its 2-D axis)
 PLANAR_MOTION = "planar"
 REQUIRED_KEYS = ("manipulator", "unit", "legs")
 OPTIONAL_KEYS = ("platform_motion", "actuator_limits", "actuator_offsets", "example_actuator_positions",
@@ -64,11 +69,18 @@ def _vector(value, dim, what, problems) -> np.ndarray | None:
     return arr
 
 
+def _leg_keys(dim, actuator) -> tuple:
+    """The keys of a leg: a planar crank (``dim`` 2) has no axis (it turns about +z); a rail has no crank."""
+    if actuator == "prismatic":
+        return tuple(k for k in LEG_KEYS if k != "crank")
+    return LEG_KEYS if dim == 3 else tuple(k for k in LEG_KEYS if k != "axis")
+
+
 def _leg(i, leg, dim, actuator, problems):
-    """One leg's (kind, origin, axis, crank, rod, platform), problems noted.  A planar leg (``dim`` 2) has no
-    axis: its crank turns about +z."""
+    """One leg's (kind, origin, axis, crank, rod, platform), problems noted (:func:`_leg_keys`; a rail's crank
+    is zero)."""
     where = f"legs[{i + 1}]"
-    keys = LEG_KEYS if dim == 3 else tuple(k for k in LEG_KEYS if k != "axis")
+    keys = _leg_keys(dim, actuator)
     if not isinstance(leg, dict):
         problems.append(f"{where} must be a mapping with keys {', '.join(keys)}")
         return None
@@ -76,6 +88,7 @@ def _leg(i, leg, dim, actuator, problems):
         if key not in keys:
             close = difflib.get_close_matches(str(key), keys, n=1)
             why = " (a planar crank turns about +z)" if key == "axis" else \
+                " (a rail has no crank)" if key == "crank" else \
                 (f" (did you mean '{close[0]}'?)" if close else "")
             problems.append(f"{where}: unknown key {str(key)!r}{why}")
     missing = [k for k in keys if k not in leg]
@@ -85,9 +98,10 @@ def _leg(i, leg, dim, actuator, problems):
     if leg["actuator"] != actuator:
         problems.append(f"{where}: actuator must be {actuator!r} in this family, got {leg['actuator']!r}")
         return None
-    axis_value = leg["axis"] if dim == 3 else [1.0, 0.0]      # unused by a planar crank
+    axis_value = leg.get("axis", [1.0, 0.0])       # unused by a planar crank
+    crank_value = leg.get("crank", [0.0] * dim)     # unused by a rail
     origin, axis, crank, platform = (_vector(v, dim, f"{where}.{k}", problems) for k, v in
-                                     (("origin", leg["origin"]), ("axis", axis_value), ("crank", leg["crank"]),
+                                     (("origin", leg["origin"]), ("axis", axis_value), ("crank", crank_value),
                                       ("platform", leg["platform"])))
     try:
         rod = float(leg["rod"])

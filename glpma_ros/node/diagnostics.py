@@ -133,6 +133,8 @@ class Diagnostics:
                 ("~/mechanism_joint_states", params["publish_joint_states"])) if on)),
             ("child_frame_id", params["child_frame_id"]),
             ("leg noise std (m)", _g(params["leg_noise_std"], "g")),
+            *((("actuator noise std (rad)", _g(params["actuator_noise_std"], "g")),)
+              if model_is_actuated(model) else ()),
             ("covariance capped (singular pose)", outputs.capped),
             ("twist source", outputs.twist_source or "none yet"),
         ]

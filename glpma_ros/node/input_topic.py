@@ -3,7 +3,8 @@
 * ``joint_states`` (``sensor_msgs/JointState``, ``input_type: joint_state``) for every manipulator;
 * ``leg_lengths`` (``std_msgs/Float64MultiArray``, metres) for the length-actuated ones (3-RPR, hexapods);
 * ``actuator_positions`` (``std_msgs/Float64MultiArray``, radians for revolute and metres for prismatic
-  actuators, in leg order) for the actuated families (``delta``, ``rus_6``: :mod:`glpma_ros.models.families`).
+  actuators, in leg order) for the actuated families (``delta``, ``rus_6``, ``linear_delta``, ...:
+  :mod:`glpma_ros.models.families`).
 
 Every name is remappable (``--ros-args -r actuator_positions:=/my/topic``).  No ROS import.
 """

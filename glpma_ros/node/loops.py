@@ -77,9 +77,12 @@ class ExtrasLoop:
     extra output follows its pose by at most that period plus its building and writing."""
 
     def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras", *,
-                 stats: Statistics):
-        """``service`` builds the extra outputs; ``stats``: where their times and drops are counted."""
+                 stats: Statistics, realtime: RealtimeThreads | None = None):
+        """``service`` builds the extra outputs; ``stats``: where their times and drops are counted;
+        ``realtime``: applied to the thread when it starts (the solving thread's
+        :meth:`~glpma_ros.node.realtime.RealtimeSettings.helper` settings)."""
         self.service = service
+        self.realtime = realtime
         self.stats = stats
         self.publish_extras = publish_extras
         self.subscribed = subscribed
@@ -107,6 +110,8 @@ class ExtrasLoop:
             self._bell.put(True)
 
     def _run(self) -> None:
+        if self.realtime is not None:
+            self.realtime.enter()
         pending, last = self._pending, time.monotonic()
         while True:
             if pending:
@@ -186,15 +191,17 @@ class SolveLoop:
         self.publish = publish
         self.stats = stats
         self.modes = modes
-        self.extras = None if publish_extras is None else ExtrasLoop(service, publish_extras, subscribed,
-                                                                     stats=stats)
+        # thread_priority / cpu_affinity: applied to each thread the first time it solves; the extras
+        # thread, which takes the interpreter lock between two solves, runs one priority below
+        settings = RealtimeSettings.from_params(service.params)
+        self.realtime = RealtimeThreads(settings, service.log)
+        self.extras = None if publish_extras is None else ExtrasLoop(
+            service, publish_extras, subscribed, stats=stats, realtime=RealtimeThreads(settings.helper()))
         self._cond = threading.Condition()
         self._pending = None            # the input waiting for the solver
         self._busy = False              # a thread is solving (and will take _pending next)
         self._closed = False
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        # thread_priority / cpu_affinity: applied to each thread the first time it solves
-        self.realtime = RealtimeThreads(RealtimeSettings.from_params(service.params), service.log)
 
     def start(self) -> "SolveLoop":
         """Start the loop's own thread (needed for :meth:`submit`, not for :meth:`offer`)."""

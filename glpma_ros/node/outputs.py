@@ -128,7 +128,7 @@ class OutputBuilder:
         self.last_violation = None       # the joints of the last such pose, as text
         self.metres_per_unit = float(model.metres_per_unit)
         self.jacobian = PoseJacobian(model)
-        #: an actuated family (:mod:`glpma_ros.models.actuated`): legs drawn as crank + rod, no covariance
+        #: an actuated family (:mod:`glpma_ros.models.actuated`): legs drawn as crank + rod
         self.actuated = bool(getattr(model, "actuated", False))
         self._without: dict = {}         # redundant legs: leg left out -> the Jacobian of the others
         self.size_m = float(model.scale) * self.metres_per_unit
@@ -164,16 +164,18 @@ class OutputBuilder:
             params = {**params, "publish_twist": True}
         pose, estimate = outcome.pose, outcome.estimate
         stamp_ns = pose.stamp_ns
-        rates = outcome.leg_rates_m if params["publish_twist"] and not self.actuated else None
+        rates = outcome.leg_rates_m if params["publish_twist"] else None
         covariance = capped = None
         left_out = getattr(estimate, "excluded_leg", None)
         jacobian = self._jacobian_without(left_out)
         if rates is not None and left_out is not None:
             rates = np.delete(rates, left_out)
-        # an actuated family's covariance needs the actuators' Jacobian (not done): none is published
-        if (params["publish_covariance"] and not self.actuated) or rates is not None:
+        if params["publish_covariance"] or rates is not None:
+            # an actuated family: the Jacobian of its actuators at this input's proximal points, each
+            # actuator with its own noise (revolute: actuator_noise_std, rad; prismatic: leg_noise_std, m)
             capped = jacobian.solve(estimate.pose.position, estimate.pose.orientation,
-                                    params["leg_noise_std"], rates, self.metres_per_unit)
+                                    params["leg_noise_std"], rates, self.metres_per_unit,
+                                    outcome.legs if self.actuated else None, params["actuator_noise_std"])
             if params["publish_covariance"]:
                 covariance = tuple(jacobian.covariance.ravel().tolist())
                 self.capped += bool(capped)

@@ -17,6 +17,9 @@ from .qos import PREFIX as QOS_PREFIX
 from .realtime import MAX_PRIORITY
 
 NODE_NAME = "glpma_fk"
+#: a revolute actuator's reading noise (rad): a 16-bit absolute encoder's quantisation step 2 pi / 2^16
+#: over sqrt(12), rounded up (3e-5 rad), the order of the joint encoders of the servo-driven robots shipped
+DEFAULT_ANGLE_NOISE_RAD = 3e-5
 #: every registered solver: the papers' G3-PCX, RCGA, GLPMA and the baselines SA, GA-SA, DE
 SOLVER_CHOICES = tuple(SOLVERS)
 #: what the node subscribes to: ``leg_lengths`` (std_msgs/Float64MultiArray) or
@@ -91,10 +94,16 @@ PARAMETERS = (
               "Broadcast every published pose on /tf (tf2_msgs/TFMessage, frame_id -> child_frame_id, same stamp)"),
     ParamSpec("publish_covariance", BOOL, True,
               "Publish pose_estimate_cov (geometry_msgs/PoseWithCovarianceStamped): the pose with the first-order "
-              "covariance sigma^2 (J^T J)^-1 of leg-length noise leg_noise_std"),
+              "covariance sigma^2 (J^T J)^-1 of leg-length noise leg_noise_std (an actuated family: of each "
+              "actuator's noise, leg_noise_std or actuator_noise_std)"),
     ParamSpec("leg_noise_std", DOUBLE, DEFAULT_LEG_NOISE_M,
               "Standard deviation of the leg-length measurements (metres) behind pose_estimate_cov and, with "
-              "redundant legs, the chi-square consistency test (inconsistent_legs)",
+              "redundant legs, the chi-square consistency test (inconsistent_legs); an actuated family: of each "
+              "prismatic actuator's reading (metres)",
+              range=(0.0, 1.0), min_exclusive=True),
+    ParamSpec("actuator_noise_std", DOUBLE, DEFAULT_ANGLE_NOISE_RAD,
+              "An actuated family (delta, rus_6, planar_3rrr, ...): standard deviation of each revolute actuator's "
+              "reading (radians) behind pose_estimate_cov (prismatic actuators: leg_noise_std)",
               range=(0.0, 1.0), min_exclusive=True),
     ParamSpec("exclude_faulty_leg", BOOL, True,
               "Redundant legs: when the legs are inconsistent (inconsistent_legs) and the others determine the "

@@ -52,6 +52,13 @@ class RealtimeSettings:
     def active(self) -> bool:
         return self.priority > 0 or bool(self.cpus)
 
+    def helper(self) -> "RealtimeSettings":
+        """The settings of a thread that shares the interpreter lock with the solving thread (the extras
+        thread): ``SCHED_FIFO`` one below it (at least 1), on any core.  At normal priority such a
+        thread, preempted by another process while it holds the lock, would keep the real-time
+        thread waiting for the lock until the scheduler gives it its core back (a priority inversion)."""
+        return RealtimeSettings(max(self.priority - 1, 1) if self.priority > 0 else 0)
+
 
 def apply(settings: RealtimeSettings, tid: int | None = None) -> list[str]:
     """Apply ``settings`` to the thread ``tid`` (native id; default the calling thread).  Returns one

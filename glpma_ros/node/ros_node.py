@@ -29,9 +29,11 @@ the context is still valid and then shuts down -- no "publisher's context is inv
 from __future__ import annotations
 
 import array
+import math
 import signal
 import sys
 import threading
+import time
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -57,6 +59,7 @@ from . import params as P
 from . import qos
 from .dds import cdr
 from .loops import AssemblyModesLoop, ReportLoop, SolveLoop
+from .rcl_publish import RawPublisher
 from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput
 
@@ -66,6 +69,10 @@ QOS_OVERRIDING = QoSOverridingOptions([QoSPolicyKind[name.upper()] for name in q
 #: seconds main() waits at exit for the executor's thread to leave rclpy (it wakes at once on
 #: executor.shutdown(); the cap only guards against a wedged middleware)
 SPINNER_JOIN_TIMEOUT_S = 10.0
+#: seconds the extras thread reuses the extra outputs' subscriber counts: a count is a call into rcl that
+#: holds the interpreter lock (5 outputs, about 4 us each, per pose); a new subscriber waits this much
+#: longer for its first message, well within the discovery's own delay
+SUBSCRIBED_REFRESH_S = 0.1
 ROS_TYPES = {P.STRING: ParameterType.PARAMETER_STRING, P.DOUBLE: ParameterType.PARAMETER_DOUBLE,
              P.INTEGER: ParameterType.PARAMETER_INTEGER, P.BOOL: ParameterType.PARAMETER_BOOL,
              P.DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
@@ -175,6 +182,10 @@ class FkEndpoints:
         # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
         self._extra_pubs = {"tf": self.tf_pub, "covariance": self.cov_pub, "twist": self.twist_pub,
                             "markers": self.markers_pub, "joint_states": self.joint_states_pub}
+        # the extras thread writes with the interpreter lock released (rcl_publish.RawPublisher): the thread
+        # taking the inputs runs meanwhile
+        self.extra_writers = {name: RawPublisher(p) for name, p in self._extra_pubs.items()}
+        self._subscribed_cache, self._subscribed_at = set(), -math.inf
         self.loop = SolveLoop(service, self._publish_pose, publish_extras=self._publish_extras,
                               subscribed=self._subscribed, stats=service.stats, modes=service.modes)
         self.modes = AssemblyModesLoop(service.modes, self._publish_modes, log=service.log).start()
@@ -197,7 +208,7 @@ class FkEndpoints:
             self.node.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
             self._destroy_publisher(publisher)
-        self._publishers_opened, self._extra_pubs, self.service = [], {}, None
+        self._publishers_opened, self._extra_pubs, self.extra_writers, self.service = [], {}, {}, None
 
     def _newest(self, msg):
         """The newest input waiting: ``msg`` or a later one still in the subscription's queue (taken
@@ -271,14 +282,19 @@ class FkEndpoints:
                                                         pose.orientation))
 
     def _subscribed(self) -> set:
-        """The extra outputs some subscription is matched with (the others are not built)."""
-        return {name for name, pub in self._extra_pubs.items() if pub.get_subscription_count()}
+        """The extra outputs some subscription is matched with (the others are not built), counted
+        again at most every :data:`SUBSCRIBED_REFRESH_S` (called by the extras thread only)."""
+        now = time.monotonic()
+        if now - self._subscribed_at >= SUBSCRIBED_REFRESH_S:
+            self._subscribed_cache = {name for name, pub in self._extra_pubs.items() if pub.get_subscription_count()}
+            self._subscribed_at = now
+        return self._subscribed_cache
 
     def _publish_extras(self, ex) -> None:
         """/tf, pose_estimate_cov, twist_estimate, ~/markers, ~/mechanism_joint_states of
-        :class:`~glpma_ros.node.outputs.ExtraOutputs`."""
+        :class:`~glpma_ros.node.outputs.ExtraOutputs`, each written with the interpreter lock released."""
         for name, data in self._encode.extras(ex):
-            self._extra_pubs[name].publish(data)
+            self.extra_writers[name].publish(data)
 
     def _publish_diagnostics(self, report) -> None:
         if not self.active:

@@ -14,8 +14,15 @@ from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initi
 
 #: generations per compiled call when no deadline limits it
 CHUNK_GENERATIONS = 256
-#: generations of the first chunk under a deadline (timing probe)
-PROBE_GENERATIONS = 4
+#: share of the time left that one chunk of generations may take under a deadline: the clock is read
+#: often enough that a mis-estimated time per evaluation stays a small overrun
+CHUNK_SHARE = 0.1
+#: an estimate of the time per evaluation (or per refinement iteration) that measures less forgets at most
+#: this share of itself per chunk (a slow chunk raises it at once: overrunning is worse than stopping early)
+COST_DECAY = 0.5
+#: the first refinement's time per iteration, in evaluations of the fitness (one residual vector with its
+#: Jacobian costs a few evaluations of the fitness; measured on the next refinement)
+POLISH_ITERATION_EVALS = 8
 #: refine again once the best fitness has improved by this factor since the last try
 POLISH_GAIN = 100.0
 #: iteration cap of one Levenberg-Marquardt refinement
@@ -61,10 +68,9 @@ class EvolutionaryState:
     def evals_per_generation(self) -> int:
         return len(self.pop)
 
-    def first_chunk(self) -> int:
-        """Generations of the first chunk under a deadline, which measures the time per generation: enough
-        to hold every kind of work a generation may bring (:data:`PROBE_GENERATIONS` by default)."""
-        return PROBE_GENERATIONS
+    def evals_in(self, n_generations: int) -> int:
+        """The most evaluations a chunk of ``n_generations`` may make: what its time is sized by."""
+        return n_generations * self.evals_per_generation()
 
     def advance(self, n_generations, max_evals, tolerance):  # pragma: no cover - abstract
         raise NotImplementedError
@@ -87,10 +93,12 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     the search instead.
 
     The deadline (``budget_s`` from ``start``, a ``time.perf_counter()`` value, default now) is
-    hard: a chunk of generations starts only when at least one generation is expected to fit before
-    it (``seconds_per_gen`` measured on the chunks so far), so that the search returns by its deadline
-    plus at most one generation's time.  The first population's evaluation runs whatever the budget
-    (a result needs a point).
+    hard: every compiled call is sized by the measured cost of the work (:class:`Costs`: the thread's CPU
+    time per evaluation, first from the initial population's evaluation, then from every chunk) so that it
+    is expected to end before the deadline; a chunk of generations takes at most :data:`CHUNK_SHARE` of the
+    time left and starts only when one generation still fits, a refinement's iteration cap is cut to the
+    iterations that fit.  The search therefore returns by its deadline plus the error of that estimate on
+    one compiled call.  The first population's evaluation runs whatever the budget (a result needs a point).
     """
     least_squares = polish and model.redundancy > 0
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, start=start)
@@ -101,28 +109,27 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     last_polish_f = np.inf
     refined = None              # best refinement result (a stationary point unless cut short)
     warm = None
+    costs = Costs(term, name, model)
     if polish and center is not None:
-        warm = refine.polish(model, np.asarray(center, dtype=float), problem.legs, rng, tolerance=tolerance,
-                             max_iter=POLISH_MAX_ITER, deadline=term.deadline)
-        term.nfev += warm[2]
+        warm = costs.polish(model, np.asarray(center, dtype=float), problem.legs, rng, tolerance)
         refined = warm[:2] if math.isfinite(warm[1]) else None
         if warm[1] < tolerance or (least_squares and warm.converged):
             history.append((term.nfev, warm[1]))
+            costs.keep()
             return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED)
+    c0, nfev0 = time.thread_time(), term.nfev
     state = make_state(problem, term)
+    costs.note_evals(time.thread_time() - c0, term.nfev - nfev0)
     if warm is not None and warm[1] < state.best()[1]:
         state.inject(warm[0], warm[1])
         last_polish_f = warm[1]
-    seconds_per_gen = None
     x, f = state.best()
     stop = None
     while True:
         x, f = state.best()
         if polish and f * POLISH_GAIN < last_polish_f and term.status(f) is None:
             last_polish_f = f
-            xp, fp, n, reached = refine.polish(model, x, problem.legs, rng, tolerance=tolerance,
-                                               max_iter=POLISH_MAX_ITER, deadline=term.deadline)
-            term.nfev += n
+            xp, fp, n, reached = costs.polish(model, x, problem.legs, rng, tolerance)
             if math.isfinite(fp) and (refined is None or fp < refined[1]):
                 refined = (xp, fp)
             if fp < f:
@@ -135,26 +142,103 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
         stop = stop or term.status(f)
         if stop is not None:
             break
-        if term.deadline is None or seconds_per_gen is None:
-            chunk = CHUNK_GENERATIONS if term.deadline is None else state.first_chunk()
+        if term.deadline is None:
+            chunk = CHUNK_GENERATIONS
         else:
-            left = term.deadline - time.perf_counter()
-            if left < seconds_per_gen:          # not even one generation fits: stop at the deadline
+            chunk = costs.generations(state)
+            if chunk == 0:                      # not even one generation fits: stop at the deadline
                 stop = BUDGET_EXHAUSTED
                 break
-            chunk = int(max(1, min(CHUNK_GENERATIONS, 0.1 * left / seconds_per_gen)))
-        t0 = time.perf_counter()
-        nfev = term.nfev
+        c0, nfev = time.thread_time(), term.nfev
         gens = state.step(chunk, term)
-        if gens:
-            seconds_per_gen = (time.perf_counter() - t0) / gens
+        costs.note_evals(time.thread_time() - c0, term.nfev - nfev)
+        costs.on_chunks = costs.on_chunks or term.nfev > nfev
         nit += gens
         if term.nfev == nfev and term.status(state.best()[1]) is None:
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()
+    costs.keep()
     return _result(name, model, x, f, term, nit, polished, history, refined,
                    stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
+
+
+#: the costs measured by the last solve under a deadline, per solver and model (kind, legs): the next solve's
+#: first estimates, before it has measured its own (the compiled work costs the same from one solve to the
+#: next; a generation of one solver costs per evaluation what another's does not)
+_LAST_COSTS: dict = {}
+
+
+class Costs:
+    """The measured cost of the compiled work under a deadline, which sizes every compiled call so that it
+    is expected to end before the deadline: the thread's CPU time (``time.thread_time``: the work itself,
+    not the time other processes took the core meanwhile) per evaluation of the fitness and per iteration
+    of the refinement.  Each estimate is the latest measure, or :data:`COST_DECAY` less than the previous
+    estimate when that is larger."""
+
+    def __init__(self, term: Termination, name: str, model):
+        self.term = term
+        self.key = (name, model.kind, model.n_legs)
+        # s per fitness evaluation (0: not measured yet), s per refinement iteration (None: not measured yet)
+        self.per_eval, self.per_iteration = _LAST_COSTS.get(self.key, (0.0, None))
+        # the time per evaluation was measured on a chunk of generations (the initial population's evaluation
+        # alone, one vectorised call, says nothing of what a generation adds around its evaluations)
+        self.on_chunks = self.key in _LAST_COSTS
+
+    def keep(self) -> None:
+        """These estimates become the next solve's first ones."""
+        if self.term.deadline is not None and self.on_chunks:
+            _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration)
+
+    @staticmethod
+    def _track(old, seconds):
+        return max(seconds, (1.0 - COST_DECAY) * old) if old else seconds
+
+    def note_evals(self, seconds: float, evals: int) -> None:
+        if evals > 0:
+            self.per_eval = self._track(self.per_eval, seconds / evals)
+
+    def left(self) -> float:
+        return self.term.deadline - time.perf_counter()
+
+    def generations(self, state) -> int:
+        """Generations of the next chunk: as many as fit in :data:`CHUNK_SHARE` of the time left (at most
+        :data:`CHUNK_GENERATIONS`; one until a chunk has been measured), at least one; 0 when not even one
+        fits before the deadline."""
+        left = self.left()
+        if self.per_eval * state.evals_in(1) > left:
+            return 0
+        if not self.on_chunks:
+            return 1
+        n = 1
+        while n < CHUNK_GENERATIONS and self.per_eval * state.evals_in(2 * n) <= CHUNK_SHARE * left:
+            n *= 2
+        return min(n, CHUNK_GENERATIONS)
+
+    def polish(self, model, x, legs, rng, tolerance) -> refine.Polished:
+        """:func:`.refine.polish` with the iterations that fit before the deadline (at most
+        :data:`POLISH_MAX_ITER`; none fit: nothing is computed, ``x`` comes back with an infinite fitness);
+        its round-off search stops one round of it before the deadline.  Counts its evaluations."""
+        max_iter, deadline = POLISH_MAX_ITER, self.term.deadline
+        if deadline is not None:
+            per_iteration = self.per_iteration
+            if per_iteration is None:
+                per_iteration = POLISH_ITERATION_EVALS * self.per_eval
+            deadline -= refine.GRID_CANDIDATES * self.per_eval          # a round of the round-off search
+            left = deadline - time.perf_counter()
+            if per_iteration > 0.0:
+                max_iter = min(max_iter, int(left / per_iteration))
+            if max_iter < 1:
+                return refine.Polished(np.ascontiguousarray(x, dtype=float).reshape(-1).copy(), math.inf, 0, False)
+        c0 = time.thread_time()
+        p = refine.polish(model, x, legs, rng, tolerance=tolerance, max_iter=max_iter, deadline=deadline)
+        if p.nfev > 0 and deadline is not None:
+            # per iteration of the Levenberg-Marquardt (at most max_iter), the round-off search's cheaper
+            # evaluations included: what the next cap divides the time left by
+            self.per_iteration = self._track(self.per_iteration or 0.0,
+                                             (time.thread_time() - c0) / min(p.nfev, max(max_iter, 1)))
+        self.term.nfev += p.nfev
+        return p
 
 
 MESSAGES = {"converged": "fitness below tolerance", "budget_exhausted": "time budget exhausted",

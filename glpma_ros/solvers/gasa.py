@@ -48,6 +48,8 @@ chains, not once per annealed child.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from numba import njit
 
@@ -209,6 +211,13 @@ class GASAPopulation(EvolutionaryState):
     def evals_per_generation(self) -> int:
         return (len(self.pop) - 1) * (1 + self.sa_iterations * self.chain_length)
 
+    def evals_in(self, n_generations: int) -> int:
+        """Under a deadline a chunk is as many compiled calls of :data:`DEADLINE_CHAINS` chains as fit (the clock
+        is read between them): its first call is what must fit."""
+        if self.term is None or self.term.deadline is None:
+            return super().evals_in(n_generations)
+        return min(super().evals_in(n_generations), DEADLINE_CHAINS * self.chain_length)
+
     def _run(self, n_generations, max_chains, max_evals, tolerance):
         p = self.problem
         gens, evals, self.temperature = gasa_generations(
@@ -223,8 +232,12 @@ class GASAPopulation(EvolutionaryState):
         if self.term is None or self.term.deadline is None:
             return self._run(n_generations, UNLIMITED, max_evals, tolerance)
         gens = evals = 0
-        while gens < n_generations and evals < max_evals and not self.term.out_of_time():
+        call_s = 0.0            # the longest call so far (the thread's CPU time): the next starts only if it fits
+        while gens < n_generations and evals < max_evals and \
+                time.perf_counter() + call_s < self.term.deadline:
+            c0 = time.thread_time()
             g, e = self._run(n_generations - gens, DEADLINE_CHAINS, max_evals - evals, tolerance)
+            call_s = max(call_s, time.thread_time() - c0)
             gens += g
             evals += e
             if g == 0 and e == 0 and self.progress[0] == 0:

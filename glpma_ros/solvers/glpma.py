@@ -47,10 +47,10 @@ class GLPMAState(EvolutionaryState):
         self.since_local_search = 0
         self.local_left = 0             # generations of the local search under way (0: none)
 
-    def first_chunk(self) -> int:
-        """At least one local search's worth of master generations: the time per generation measured on it
-        includes the local search's share."""
-        return max(super().first_chunk(), self.ls_interval)
+    def evals_in(self, n_generations: int) -> int:
+        """``n`` master generations and their share of local generations (see the class docstring)."""
+        local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
+        return n_generations * self.master.evals_per_generation() + local_share * self.local.evals_per_generation()
 
     def advance(self, n_generations, max_evals, tolerance):
         gens = evals = 0

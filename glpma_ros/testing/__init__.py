@@ -20,7 +20,7 @@ import time
 MOCK_NODE_NAME = "glpma_mock_publisher"
 TRUE_POSE_TOPIC = f"/{MOCK_NODE_NAME}/true_pose"
 #: the shipped manipulator config of each ``manipulator:=`` of fk.launch.py
-MANIPULATOR_CONFIGS = {"3rpr": "planar_3rpr_seed", "hexapod": "hexapod_66_rolland"}
+MANIPULATOR_CONFIGS = {"3rpr": "planar_3rpr_seed", "hexapod": "hexapod_66_rolland", "delta": "delta_irb360"}
 #: a pose on its input's true pose to this distance is right: a converged pose is at round-off
 #: (leg residuals ~1e-13 of the geometry's size), six orders of magnitude below
 POSITION_TOL_M = 1e-9

@@ -43,6 +43,10 @@ CASES = (("none", {}), ("/tf", {"publish_tf": True}), ("pose_estimate_cov", {"pu
 PACE_S = 1e-3
 #: the stamp of part 1's first input (ns)
 FIRST_STAMP_NS = 1_795_000_000 * 10**9
+#: part 4's targets: with the extra outputs subscribed the rclpy node stays within this multiple of the echo
+#: floor at p50 and p99, and answers at least this share of the inputs in every run
+RCLPY_FLOOR_FACTOR = 1.5
+RCLPY_ANSWERED = 0.995
 #: the name of the node's extras thread (``ExtrasLoop``'s default), whose CPU clock part 1 reads
 EXTRAS_THREAD = "glpma_fk-extras"
 
@@ -131,10 +135,12 @@ def micro_profile(sc, n: int, domain: int) -> dict:
     return {**out, "samples": n}
 
 
-def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_seconds: float, say=print) -> dict:
+def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_seconds: float, say=print,
+            rclpy_runs: int = 1) -> dict:
     """Every part for the bench: ``res["outputs"]``.  ``inputs``: per row of part 1, ``seconds``: per
     run of part 2, ``profile_samples``: writes and round trips of part 3, ``rclpy_seconds``: per variant
-    of part 4 (needs rclpy); 0 skips a part.  Each part runs on a ROS domain of its own."""
+    of part 4 (needs rclpy; ``rclpy_runs``: runs of its floor beside the shipped node); 0 skips a part.
+    Each part runs on a ROS domain of its own."""
     res = {"keys": [sc.key for sc in scenarios], "costs": [], "paths": [], "profile": None, "rclpy": None}
     with contextlib.ExitStack() as claims:
         def domain() -> int:
@@ -156,7 +162,7 @@ def measure(scenarios, inputs: int, seconds: float, profile_samples: int, rclpy_
                 res["rclpy"] = f"{exc.name or 'rclpy'} does not import in the Python that ran the bench"
             else:
                 say(f"{scenarios[0].label}: the rclpy adapter's executors")
-                res["rclpy"] = rclpy_client.variants(scenarios[0], rclpy_seconds, domain)
+                res["rclpy"] = rclpy_client.variants(scenarios[0], rclpy_seconds, domain, rclpy_runs)
     return res
 
 
@@ -170,6 +176,13 @@ def _q(d, digits=3, keys=("p50", "p99")) -> str:
 def _verdict(measured: float, target: float, unit="ms", digits=3) -> str:
     """``met`` or by how much ``measured`` misses ``target``."""
     return "met" if measured <= target else f"missed by {measured - target:.{digits}f} {unit}, {measured / target:.1f}×"
+
+
+def _against_floor(row) -> str:
+    """``row``'s latency p50 / p99 as multiples of the floor measured beside it (the echo's rows: none)."""
+    if row.get("floor_p50") is None:
+        return MISSING
+    return " / ".join(f"{row[q] / row['floor_' + q]:.2f}×" for q in ("p50", "p99"))
 
 
 def _costs(rows) -> list:
@@ -235,13 +248,17 @@ def section(res, md_path=None) -> list[str]:
         out.append(prose("outputs", "rclpy_not_run", reason=o["rclpy"]))
     elif o["rclpy"]:
         setup, rows = o["rclpy"]
-        body = [[r["variant"], f"{r['sent']} / {r['received']} / {r['poses']}", f"{100 * r['answered']:.1f} %",
-                 r["dropped"], r["wrong"], f"{r['p50']:.3f} / {r['p99']:.3f}", f"{r['cpu_us_per_input']:.0f}"]
-                for r in rows]
+        body = [[r["variant"], MISSING if r.get("run") is None else r["run"],
+                 f"{r['sent']} / {r['received']} / {r['poses']}", f"{100 * r['answered']:.1f} %",
+                 r["dropped"], r["wrong"], f"{r['p50']:.3f} / {r['p99']:.3f}", _against_floor(r),
+                 f"{r['cpu_us_per_input']:.0f}"] for r in rows]
         out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
-                      seconds=f"{setup['seconds']:g}"),
-                table(["variant", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
-                       "latency p50 / p99 (ms)", "node CPU µs per input"], body)]
+                      seconds=f"{setup['seconds']:g}", runs=setup.get("runs", 1),
+                      target=f"{RCLPY_FLOOR_FACTOR:g}", answered=f"{100 * RCLPY_ANSWERED:g}"),
+                table(["variant", "run", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
+                       "latency p50 / p99 (ms)", "against the floor p50 / p99", "node CPU µs per input"], body),
+                "load" in setup and prose("outputs", "rclpy_load", start=f"{setup['load'][0]:.1f}",
+                                          end=f"{setup['load'][1]:.1f}", policy=setup["policy"])]
     return md_blocks(HEADING, *out)
 
 

@@ -21,9 +21,10 @@ from .papers import TABLE_NAME
 from .scenarios import LATENCY_TARGET_MS
 from .timing import all_overruns, calm_distribution, share_on_time, worst_overrun
 
-#: sections measured by scripts of their own (``tools/bench_gough.py --markdown doc/bench/gough.md``), kept
+#: sections measured by scripts of their own (``tools/bench_gough.py --markdown doc/bench/gough.md``,
+#: ``tools/bench_families.py --markdown doc/bench/families.md``), kept
 #: in BENCHMARKS.md when the benchmark rewrites it
-APART = ("doc/bench/gough.md",)
+APART = ("doc/bench/gough.md", "doc/bench/families.md")
 
 
 def header(res) -> list[str]:

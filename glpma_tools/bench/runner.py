@@ -45,6 +45,7 @@ DEFAULTS = {
     "outputs_profile": (5000, 500, int, "writes and thread round trips of the outputs section's micro-profile"),
     "outputs_rclpy_seconds": (10, 2, float, "seconds per rclpy executor variant of the outputs section, where "
                               "rclpy imports"),
+    "outputs_rclpy_runs": (5, 1, int, "runs of the rclpy echo floor beside the shipped node in the outputs section"),
     "waits_rounds": (4, 1, int, "rounds per setup of the waits section"),
     "waits_inputs": (5000, 1000, int, "inputs per round of the waits section"),
     "bag_messages": (10_000, 1000, int, "inputs of the recorded run glpma-fk bag processes"),
@@ -198,7 +199,8 @@ def main(argv=None) -> int:
     if "outputs" in sections:
         say("extra outputs and the transport path", "outputs")
         res["outputs"] = outputs.measure(listed, counts["outputs_inputs"], counts["outputs_seconds"],
-                                         counts["outputs_profile"], counts["outputs_rclpy_seconds"], say)
+                                         counts["outputs_profile"], counts["outputs_rclpy_seconds"], say,
+                                         rclpy_runs=max(1, counts["outputs_rclpy_runs"]))
     if "waits" in sections and counts["waits_rounds"] > 0:
         say("waits of an input for anything but its own solve", "waits")
         res["waits"] = waits.measure(counts["waits_rounds"], max(1, counts["waits_inputs"]))

@@ -15,12 +15,11 @@ import yaml
 from glpma_ros.cli.api import OneLineParser
 from glpma_ros.config import load_document, model_from_dict, resolve_config
 from glpma_ros.errors import GlpmaError, InputError
-from glpma_ros.modes.multistart import default_method
 
 from ..extras import require
 from .engines import EngineError, compute_map
 from .exact_check import exact_check, require_exact
-from .grid import ANGLES, COORDINATES, DEFAULT_RUNS, METHODS, MapSpec
+from .grid import ANGLES, CLOSED_FORM, DEFAULT_RUNS, METHODS, MapSpec, coordinates_of, default_method
 
 PROG = "glpma-fk map"
 #: default half-margin of the x-y range around the base joints' bounding box, in units of the geometry's size
@@ -37,6 +36,10 @@ HELP_WIDTH = 100
 def default_limits(model, name: str) -> tuple:
     if name in ANGLES:
         return (-180.0, 180.0)
+    if getattr(model, "actuated", False):     # an actuated family: the box its platform origin can reach
+        lo, hi = model.reach_box()
+        k = "xyz".index(name)
+        return (float(lo[k]), float(hi[k]))
     if name == "z":
         return tuple(f * model.scale for f in Z_RANGE)
     k = "xy".index(name)
@@ -45,10 +48,7 @@ def default_limits(model, name: str) -> tuple:
 
 
 def make_spec(model, args) -> MapSpec:
-    if model.kind not in COORDINATES:       # an actuated family (delta): not mapped yet
-        raise InputError(f"the actuated family {model.kind} is not mapped yet "
-                         f"(maps: {', '.join(COORDINATES)})")
-    names = COORDINATES[model.kind]
+    names = coordinates_of(model)
     axes = tuple(args.axes)
     for a in axes:
         if a not in names:
@@ -56,6 +56,8 @@ def make_spec(model, args) -> MapSpec:
     if axes[0] == axes[1]:
         raise InputError("--axes needs two different coordinates")
     fixed = {n: (Z_DEFAULT * model.scale if n == "z" else 0.0) for n in names if n not in axes}
+    if getattr(model, "actuated", False) and "z" in fixed:     # an actuated family: the height of its home pose
+        fixed["z"] = float(model.pose(model.home_variables()).position[2])
     for item in args.at or []:
         name, sep, value = item.partition("=")
         if not sep or name not in names:
@@ -81,6 +83,8 @@ def make_spec(model, args) -> MapSpec:
         raise InputError("--resolution expects one or two numbers of points per axis, each at least 2")
     method = args.method or ("g3pcx" if args.runs is not None else "multistart" if args.max_starts is not None
                              else default_method(model))
+    if method == CLOSED_FORM and default_method(model) != CLOSED_FORM:
+        raise InputError(f"--method closed_form: {model.kind} has no closed-form forward kinematics")
     if args.runs is not None and method != "g3pcx":
         raise InputError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
     if args.max_starts is not None and method != "multistart":
@@ -105,9 +109,10 @@ def build_parser() -> argparse.ArgumentParser:
             "conditioning of the pose. Writes DIR/assembly_modes.npz and a PNG with the mode-count regions and "
             "the singularity curves. Lengths in the config's unit, angles in degrees.",
             HELP_WIDTH, break_on_hyphens=False),
-        epilog="pose coordinates: planar_3rpr x y theta; hexapod_66 x y z roll pitch yaw (R = Rz(yaw) Ry(pitch) "
-               "Rx(roll)).\ndefaults: x-y range = the base joints' bounding box +- half the geometry's size, z range "
-               "0 .. 2 sizes,\nangles -180 .. 180; fixed angles 0 and z = the geometry's size.\n"
+        epilog="pose coordinates: planar_3rpr, planar_3rrr x y theta; hexapod_66, rus_6 x y z roll pitch yaw "
+               "(R = Rz(yaw) Ry(pitch) Rx(roll)); delta x y z.\ndefaults: x-y range = the base joints' bounding box "
+               "+- half the geometry's size, z range 0 .. 2 sizes,\nangles -180 .. 180; fixed angles 0 and z = the "
+               "geometry's size; an actuated family: the box its platform can reach, z of its home pose.\n"
                "Finished chunks are kept in DIR/chunks/: a rerun of the same map (same config and grid) skips them.")
     p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
     p.add_argument("--out", required=True, metavar="DIR", help="output directory (created; reused to resume)")
@@ -123,8 +128,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the modes of a point are counted: homotopy (default where the family has a start "
                         "system, the 3-RPR and the hexapods: solve_all's parameter homotopy, each count certified "
                         "by the root count or the point marked uncertified), multistart (solve_all's multistart of "
-                        "Levenberg-Marquardt solves with its stopping rule; default when --max-starts is given) or "
-                        "g3pcx (the papers' polished G3-PCX searches, --runs of them; default when --runs is given)")
+                        "Levenberg-Marquardt solves with its stopping rule; the default for the other families "
+                        "and when --max-starts is given), g3pcx (the papers' polished G3-PCX searches, --runs of "
+                        "them; default when --runs is given) or closed_form (the Delta's sphere intersection; its "
+                        "default)")
     p.add_argument("--runs", type=int, default=None, metavar="N",
                    help=f"g3pcx: searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
     p.add_argument("--max-starts", type=int, default=None, metavar="N",
@@ -166,6 +173,8 @@ def main(argv=None) -> int:
         if args.exact is not None:
             if args.exact < 1:
                 raise InputError("--exact needs at least 1 point")
+            if getattr(model, "actuated", False):
+                raise InputError(f"--exact: msolve has no formulation of the actuated family {model.kind}")
             require_exact()
         result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
                              chunk_size=args.chunk_size, progress=not args.no_progress)

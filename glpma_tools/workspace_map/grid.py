@@ -25,11 +25,16 @@ from glpma_ros.errors import InputError
 
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
 COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z", "roll", "pitch", "yaw")}
+#: an actuated family's pose coordinates by its platform's motion (:func:`coordinates_of`)
+TRANSLATION_COORDINATES = ("x", "y", "z")
 ANGLES = ("theta", "roll", "pitch", "yaw")
 #: how the modes of a point are counted: solve_all's parameter homotopy (certified by the root count; the default
-#: where the family has a start system), its multistart (the default elsewhere) or the papers' G3-PCX runs
-METHODS = ("homotopy", "multistart", "g3pcx")
+#: where the family has a start system), its multistart (the default elsewhere), the papers' G3-PCX runs or a
+#: model's closed form
+METHODS = ("homotopy", "multistart", "g3pcx", "closed_form")
 DEFAULT_METHOD = "homotopy"
+#: a model with a closed-form forward kinematics (the three-leg Delta) is counted by it unless told otherwise
+CLOSED_FORM = "closed_form"
 #: independent G3-PCX searches per grid point with method g3pcx (what the maps used before the multistart)
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
@@ -72,12 +77,33 @@ class MapSpec:
             return f"{self.runs} polished G3-PCX runs per point"
         if self.method == "homotopy":
             return "the parameter homotopy"
+        if self.method == CLOSED_FORM:
+            return "the closed form"
         return "the multistart" + (f" (at most {self.runs} starts per point)" if self.runs else "")
 
     def key(self, config_text: str) -> str:
         """Identifies the chunks of this map of this configuration."""
         blob = json.dumps({"spec": asdict(self), "config": config_text}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def coordinates_of(model) -> tuple:
+    """The pose coordinates of ``model``: its kind's (:data:`COORDINATES`); an actuated family's by its platform's
+    motion: a translating platform (the Delta) x y z, a planar one (3-RRR) x y theta, a full pose (6-RUS) the
+    hexapod's six."""
+    if model.kind in COORDINATES:
+        return COORDINATES[model.kind]
+    if int(getattr(model, "dim", 3)) == 2:
+        return COORDINATES["planar_3rpr"]
+    return TRANSLATION_COORDINATES if model.n_vars == len(TRANSLATION_COORDINATES) else COORDINATES["hexapod_66"]
+
+
+def default_method(model) -> str:
+    """How the modes of a point are counted when ``--method`` is not given, as ``solve_all``'s default: the closed
+    form where the model has one (the Delta's two mirror modes), the homotopy (:data:`DEFAULT_METHOD`) where its
+    family has a start system, else the multistart."""
+    from glpma_ros.modes.multistart import default_method as solve_all_default
+    return solve_all_default(model)
 
 
 def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -91,9 +117,12 @@ def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
 
 def pose_variables(model, coords: dict) -> np.ndarray:
     """Solver variables of the pose with these coordinates (config unit, angles in degrees)."""
-    if model.kind == "planar_3rpr":
+    if "theta" in coords:
         position = (coords["x"], coords["y"], 0.0)
         orientation = quaternion_from_rpy(0.0, 0.0, math.radians(coords["theta"]))
+    elif "roll" not in coords:                      # a translating platform: orientation fixed
+        position = (coords["x"], coords["y"], coords["z"])
+        orientation = np.array([0.0, 0.0, 0.0, 1.0])
     else:
         position = (coords["x"], coords["y"], coords["z"])
         orientation = quaternion_from_rpy(*(math.radians(coords[a]) for a in ("roll", "pitch", "yaw")))
@@ -128,11 +157,13 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int,
     x = pose_variables(model, spec.coordinates(index))
     try:
         legs = model.check_legs(model.inverse_kinematics(x))
-    except InputError:                       # a leg of length 0 or outside the leg limits: no such pose
-        return OUTSIDE, math.nan, 0, 0, NOT_CERTIFIABLE
+    except (InputError, ValueError):          # a leg of length 0 or outside the leg limits (an actuated
+        return OUTSIDE, math.nan, 0, 0, NOT_CERTIFIABLE   # family: a leg that cannot reach the pose): no such pose
     seed = point_seed(spec.seed, index)
     certified = NOT_CERTIFIABLE
-    if spec.method == "g3pcx":
+    if spec.method == CLOSED_FORM:
+        modes = solve_all(model, legs, method=CLOSED_FORM, seed=seed)
+    elif spec.method == "g3pcx":
         modes = solve_all(model, legs, method="g3pcx", runs=spec.runs, seed=seed)
     elif spec.method == "homotopy":
         modes = homotopy_modes(model, legs, seed=seed, fallback=False)
