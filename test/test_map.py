@@ -171,9 +171,19 @@ def test_cli_writes_the_map(tmp_path):
     summary = json.loads(p.stdout)
     assert summary["points"] == 6 and summary["engine"] == "this process"
     assert summary["method"] == "the multistart (at most 500 starts per point)"
+    assert summary["uncertified"] is None                # the multistart certifies nothing
     with np.load(tmp_path / "assembly_modes.npz") as f:
         assert f["counts"].shape == (2, 3) and list(f["fixed_names"]) == ["theta"] and f["fixed_values"][0] == 10
         assert str(f["method"]) == "multistart" and int(f["runs"]) == 500
+        assert np.all(f["certified"] == -1)
+
+
+def test_default_method_is_the_homotopy_and_max_starts_selects_the_multistart(rpr, hexapod):
+    from glpma_tools.workspace_map.cli import build_parser, make_spec
+    for model, config in ((rpr, RPR_YAML), (hexapod, "hexapod_66_rolland")):
+        assert make_spec(model, build_parser().parse_args([str(config), "--out", "x"])).method == "homotopy"
+    assert make_spec(rpr, build_parser().parse_args([str(RPR_YAML), "--out", "x", "--max-starts", "5"])).method \
+        == "multistart"
 
 
 def test_cli_on_a_dask_scheduler(tmp_path):

@@ -36,8 +36,9 @@ Morgan & Sommese 1989, "Coefficient-parameter polynomial continuation", Appl. Ma
   ``p(t) = (1 - tau) p_0 + tau p_1``, ``tau = t / (t + gamma (1 - t))``, ``t`` from 0 to 1, with a random
   unit complex ``gamma`` (the gamma trick: with probability one no path meets a singular point for ``t <
   1``).  The tracker is an adaptive predictor-corrector (classical Runge-Kutta of order 4 on
-  ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed correction and doubled after
-  ``STEP_EXPAND_AFTER`` successes), every path in one compiled call (:func:`track_paths`; complex LU with
+  ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed correction; after a success the
+  next step is chosen from the size of the first corrector update, the predictor's error, of order h^5, aiming
+  at ``STEP_TARGET``), every path in one compiled call (:func:`track_paths`; complex LU with
   partial pivoting).  At ``t = 1`` Newton's method polishes the endpoint.  The coefficients along the path
   are a quadratic polynomial in ``tau`` (they are of degree two in ``p``), interpolated exactly from three
   evaluations.
@@ -54,7 +55,11 @@ Morgan & Sommese 1989, "Coefficient-parameter polynomial continuation", Appl. Ma
   the answer is ``complete = False`` and names the paths.  A design whose count is lower than the family's
   (hexapods with coincident joints: the 6-3, 3-6 and 3-3 have 16, Faugere & Lazard 1995) is certified by
   its own count ``design_root_count``; the other paths end on the component ``e.e = 0`` of non-poses or at
-  infinity.
+  infinity.  Other special designs (the seed 6-6, mirror-symmetric joint pairs: 28 finite poses) are certified
+  when every path is accounted for (:func:`_accounted`: a regular pose endpoint of its own, at infinity, or on
+  the exceptional quadric ``e.e = 0``) and an independent homotopy (another gamma and patch) accounts for every
+  path and ends at the same poses.  A real double root that paths meet (a target on a singularity) leaves the
+  answer incomplete; it is returned apart (``singular``) for the caller to polish and mark as double.
 
 * **Real modes** are the regular endpoints that are real up to ``REAL_TOLERANCE`` (the 6-6's are real up
   to a complex factor, removed first), converted to the model's solver variables; the caller polishes
@@ -76,8 +81,15 @@ import numpy as np
 from numba import njit
 
 from ..errors import GlpmaError
+from ..models.hexapod_66 import matrix_from_quaternion
+from .exact import has_coincident_joints
+from .polynomials import qmul
 
 START_SYSTEMS = Path(__file__).with_name("start_systems")
+#: the compiled tracker may reassociate and contract (fused multiply-add) its sums and use reciprocals: it follows
+#: a path to a loose tolerance and polishes the endpoint, so the last bits do not matter; not the flags that
+#: assume no NaN or infinity (a path may run off to infinity, and is classified by its norm)
+FAST_MATH = {"reassoc", "contract", "arcp", "nsz"}
 
 # -- tracker settings (indices into the settings array of track_paths) ---------------------------------------
 #: first step in t (a path's t runs over [0, 1]; the start is a regular solution, so a few predictor steps
@@ -88,7 +100,7 @@ STEP_INITIAL = 0.05
 STEP_MAX = 0.2
 #: a path whose step falls below this share of t has failed (its Jacobian turned singular)
 STEP_MIN = 1e-13
-#: double the step after this many successful steps in a row (Bertini's default heuristics are the same)
+#: with STEP_TARGET 0: double the step after this many successful steps in a row (Bertini's default heuristics)
 STEP_EXPAND_AFTER = 3
 #: Newton iterations of the corrector after each predictor step: a predicted point needing more is too
 #: far from the path (or near another one) and the step is retried at half the size
@@ -110,22 +122,33 @@ CORRECTOR_MAX_FIRST = 0.2
 AT_INFINITY = 1e8
 #: step cap per path: a regular path needs tens of steps; one that needs this many is spiralling
 MAX_STEPS = 4000
-#: Newton iterations of the final polish at t = 1
-FINAL_ITERATIONS = 8
+#: Newton iterations of the final polish at t = 1 at most (it stops once converged): next to a fold two roots
+#: are close and Newton's method only halves the error per iteration until it is within their distance, so
+#: from the corrector's tolerance (1e-5) it takes up to about 40 iterations to reach round-off
+FINAL_ITERATIONS = 48
 #: the final polish stops when its update is below this share of 1 + |z| (a few units of round-off)
 FINAL_TOLERANCE = 1e-14
 #: a path whose step underflows at t > 1 - ENDGAME_ZONE ends on a singular endpoint (two solutions merging
 #: at t = 1 approach each other like sqrt(1 - t): the step needed shrinks with 1 - t)
 ENDGAME_ZONE = 1e-4
+#: step-size control: after a successful step the next one aims at a first corrector update of this share of
+#: 1 + |z| (the predictor's error, of order h^5 for the Runge-Kutta predictor); 0 = the doubling rule alone.
+#: On random and Dietmaier's 6-6s, 1e-2 took 12 % fewer steps than the doubling rule and completed every case in
+#: one round (1e-4: 40 % more steps); an update above CORRECTOR_MAX_FIRST fails the step anyway
+STEP_TARGET = 1e-2
+#: the next step is this share of the step the error model predicts (the usual safety factor of step control)
+STEP_SAFETY = 0.8
+#: ... and at most this many times the last one, at least half of it
+STEP_GROWTH_MAX = 4.0
 SETTINGS = np.array([STEP_INITIAL, STEP_MAX, STEP_MIN, STEP_EXPAND_AFTER, CORRECTOR_ITERATIONS,
                      CORRECTOR_TOLERANCE, CORRECTOR_CONTRACTION, CORRECTOR_MAX_FIRST, AT_INFINITY, MAX_STEPS,
-                     FINAL_ITERATIONS, FINAL_TOLERANCE, ENDGAME_ZONE])
+                     FINAL_ITERATIONS, FINAL_TOLERANCE, ENDGAME_ZONE, STEP_TARGET])
 
-#: the careful retrack of the paths that failed or met another's endpoint: a quarter of the largest step
-#: and of the first corrector update, four times the steps
+#: the careful retrack of the paths that failed or met another's endpoint: a quarter of the largest step,
+#: of the first corrector update and of its target, four times the steps
 CAREFUL = 4.0
 CAREFUL_SETTINGS = SETTINGS.copy()
-CAREFUL_SETTINGS[[1, 7]] /= CAREFUL
+CAREFUL_SETTINGS[[1, 7, 13]] /= CAREFUL
 CAREFUL_SETTINGS[9] *= CAREFUL
 
 #: path outcomes (track_paths' status)
@@ -144,14 +167,32 @@ SAME_ENDPOINT = 1e-6
 #: to the real space than this is within about its square of a singularity, where the rounding of the
 #: input already decides)
 REAL_TOLERANCE = 1e-8
+#: singular endpoints (a double root: its paths end within about sqrt(round-off / curvature) of it, and Newton's
+#: method converges only linearly there) within this share of 1 + |z| of each other are one root, and such a root
+#: is real when its imaginary part is within this share of its size; the model's polish then decides whether a
+#: real pose is there (a complex pair this close to the real space is within round-off of a singularity)
+SINGULAR_SAME = 1e-5
+SINGULAR_REAL_TOLERANCE = 1e-5
 #: rounds of tracking again when the count is short: first the paths that failed or met another's endpoint,
 #: carefully (``CAREFUL_SETTINGS``); then every path with a new gamma and patch
 RETRACK_ROUNDS = 4
+#: independent homotopies at most that confirm the poses of a design with fewer than the family's root count
+#: (every path accounted for, the same poses): a disagreement adds the poses found and tries once more
+CONFIRM_ROUNDS = 3
 #: the design's own root count (hexapods whose joints coincide in pairs: 6-3, 3-6, 3-3; Faugere & Lazard
 #: 1995, "Combinatorial classes of parallel manipulators", Mech. Mach. Theory 30(6); msolve agrees)
 COINCIDENT_ROOT_COUNT = 16
 #: a 6-6 endpoint with |e.e| below this share of |e|^2 is not a pose (Study's exceptional quadric)
 NULL_ROTATION = 1e-8
+#: ... and a singular endpoint (accurate to about the square root of round-off only) below this share: the
+#: singular endpoints of the seed 6-6 (a design with mirror-symmetric joint pairs, 28 finite poses) lie at
+#: 1.6e-8 .. 2e-7, a real pose at 1 and a complex one generically at order one
+SINGULAR_NULL_ROTATION = 1e-4
+#: a path of the seed 6-6 that runs to the exceptional quadric has its step underflow at 1 - t = 1e-4 .. 5e-4
+#: (the endpoint is singular and at |z| ~ 1e3), already within 1e-8 of the quadric: such a failure within this
+#: share of the end of the path, that close to the quadric, is the path's end, not a lost pose (a regular
+#: pose endpoint is approached analytically, at order one from the quadric)
+EXCEPTIONAL_ZONE = 1e-2
 
 # -- monodromy ---------------------------------------------------------------------------------------------
 #: the count must not have grown for this many loops before the start system is accepted
@@ -163,7 +204,7 @@ MONODROMY_MAX_LOOPS = 400
 # ==========================================================================================================
 # compiled tracker
 # ==========================================================================================================
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _evaluate(K, z, tau, dtau, w, H, J, Ht, with_t):
     """``H = F(z; p(tau))``, ``J = F_z`` and, when ``with_t``, ``Ht = F_tau dtau/dt``: every equation is
     ``w^T Q_i w`` with ``w = (z, 1)`` and ``Q_i = K_0 + tau K_1 + tau^2 K_2`` (symmetric), so with
@@ -198,7 +239,7 @@ def _evaluate(K, z, tau, dtau, w, H, J, Ht, with_t):
         Ht[i] = ht * dtau
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _lu_solve(A, b, x, LU):
     """``x = A^{-1} b`` by Gaussian elimination with partial pivoting (``LU`` a work copy); False when a
     pivot is exactly zero."""
@@ -235,14 +276,14 @@ def _lu_solve(A, b, x, LU):
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _tau(t, gamma):
     """``tau(t) = t / (t + gamma (1 - t))`` and ``dtau/dt = gamma / (t + gamma (1 - t))^2``."""
     d = t + gamma * (1.0 - t)
     return t / d, gamma / (d * d)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _norm(z):
     m = 0.0
     for k in range(z.shape[0]):
@@ -252,7 +293,7 @@ def _norm(z):
     return m
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _velocity(K, z, t, gamma, out, w, H, J, Ht, LU, rhs):
     """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``; False when ``F_z`` is singular."""
     tau, dtau = _tau(t, gamma)
@@ -262,7 +303,7 @@ def _velocity(K, z, t, gamma, out, w, H, J, Ht, LU, rhs):
     return _lu_solve(J, rhs, out, LU)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k3, k4, zt):
     """Tracks one path from ``start`` at t = 0; leaves the endpoint in ``z`` and ``F_z`` there in ``J``;
     returns (outcome, steps, t reached)."""
@@ -274,6 +315,8 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
     tol, contraction, max_first = settings[5], settings[6], settings[7]
     at_infinity, max_steps = settings[8], int(settings[9])
     final_iterations, final_tol, endgame = int(settings[10]), settings[11], settings[12]
+    step_target = settings[13]
+    first = 0.0
     for k in range(n):
         z[k] = start[k]
     t = 0.0
@@ -316,6 +359,8 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
                     zt[k] -= dz[k]
                 step = _norm(dz)
                 scale = 1.0 + _norm(zt)
+                if it == 0:
+                    first = step / scale
                 if it == 0 and step > max_first * scale:
                     break
                 if it > 0 and step > contraction * previous:
@@ -329,7 +374,16 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
                 z[k] = zt[k]
             t = t1
             successes += 1
-            if successes >= expand_after:
+            if step_target > 0.0:
+                # the predictor's error, measured by the first corrector update, grows like h^5: the next step
+                # aims at step_target, within [1/2, STEP_GROWTH_MAX] times this one
+                if first > 0.0:
+                    factor = STEP_SAFETY * (step_target / first) ** 0.2
+                    h = min(max(factor, 0.5), STEP_GROWTH_MAX) * h
+                else:
+                    h = STEP_GROWTH_MAX * h
+                h = min(h, h_max)
+            elif successes >= expand_after:
                 h = min(2.0 * h, h_max)
                 successes = 0
             if _norm(z) > at_infinity:
@@ -354,7 +408,7 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
     return REGULAR, steps, t
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def track_paths(K, starts, gammas, settings, ends, jacobians, outcome, steps, t_end):
     """Tracks every row of ``starts`` (its own ``gammas[p]``) from the start system to the target of the
     coefficient path ``K`` (shape ``(3, m, n + 1, n + 1)``: ``Q_i(tau) = K_0 + tau K_1 + tau^2 K_2``):
@@ -496,9 +550,10 @@ class Planar3RPRFamily(Family):
     def random_params(self, rng):
         return _crandn(rng, 15)
 
-    def to_pose(self, model, target: Target, z):
-        """Solver variables ``(x, y, theta)`` of a real endpoint, or None when it is not real."""
-        if np.max(np.abs(z.imag)) > REAL_TOLERANCE * (1.0 + np.max(np.abs(z))):
+    def to_pose(self, model, target: Target, z, tolerance=REAL_TOLERANCE):
+        """Solver variables ``(x, y, theta)`` of a real endpoint (imaginary part within ``tolerance`` of its
+        size), or None when it is not real."""
+        if np.max(np.abs(z.imag)) > tolerance * (1.0 + np.max(np.abs(z))):
             return None
         x, y, c, s = z.real
         theta = math.atan2(s, c)
@@ -506,7 +561,7 @@ class Planar3RPRFamily(Family):
         origin = target.scale * np.array([x, y]) + target.base_centre - R @ target.platform_centre
         return np.array([origin[0], origin[1], theta])
 
-    def is_pose(self, z) -> bool:
+    def is_pose(self, z, tol=None) -> bool:
         return True
 
 
@@ -583,25 +638,24 @@ class Hexapod66Family(Family):
     def random_params(self, rng):
         return _crandn(rng, 42)
 
-    def is_pose(self, z) -> bool:
+    def is_pose(self, z, tol=NULL_ROTATION) -> bool:
+        """Off Study's exceptional quadric: ``|e.e| > tol |e|^2``."""
         e = self.full(z)[:4]
-        return abs(_bdot(e, e)) > NULL_ROTATION * float(np.sum(np.abs(e) ** 2))
+        return abs(_bdot(e, e)) > tol * float(np.sum(np.abs(e) ** 2))
 
-    def to_pose(self, model, target: Target, z):
-        """Solver variables of a real endpoint (real up to a complex factor), or None."""
+    def to_pose(self, model, target: Target, z, tolerance=REAL_TOLERANCE):
+        """Solver variables of a real endpoint (real up to a complex factor, within ``tolerance``), or None."""
         ef = self.full(z)
         lam = np.sqrt(_bdot(ef, ef))                          # ef = lam * (real vector) when real
         if abs(lam) == 0.0:
             return None
         v = ef / lam
-        if np.max(np.abs(v.imag)) > REAL_TOLERANCE * np.max(np.abs(v)):
+        if np.max(np.abs(v.imag)) > tolerance * np.max(np.abs(v)):
             return None
         e, f = v.real[:4], v.real[4:]
         D = float(e @ e)
         if not D > NULL_ROTATION * float(v.real @ v.real):
             return None
-        from ..models.hexapod_66 import matrix_from_quaternion
-        from .exact import qmul
         t = np.array(qmul(tuple(2.0 * f), (e[0], -e[1], -e[2], -e[3]))[1:]) / D      # 2 f e~ / D
         q = np.array([e[1], e[2], e[3], e[0]]) / math.sqrt(D)
         R = matrix_from_quaternion(q)
@@ -719,9 +773,10 @@ class HomotopyResult:
     complete: bool                 # every solution found (distinct regular endpoints = the root count)
     paths: int                     # paths tracked (the family's generic root count)
     paths_failed: list             # indices of the paths without a regular endpoint of their own
-    complex_solutions: int         # distinct regular finite endpoints that are poses
+    complex_solutions: int         # distinct finite endpoints that are poses (regular; incomplete: and real double)
     real: list                     # solver variables of the real ones (not yet polished)
     root_count: int                # the count that certifies
+    singular: list = field(default_factory=list)  # incomplete: solver variables of real singular endpoints
     outcomes: dict = field(default_factory=dict)   # outcome name -> number of paths (last round)
     retracked: int = 0             # path trackings repeated with another gamma
     steps: int = 0                 # predictor-corrector steps, every path and round
@@ -730,7 +785,6 @@ class HomotopyResult:
 
 def root_count(model) -> int:
     """The count that certifies ``model``'s answer: the family's, or the design's (coincident joints)."""
-    from .exact import has_coincident_joints
     if model.kind == "hexapod_66" and has_coincident_joints(_first_legs_model(model)):
         return COINCIDENT_ROOT_COUNT if _three_and_three(model) else 0
     return load_start_system(model.kind).family.root_count
@@ -768,6 +822,7 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
     n_paths = len(start.solutions)
     certify = root_count(model)
     found = np.empty((0, base_family.n_unknowns), complex)     # distinct regular pose endpoints (base patch)
+    singular = np.empty((0, base_family.n_unknowns), complex)  # singular or shared endpoints (base patch)
     pending = np.arange(n_paths)
     outcome_of = np.full(n_paths, STEP_FAILED, np.int64)
     total_steps = retracked = 0
@@ -784,12 +839,14 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
             pending = np.arange(n_paths)
         retracked += pending.size if round_ else 0
         K = family.coefficient_path(start.params, target.params)
-        ends, jac, outcome, steps, _ = track(K, starts[pending], np.full(pending.size, gamma), settings)
+        ends, jac, outcome, steps, t_end = track(K, starts[pending], np.full(pending.size, gamma), settings)
         total_steps += int(steps.sum())
         good = _regular(jac, outcome)
         outcome_of[pending] = outcome
         ends = family.convert(ends, base_family)
         unexplained = [int(pending[k]) for k in _unexplained(ends, good, outcome)]
+        shared = [k for k in range(len(pending)) if outcome[k] == SINGULAR or (good[k] and pending[k] in unexplained)]
+        singular = np.vstack([singular, ends[shared]])
         for k in np.flatnonzero(good):
             if not base_family.is_pose(ends[k]):
                 continue
@@ -797,11 +854,45 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
                 found = np.vstack([found, ends[k]])
             elif round_ == 1:               # retracked on the same homotopy, it met a solution found before
                 unexplained.append(int(pending[k]))
+        full_round = pending.size == n_paths
         if len(found) >= certify > 0 or not unexplained:
             break
         pending = np.array(sorted(set(unexplained)), np.int64)
     complete = certify > 0 and len(found) == certify
-    real = []
+    if not complete and certify > 0 and full_round and _accounted(base_family, ends, good, outcome, t_end):
+        # fewer poses than the root count (a special design), every path accounted for: confirmed by an independent
+        # homotopy (another gamma and patch) that accounts for every path and ends at the same poses; the poses it
+        # finds that the last did not (a path of the last that jumped) are added and another one confirms
+        for _ in range(CONFIRM_ROUNDS):
+            family = base_family.another_patch(rng)
+            K = family.coefficient_path(start.params, target.params)
+            starts, gammas = base_family.convert(start.solutions, family), np.full(n_paths, random_gammas(rng, 1)[0])
+            ends, jac, outcome, steps, t_end = track(K, starts, gammas, SETTINGS)
+            total_steps += int(steps.sum())
+            retracked += n_paths
+            again = np.flatnonzero((outcome == STEP_FAILED) | (outcome == STEPS_EXHAUSTED))
+            if again.size:              # the same paths, tracked carefully (as the second round above)
+                ends[again], jac[again], outcome[again], steps, t_end[again] = track(
+                    K, starts[again], gammas[again], CAREFUL_SETTINGS)
+                total_steps += int(steps.sum())
+                retracked += again.size
+            good = _regular(jac, outcome)
+            ends = family.convert(ends, base_family)
+            poses = [z for k, z in enumerate(ends) if good[k] and base_family.is_pose(z)]
+            new = [z for z in poses if _new(z, found)]
+            if _accounted(base_family, ends, good, outcome, t_end) and len(poses) == len(found) and not new:
+                complete = True
+                break
+            for z in new:
+                found = np.vstack([found, z])
+    real, double = [], []
+    if not complete:                # a double root: endpoints shared by paths or singular, real up to its accuracy
+        for k in distinct(singular, SINGULAR_SAME):
+            if base_family.is_pose(singular[k], SINGULAR_NULL_ROTATION):
+                x = base_family.to_pose(model, target, singular[k], SINGULAR_REAL_TOLERANCE)
+                if x is not None:
+                    double.append(x)
+                    found = found[[not _near(z, singular[k], SINGULAR_SAME) for z in found]]
     for z in found:
         x = base_family.to_pose(model, target, z)
         if x is not None:
@@ -810,8 +901,30 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
     for o in outcome_of:
         counts[OUTCOMES[o]] = counts.get(OUTCOMES[o], 0) + 1
     failed = [] if complete else sorted(int(k) for k in pending)
-    return HomotopyResult(complete, n_paths, failed, len(found), real, certify, counts, retracked, total_steps,
-                          time.perf_counter() - t0)
+    return HomotopyResult(complete, n_paths, failed, len(found) + len(double), real, certify, double, counts,
+                          retracked, total_steps, time.perf_counter() - t0)
+
+
+def _accounted(family, ends, good, outcome, t_end) -> bool:
+    """Every path of a round ended where it may: at a regular endpoint of its own (no two shared), at infinity, or
+    at a singular endpoint that is not a pose (on Study's exceptional quadric, to a singular endpoint's accuracy;
+    a path whose step underflowed within ``EXCEPTIONAL_ZONE`` of t = 1 already that close to the quadric counts as
+    ending there).  Then every isolated pose solution of the target is a regular endpoint (Sommese & Wampler
+    2005, Theorem 7.1.6: each is the endpoint of as many paths as its multiplicity)."""
+    if outcome.size and np.any(outcome == STEPS_EXHAUSTED):
+        return False
+    failed = outcome == STEP_FAILED
+    if np.any(failed & (1.0 - t_end > EXCEPTIONAL_ZONE)):
+        return False
+    good_only = np.where(failed, AT_INFINITY_REACHED, outcome)       # no retrack asked for the failed ones here
+    if _unexplained(ends, good, good_only):
+        return False
+    return not any(outcome[k] != AT_INFINITY_REACHED and family.is_pose(ends[k], SINGULAR_NULL_ROTATION)
+                   for k in np.flatnonzero(~good))
+
+
+def _near(z, w, tol) -> bool:
+    return bool(np.max(np.abs(z - w)) <= tol * (1.0 + np.max(np.abs(w))))
 
 
 def _new(z, found) -> bool:

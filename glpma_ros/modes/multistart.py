@@ -179,16 +179,17 @@ def closed_form_modes(model, legs, *, seed=0) -> AllSolutions:
 
 
 # -- homotopy -------------------------------------------------------------------------------------
-def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None) -> AllSolutions:
+def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None, fallback=True) -> AllSolutions:
     """Every real mode by the parameter homotopy (:mod:`glpma_ros.modes.homotopy`), each polished with every
-    leg; redundant legs: those the polish leaves consistent (:func:`consistent_fitness`).  Incomplete and
-    msolve installed (not with redundant legs): msolve's modes instead, ``fallback = "exact"``."""
+    leg; redundant legs: those the polish leaves consistent (:func:`consistent_fitness`).  Incomplete: the real
+    double roots the paths met as well (polished; ``conditioning`` says they are double) and, with ``fallback``
+    and msolve installed (not with redundant legs), msolve's modes instead, ``fallback = "exact"``."""
     t0 = time.perf_counter()
     res = homotopy.solve(model, legs, seed=seed)
     rng = np.random.default_rng(seed)
     limit = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
     found, evaluations = [], 0
-    for x in res.real:
+    for x in list(res.real) + list(res.singular):
         t1 = time.perf_counter()
         xp, fp, nfev, _ = refine.polish(model, x, legs, rng)
         evaluations += nfev
@@ -197,18 +198,19 @@ def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None) -> AllSolutions:
         if all(model.distance(xp, s.x) > DEDUP_RELATIVE * model.scale for s in found):
             found.append(SolveResult(xp, fp, nfev, 0, time.perf_counter() - t1, CONVERGED, "homotopy",
                                      polished=True))
-    fallback = ""
+    used = ""
     complex_solutions, complete = res.complex_solutions, res.complete
-    if not res.complete and not model.redundancy:
+    if fallback and not res.complete and not model.redundancy:
         try:
             certified = exact_modes(model, legs, seed=seed)
         except GlpmaError:              # not installed, a degenerate system or a polish off its box: as it is
             certified = None
         if certified is not None:
-            found, fallback = certified.solutions, "exact"
+            found, used = certified.solutions, "exact"
             complex_solutions, complete = certified.complex_solutions, True
             evaluations += certified.evaluations
-    return AllSolutions(sorted_modes(model, found), 0, time.perf_counter() - t0, evaluations, method="homotopy",
+    found = sorted_modes(model, found)
+    return AllSolutions(found, 0, time.perf_counter() - t0, evaluations, method="homotopy",
                         complex_solutions=complex_solutions, complete=complete, paths=res.paths,
-                        paths_failed=tuple(res.paths_failed), fallback=fallback, retracked=res.retracked,
-                        steps=res.steps)
+                        paths_failed=tuple(res.paths_failed), fallback=used, retracked=res.retracked,
+                        steps=res.steps, conditioning=tuple(float(model.conditioning(s.x, legs)) for s in found))

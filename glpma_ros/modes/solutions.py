@@ -42,7 +42,7 @@ class AllSolutions:
     hits: tuple = ()                     # multistart: starts that converged to each mode (order of solutions)
     partner_starts: int = 0              # multistart: local solves of the partner search (module docstring)
     parity_starts: int = 0               # multistart: random starts added by the parity rule (among ``starts``)
-    conditioning: tuple = ()             # multistart: each mode's conditioning as found (order of solutions)
+    conditioning: tuple = ()             # multistart, homotopy: each mode's conditioning (order of solutions)
     complete: bool | None = None         # homotopy / exact: every real mode certainly found
     paths: int = 0                       # homotopy: paths tracked (the family's generic root count)
     paths_failed: tuple = ()             # homotopy, incomplete: the paths without a solution of their own
@@ -57,7 +57,7 @@ class AllSolutions:
 
     @property
     def double_modes(self) -> int:
-        """Multistart: the modes that are double at the solver's tolerance (``DOUBLE_CONDITIONING``)."""
+        """Multistart, homotopy: the modes that are double at the solver's tolerance (``DOUBLE_CONDITIONING``)."""
         return sum(c < DOUBLE_CONDITIONING for c in self.conditioning)
 
 

@@ -81,7 +81,8 @@ def make_spec(model, args) -> MapSpec:
     shape = (resolution[0], resolution[-1])
     if min(shape) < 2 or len(resolution) > 2:
         raise InputError("--resolution expects one or two numbers of points per axis, each at least 2")
-    method = args.method or ("g3pcx" if args.runs is not None else default_method(model))
+    method = args.method or ("g3pcx" if args.runs is not None else "multistart" if args.max_starts is not None
+                             else default_method(model))
     if method == CLOSED_FORM and default_method(model) != CLOSED_FORM:
         raise InputError(f"--method closed_form: {model.kind} has no closed-form forward kinematics")
     if args.runs is not None and method != "g3pcx":
@@ -123,16 +124,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--at", nargs="+", default=None, metavar="NAME=VALUE",
                    help="the fixed coordinates, e.g. --at theta=30 (3-RPR) or --at z=900 yaw=10 (hexapod)")
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="how the modes of a point are counted: multistart (default; solve_all's multistart of "
-                        "Levenberg-Marquardt solves with its stopping rule), homotopy (solve_all's parameter "
-                        "homotopy, certified by the root count, as glpma-fk solve-all) or "
-                        "g3pcx (the papers' polished G3-PCX searches, --runs of them; default when --runs is given) "
-                        "or closed_form (the Delta's sphere intersection; its default)")
+                   help="how the modes of a point are counted: homotopy (default where the family has a start "
+                        "system, the 3-RPR and the hexapods: solve_all's parameter homotopy, each count certified "
+                        "by the root count or the point marked uncertified), multistart (solve_all's multistart of "
+                        "Levenberg-Marquardt solves with its stopping rule; the default for the other families "
+                        "and when --max-starts is given), g3pcx (the papers' polished G3-PCX searches, --runs of "
+                        "them; default when --runs is given) or closed_form (the Delta's sphere intersection; its "
+                        "default)")
     p.add_argument("--runs", type=int, default=None, metavar="N",
                    help=f"g3pcx: searches per point (default {DEFAULT_RUNS}; more finds rare modes)")
     p.add_argument("--max-starts", type=int, default=None, metavar="N",
                    help="multistart: cap on the starts per point (default: solve_all's, 20000; the stopping "
-                        "rule ends it far earlier)")
+                        "rule ends it far earlier); implies --method multistart")
     p.add_argument("--exact", type=int, default=None, metavar="K",
                    help="spot check: after the map, certify the counts of K grid points drawn at random (seeded "
                         "by --seed) with msolve (glpma-fk solve-all --exact; pip install 'glpma_ros[exact]'); "
@@ -174,7 +177,8 @@ def main(argv=None) -> int:
             require_exact()
         result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
                              chunk_size=args.chunk_size, progress=not args.no_progress)
-        check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact, result.double)
+        check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact, result.double,
+                                                            result.certified)
     except GlpmaError as exc:
         print(f"error: {PROG}: {exc}", file=sys.stderr)
         return 1 if isinstance(exc, EngineError) else 2

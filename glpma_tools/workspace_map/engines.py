@@ -32,7 +32,7 @@ BYTES_PER_POINT = 96
 MEMORY_SHARE = 0.5
 OUTPUT_NAME = "assembly_modes"
 #: the per-point arrays of a chunk and of the map (a chunk saved without one of them is computed again)
-CHUNK_ARRAYS = ("counts", "conditioning", "jacobian_sign", "double_modes")
+CHUNK_ARRAYS = ("counts", "conditioning", "jacobian_sign", "double_modes", "certified")
 
 
 # -- chunks on disk ---------------------------------------------------------------------------------
@@ -79,18 +79,23 @@ class MapResult:
     counts: np.ndarray = field(default=None, repr=False)   # the map (rows, columns), not in the summary
     double: np.ndarray = field(default=None, repr=False)   # its double modes per point (rows, columns)
     on_singularity: dict = field(default_factory=dict)     # count of distinct modes -> points with a double mode
+    uncertified: dict | None = None   # homotopy: count -> points without a double mode the certificate misses
+    certified: np.ndarray = field(default=None, repr=False)  # per point: 1 / 0 certified or not, -1 n/a
 
     def as_dict(self) -> dict:
         """The JSON summary: ``modes`` maps a mode count to its points (those without a double mode); the
         points without valid legs (count -1 in the npz) are ``no_valid_legs``; the points on a singularity
         (a double mode: their count is decided by round-off) are ``on_singularity``, by their count of
-        distinct modes."""
+        distinct modes; with the homotopy, the points whose count its root count does not certify (paths
+        failed) and that have no double mode are ``uncertified``, by their count (a lower bound), apart from
+        ``modes`` (None with the other methods, which certify nothing)."""
         return {"npz": str(self.npz), "png": str(self.png), "points": self.points, "computed": self.computed,
                 "chunks_computed": self.chunks_computed, "chunks_reused": self.chunks_reused,
                 "elapsed_s": self.elapsed_s, "engine": self.engine, "method": self.method,
                 "modes": {str(k): v for k, v in self.modes.items() if k != OUTSIDE},
                 "no_valid_legs": self.modes.get(OUTSIDE, 0),
-                "on_singularity": {str(k): v for k, v in self.on_singularity.items()}}
+                "on_singularity": {str(k): v for k, v in self.on_singularity.items()},
+                "uncertified": None if self.uncertified is None else {str(k): v for k, v in self.uncertified.items()}}
 
     def text(self) -> str:
         rate = self.computed / self.elapsed_s if self.elapsed_s > 0 else 0.0
@@ -100,6 +105,11 @@ class MapResult:
             modes += (f"; on a singularity (a double mode, the count decided by round-off): "
                       f"{sum(self.on_singularity.values())} ("
                       + ", ".join(f"{k} distinct: {v}" for k, v in sorted(self.on_singularity.items())) + ")")
+        if self.uncertified:
+            modes += (f"; not certified (paths failed; the modes found, at least): {sum(self.uncertified.values())} ("
+                      + ", ".join(f"{k} modes: {v}" for k, v in sorted(self.uncertified.items())) + ")")
+        elif self.uncertified is not None:
+            modes += "; every other count certified by the homotopy's root count"
         return (f"{self.npz} and {self.png}: {self.points} points ({self.computed} computed in {self.elapsed_s:.1f} s "
                 f"on {self.engine}, {rate:.1f} points/s; {self.chunks_reused} chunks from an earlier run; "
                 f"modes counted by {self.method})\n  {modes}")
@@ -133,7 +143,8 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
         raise InputError(f"cannot create {chunk_dir}: {exc.strerror or exc}") from None
     chunks = plan(spec.n_points, chunk_size)
     arrays = {"counts": np.empty(spec.n_points, np.int16), "conditioning": np.empty(spec.n_points),
-              "jacobian_sign": np.empty(spec.n_points, np.int8), "double_modes": np.empty(spec.n_points, np.int8)}
+              "jacobian_sign": np.empty(spec.n_points, np.int8), "double_modes": np.empty(spec.n_points, np.int8),
+              "certified": np.empty(spec.n_points, np.int8)}
 
     def store(start, stop, chunk):
         for k in CHUNK_ARRAYS:
@@ -170,11 +181,14 @@ def compute_map(config_text: str, source: str, spec: MapSpec, out_dir: Path, *, 
     model = model_from_dict(yaml.safe_load(config_text), source)
     draw_map(png, data, spec, model, title=Path(source).name)
     counts, double = arrays["counts"], arrays["double_modes"] > 0
-    modes = Counter(int(c) for c in counts[~double])
+    uncertain = (arrays["certified"] == 0) & ~double
+    modes = Counter(int(c) for c in counts[~double & ~uncertain])
     singular = Counter(int(c) for c in counts[double])
+    uncertified = dict(sorted(Counter(int(c) for c in counts[uncertain]).items())) if spec.method == "homotopy" \
+        else None
     return MapResult(npz, png, spec.n_points, remaining, len(todo), len(chunks) - len(todo), elapsed, engine,
                      dict(sorted(modes.items())), spec.describe_method(), data["counts"], data["double_modes"],
-                     dict(sorted(singular.items())))
+                     dict(sorted(singular.items())), uncertified, data["certified"])
 
 
 def save_map(path: Path, data: dict, spec: MapSpec, config_text: str) -> None:

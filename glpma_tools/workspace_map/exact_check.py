@@ -1,12 +1,13 @@
 """``glpma-fk map --exact K``: a spot check of a finished map against certified counts.
 
-K grid points with valid legs and without a double mode (a point on a singularity, whose count is
-decided by round-off, see :func:`.grid.double_modes`) are drawn at random (a ``numpy.random.Generator`` seeded by the
-map's seed, so the same map checks the same points) and their real assembly modes are counted
-again by :func:`glpma_ros.modes.multistart.solve_all` with ``method="exact"`` (msolve's real root
-isolation, :mod:`glpma_ros.modes.exact`).  A point whose map count differs is listed with both counts;
-the command then exits 1.  This certifies the sample, not the whole map: the multistart's counts
-are statements about basins of attraction (see :mod:`glpma_ros.modes.multistart`).
+K grid points with valid legs, without a double mode (a point on a singularity, whose count is decided by
+round-off, see :func:`.grid.double_modes`) and not marked uncertified by the homotopy are drawn at random (a
+``numpy.random.Generator`` seeded by the map's seed, so the same map checks the same points) and their real
+assembly modes are counted again by :func:`glpma_ros.modes.multistart.solve_all` with ``method="exact"``
+(msolve's real root isolation, :mod:`glpma_ros.modes.exact`). A point whose map count differs is listed with
+both counts; the command then exits 1. This certifies the sample, not the whole map: the homotopy's counts are
+certified by its root count point by point (an independent check of the method), the multistart's are
+statements about basins of attraction (see :mod:`glpma_ros.modes.multistart`).
 """
 from __future__ import annotations
 
@@ -53,22 +54,27 @@ def require_exact() -> None:
         raise InputError(f"--exact: {exc}") from None
 
 
-def sample(spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None = None) -> np.ndarray:
-    """Up to ``k`` distinct grid indices with valid legs and no double mode (``double``: the map's
-    ``double_modes``), drawn without replacement."""
+def sample(spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None = None,
+           certified: np.ndarray | None = None) -> np.ndarray:
+    """Up to ``k`` distinct grid indices with valid legs, no double mode (``double``: the map's
+    ``double_modes``) and not marked uncertified by the homotopy (``certified`` 0), drawn without replacement."""
     regular = counts.reshape(-1) != OUTSIDE
     if double is not None:
         regular &= double.reshape(-1) == 0
+    if certified is not None:
+        regular &= certified.reshape(-1) != 0
     valid = np.flatnonzero(regular)
     rng = np.random.default_rng([spec.seed, SAMPLE_STREAM])
     return np.sort(rng.choice(valid, size=min(k, valid.size), replace=False))
 
 
-def exact_check(model, spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None = None) -> ExactCheck:
-    """Certified counts at ``k`` sampled points (none with a double mode) compared with the map's ``counts``."""
+def exact_check(model, spec: MapSpec, counts: np.ndarray, k: int, double: np.ndarray | None = None,
+                certified: np.ndarray | None = None) -> ExactCheck:
+    """Certified counts at ``k`` sampled points (none with a double mode or uncertified) compared with the map's
+    ``counts``."""
     t0 = time.perf_counter()
     flat = counts.reshape(-1)
-    check = ExactCheck(list(sample(spec, counts, k, double)))
+    check = ExactCheck(list(sample(spec, counts, k, double, certified)))
     for index in check.points:
         coords = spec.coordinates(index)
         legs = model.inverse_kinematics(pose_variables(model, coords))

@@ -1,13 +1,14 @@
 """The grid of ``glpma-fk map`` and what is computed at its points.
 
-:class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each
-point is solved; :func:`solve_point` gives the number of real assembly modes
-(:func:`glpma_ros.modes.multistart.solve_all`: by default its multistart, counted without polishing
-the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX searches; seeded from the
-point's index by :func:`point_seed`), how many of those modes are double (a leg Jacobian singular at
-the solver's tolerance, :data:`glpma_ros.modes.solutions.DOUBLE_CONDITIONING`: the point is on a
-singularity and its count is decided by round-off), the conditioning and the sign of det J of one point;
-:func:`solve_chunk` a range of points, as a worker process or a Dask worker runs it.
+:class:`MapSpec` is the grid over two pose coordinates (the others fixed) and how each point is solved;
+:func:`solve_point` gives the number of real assembly modes (:func:`glpma_ros.modes.multistart.solve_all`: by
+default its parameter homotopy, certified by the root count, where the family has a start system, else its
+multistart, counted without polishing the modes; with ``method="g3pcx"`` the papers' ``runs`` polished G3-PCX
+searches; seeded from the point's index by :func:`point_seed`), whether the homotopy's certificate holds, how
+many of those modes are double (a leg Jacobian singular at the solver's tolerance,
+:data:`glpma_ros.modes.solutions.DOUBLE_CONDITIONING`: the point is on a singularity and its count is decided
+by round-off), the conditioning and the sign of det J of one point; :func:`solve_chunk` a range of points, as
+a worker process or a Dask worker runs it.
 """
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ import yaml
 
 from glpma_ros.config import model_from_dict
 from glpma_ros.errors import InputError
-from glpma_ros.modes.multistart import solve_all
+from glpma_ros.modes.multistart import default_method as solve_all_default
+from glpma_ros.modes.multistart import homotopy_modes, solve_all
 from glpma_ros.modes.solutions import DOUBLE_CONDITIONING
 
 #: pose coordinates per manipulator kind; angles are in degrees on the command line and in the files
@@ -29,17 +31,19 @@ COORDINATES = {"planar_3rpr": ("x", "y", "theta"), "hexapod_66": ("x", "y", "z",
 #: an actuated family's pose coordinates by its platform's motion (:func:`coordinates_of`)
 TRANSLATION_COORDINATES = ("x", "y", "z")
 ANGLES = ("theta", "roll", "pitch", "yaw")
-#: how the modes of a point are counted: solve_all's multistart (default), its parameter homotopy (certified by
-#: the root count, msolve's modes where it falls short and the exact extra is installed; a point exactly on a
-#: singularity is not yet marked as the multistart marks it, so not the default) or the papers' G3-PCX runs
-METHODS = ("multistart", "homotopy", "g3pcx", "closed_form")
-DEFAULT_METHOD = "multistart"
+#: how the modes of a point are counted: solve_all's parameter homotopy (certified by the root count; the default
+#: where the family has a start system), its multistart (the default elsewhere), the papers' G3-PCX runs or a
+#: model's closed form
+METHODS = ("homotopy", "multistart", "g3pcx", "closed_form")
+DEFAULT_METHOD = "homotopy"
 #: a model with a closed-form forward kinematics (the three-leg Delta) is counted by it unless told otherwise
 CLOSED_FORM = "closed_form"
 #: independent G3-PCX searches per grid point with method g3pcx (the papers' method)
 DEFAULT_RUNS = 50
 #: count of a grid point without valid legs (a leg of length 0, or outside the configured leg limits)
 OUTSIDE = -1
+#: ``certified`` of a point whose method has no certificate (multistart, g3pcx) or that has no valid legs
+NOT_CERTIFIABLE = -1
 
 
 @dataclass(frozen=True)
@@ -98,10 +102,10 @@ def coordinates_of(model) -> tuple:
 
 
 def default_method(model) -> str:
-    """How the modes of a point are counted when ``--method`` is not given: the closed form where the model has
-    one (the Delta's two mirror modes), else :data:`DEFAULT_METHOD`."""
-    from glpma_ros.modes.multistart import has_closed_form
-    return CLOSED_FORM if has_closed_form(model) else DEFAULT_METHOD
+    """How the modes of a point are counted when ``--method`` is not given, as ``solve_all``'s default: the closed
+    form where the model has one (the Delta's two mirror modes), the homotopy (:data:`DEFAULT_METHOD`) where its
+    family has a start system, else the multistart."""
+    return solve_all_default(model)
 
 
 def quaternion_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -143,27 +147,33 @@ def double_modes(model, found, legs) -> int:
     return sum(model.conditioning(s.x, legs) < DOUBLE_CONDITIONING for s in found.solutions)
 
 
-def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int]:
-    """(real assembly modes, conditioning, sign of det J, double modes among them) at grid point
+def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int, int]:
+    """(real assembly modes, conditioning, sign of det J, double modes among them, certified) at grid point
     ``index``; the sign is 0 with redundant legs (a non-square J: the singularities are where the
-    conditioning vanishes)."""
+    conditioning vanishes); certified: 1 when the homotopy's root count certifies the count, 0 when it
+    does not (paths failed or met at a double root: the count is of the modes found), -1 for the methods
+    without a certificate (multistart, g3pcx).  The homotopy does not fall back on msolve here: a map's counts
+    do not depend on the extras installed."""
     x = pose_variables(model, spec.coordinates(index))
     try:
         legs = model.check_legs(model.inverse_kinematics(x))
     except (InputError, ValueError):          # a leg of length 0 or outside the leg limits (an actuated
-        return OUTSIDE, math.nan, 0, 0        # family: a leg that cannot reach the pose): no such pose
+        return OUTSIDE, math.nan, 0, 0, NOT_CERTIFIABLE   # family: a leg that cannot reach the pose): no such pose
     seed = point_seed(spec.seed, index)
+    certified = NOT_CERTIFIABLE
     if spec.method == CLOSED_FORM:
         modes = solve_all(model, legs, method=CLOSED_FORM, seed=seed)
     elif spec.method == "g3pcx":
         modes = solve_all(model, legs, method="g3pcx", runs=spec.runs, seed=seed)
     elif spec.method == "homotopy":
-        modes = solve_all(model, legs, method="homotopy", seed=seed)
+        modes = homotopy_modes(model, legs, seed=seed, fallback=False)
+        certified = int(bool(modes.complete))
     else:
         modes = solve_all(model, legs, method="multistart", seed=seed, max_starts=spec.runs or None, polish=False)
     _, J = model.pose_residuals_jacobian(model.pose_state(x), legs)
     sign = int(np.sign(np.linalg.det(J * model.pose_column_scale))) if J.shape[0] == J.shape[1] else 0
-    return len(modes.solutions), float(model.conditioning(x, legs)), sign, double_modes(model, modes, legs)
+    return (len(modes.solutions), float(model.conditioning(x, legs)), sign, double_modes(model, modes, legs),
+            certified)
 
 
 _MODELS: dict = {}     # per process: configuration text -> model
@@ -176,7 +186,8 @@ def solve_chunk(config_text: str, source: str, spec: MapSpec, start: int, stop: 
         model = _MODELS[config_text] = model_from_dict(yaml.safe_load(config_text), source)
     n = stop - start
     counts, cond, sign, double = np.empty(n, np.int16), np.empty(n), np.empty(n, np.int8), np.empty(n, np.int8)
+    certified = np.empty(n, np.int8)
     for k in range(n):
-        counts[k], cond[k], sign[k], double[k] = solve_point(model, spec, start + k)
+        counts[k], cond[k], sign[k], double[k], certified[k] = solve_point(model, spec, start + k)
     return {"start": start, "stop": stop, "counts": counts, "conditioning": cond, "jacobian_sign": sign,
-            "double_modes": double}
+            "double_modes": double, "certified": certified}

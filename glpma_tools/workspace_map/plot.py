@@ -20,6 +20,10 @@ OUTSIDE_COLOUR = "0.85"
 ON_SINGULARITY = -2
 ON_SINGULARITY_COLOUR = "0.15"
 ON_SINGULARITY_LABEL = "on a singularity\n(a double mode)"
+#: class drawn for the points whose homotopy count is not certified (paths failed) and its colour: mid grey
+UNCERTIFIED = -3
+UNCERTIFIED_COLOUR = "0.55"
+UNCERTIFIED_LABEL = "not certified\n(paths failed)"
 
 
 def _label(name: str, unit: str) -> str:
@@ -35,6 +39,8 @@ def count_colour(count: int):
         return OUTSIDE_COLOUR
     if count == ON_SINGULARITY:
         return ON_SINGULARITY_COLOUR
+    if count == UNCERTIFIED:
+        return UNCERTIFIED_COLOUR
     colours = [colormaps[name](k) for name, picks in MODE_PALETTES for k in picks]
     return colours[count % len(colours)]
 
@@ -45,13 +51,16 @@ def class_label(count: int) -> str:
         return "no valid legs"
     if count == ON_SINGULARITY:
         return ON_SINGULARITY_LABEL
+    if count == UNCERTIFIED:
+        return UNCERTIFIED_LABEL
     return f"{count} real mode{'' if count == 1 else 's'}"
 
 
 def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> list:
     """Assembly-mode count regions (a fixed colour per count, :func:`count_colour`; a legend entry for
     every class drawn, points without valid legs included; the points with a double mode, ``data``'s
-    ``double_modes`` > 0, drawn as their own class ``ON_SINGULARITY``) and the singularity curves (zero
+    ``double_modes`` > 0, drawn as their own class ``ON_SINGULARITY``, and the others whose homotopy count is
+    not certified, ``certified`` 0, as ``UNCERTIFIED``) and the singularity curves (zero
     contour of the signed conditioning).  Returns the legend's ``(label, colour)`` entries."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # the tools extra: optional, imported where used
     from matplotlib.colors import ListedColormap
@@ -59,6 +68,8 @@ def draw_map(path: Path, data: dict, spec: MapSpec, model, title: str = "") -> l
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
     counts = np.asarray(data["counts"])
+    if "certified" in data:
+        counts = np.where(np.asarray(data["certified"]) == 0, UNCERTIFIED, counts)
     if "double_modes" in data:
         counts = np.where(np.asarray(data["double_modes"]) > 0, ON_SINGULARITY, counts)
     classes = sorted(int(c) for c in np.unique(counts))
