@@ -18,7 +18,7 @@ setup(
     packages=find_packages(exclude=["test", "test.*"]),
     # the prose of BENCHMARKS.md (read by glpma_tools.bench.report) and the papers' published figures
     package_data={"glpma_tools.bench": ["templates/*.md", "papers.yaml"],
-                  # the parameter homotopy's start systems (python -m glpma_ros.modes.homotopy --build-start-systems)
+                  # the parameter homotopy's start systems (python -m glpma_ros.modes.monodromy --build-start-systems)
                   "glpma_ros.modes": ["start_systems/*.npz"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),

@@ -17,7 +17,7 @@ from conftest import ROOT, RPR_YAML
 from glpma_ros.config import load_manipulator, model_from_dict, resolve_config
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS, random_hexapod_33, random_hexapod_63
-from glpma_ros.modes import exact
+from glpma_ros.modes import exact, monodromy, path_tracker
 from glpma_ros.modes import homotopy as H
 from glpma_ros.modes.multistart import default_method, solve_all
 
@@ -66,13 +66,13 @@ def dietmaier():
 
 def test_start_systems_hold_every_solution_of_their_generic_member():
     for name, count in (("planar_3rpr", 6), ("hexapod_66", 40)):
-        start = H.load_start_system(name)
+        start = monodromy.load_start_system(name)
         assert start.solutions.shape == (count, start.family.n_unknowns)
         Q = start.family.quadrics(start.params)
         w = np.concatenate([start.solutions, np.ones((count, 1))], axis=1)
         # residuals of a solution polished in double precision: round-off of coefficients of order one
         assert np.abs(np.einsum("pm,imn,pn->pi", w, Q, w)).max() < 1e-9
-        assert len(H.distinct(start.solutions)) == count
+        assert len(path_tracker.distinct(start.solutions)) == count
 
 
 def test_dietmaier_forty_of_forty_complete_for_every_seed(dietmaier):
@@ -195,7 +195,7 @@ def test_near_a_fold_the_count_is_right_or_incomplete(kind):
 
 # -- an incomplete answer -----------------------------------------------------------------------------------
 def test_failed_paths_are_named_and_never_certified(dietmaier, monkeypatch):
-    starved = H.SETTINGS.copy()
+    starved = path_tracker.SETTINGS.copy()
     starved[9] = 3                                     # MAX_STEPS: three steps cannot reach t = 1
     monkeypatch.setattr(H, "SETTINGS", starved)
     monkeypatch.setattr(H, "CAREFUL_SETTINGS", starved)

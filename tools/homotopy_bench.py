@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 
 from glpma_ros.config import model_from_dict  # noqa: E402
 from glpma_ros.models.random_geometry import GENERATORS  # noqa: E402
-from glpma_ros.modes import homotopy as H  # noqa: E402
+from glpma_ros.modes import monodromy, path_tracker  # noqa: E402
 from glpma_ros.modes.multistart import solve_all  # noqa: E402
 
 DIETMAIER = {"manipulator": "hexapod_66", "unit": "m",
@@ -48,11 +48,11 @@ def timed(fn, repeats):
 
 
 def paths_only(model, legs, seed):
-    start = H.load_start_system(model.kind)
+    start = monodromy.load_start_system(model.kind)
     family = start.family
     K = family.coefficient_path(start.params, family.target(model, legs).params)
-    gammas = np.full(len(start.solutions), H.random_gammas(np.random.default_rng(seed), 1)[0])
-    return lambda: H.track(K, start.solutions, gammas)
+    gammas = np.full(len(start.solutions), path_tracker.random_gammas(np.random.default_rng(seed), 1)[0])
+    return lambda: path_tracker.track(K, start.solutions, gammas)
 
 
 def main(argv=None) -> int:

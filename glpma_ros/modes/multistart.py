@@ -50,6 +50,7 @@ from ..estimation.redundancy import leg_noise
 from ..solvers import refine
 from ..solvers.common import CONVERGED, SolveResult
 from . import exact, homotopy
+from .monodromy import has_start_system
 from .multistart_search import MAX_STARTS, multistart
 from .solutions import (
     DEDUP_RELATIVE,
@@ -117,7 +118,7 @@ def default_method(model) -> str:
     start system, else ``"multistart"``."""
     if has_closed_form(model):
         return "closed_form"
-    return "homotopy" if homotopy.has_start_system(model) else "multistart"
+    return "homotopy" if has_start_system(model) else "multistart"
 
 # -- the papers' method ---------------------------------------------------------------------------
 def g3pcx_runs(model, legs, *, runs, seed=0, solver="g3pcx", max_evals=None, leg_noise_std=None) -> AllSolutions:

@@ -20,6 +20,7 @@ from .. import solvers
 from ..config import load_manipulator, resolve_config
 from ..estimation.estimator import Estimator
 from ..modes import homotopy
+from ..modes.monodromy import has_start_system
 from ..modes.multistart import solve_all
 
 #: the package whose compiled functions :func:`cache_counts` counts
@@ -93,7 +94,7 @@ def exercise_solve_all(model, methods=("homotopy", "multistart", "g3pcx")) -> fl
     the multistart and the G3-PCX runs); returns the seconds spent."""
     t0 = time.perf_counter()
     legs = warm_up_legs(model)
-    if "homotopy" in methods and homotopy.has_start_system(model):
+    if "homotopy" in methods and has_start_system(model):
         homotopy.solve(model, legs, seed=0)         # the tracker (the polish is the multistart's code)
         solve_all(model, legs, method="multistart", max_starts=1, seed=0)
     if "multistart" in methods:
