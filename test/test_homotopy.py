@@ -19,6 +19,7 @@ from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS, random_hexapod_33, random_hexapod_63
 from glpma_ros.modes import exact, monodromy, path_tracker
 from glpma_ros.modes import homotopy as H
+from glpma_ros.modes.homotopy_families import Planar3RPRFamily
 from glpma_ros.modes.multistart import default_method, solve_all
 
 DATA = ROOT / "test" / "data" / "homotopy_cases.json"
@@ -297,3 +298,28 @@ def test_default_maps_count_msolve_s_certified_modes(config):
         if certified != 1:
             uncertified.append(case["index"])
     assert len(uncertified) <= (0 if config == "planar_3rpr_seed" else MAX_UNCERTIFIED_66), uncertified
+
+
+def test_the_documented_start_system_build_gives_every_solution_of_a_generic_member(tmp_path):
+    """``python -m glpma_ros.modes.monodromy --build-start-systems --family planar_3rpr --out DIR``: the 6 solutions
+    of a generic complex 3-RPR, each a root of the family's quadrics at the stored member; the shipped file is
+    untouched."""
+    shipped = (monodromy.START_SYSTEMS / "planar_3rpr.npz").read_bytes()
+    p = subprocess.run([sys.executable, "-m", "glpma_ros.modes.monodromy", "--build-start-systems",
+                        "--family", "planar_3rpr", "--out", str(tmp_path)], cwd=ROOT, capture_output=True,
+                       text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["planar_3rpr.npz"]
+    data = np.load(tmp_path / "planar_3rpr.npz")
+    z = data["solutions"]
+    assert int(data["root_count"]) == 6 and z.shape == (6, 4)
+    assert len(path_tracker.distinct(z)) == 6
+    Q = Planar3RPRFamily().quadrics(data["params"])
+    w = np.concatenate([z, np.ones((6, 1))], axis=1)
+    # the endpoints are Newton-polished in double precision: residuals at round-off of order-one coordinates
+    assert np.abs(np.einsum("pm,imn,pn->pi", w, Q, w)).max() < 1e-9
+    assert (monodromy.START_SYSTEMS / "planar_3rpr.npz").read_bytes() == shipped
+    bad = subprocess.run([sys.executable, "-m", "glpma_ros.modes.monodromy", "--build-start-systems",
+                          "--family", "delta", "--out", str(tmp_path)], cwd=ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert bad.returncode == 2 and "invalid choice: 'delta'" in bad.stderr

@@ -100,10 +100,12 @@ def build_start_system(family: Family, seed: int, *, verbose=False) -> StartSyst
 BUILD_SEEDS = {"planar_3rpr": 3401, "hexapod_66": 3466}
 
 
-def build_all(out_dir=START_SYSTEMS, verbose=True) -> None:
+def build_all(out_dir=START_SYSTEMS, verbose=True, families=tuple(BUILD_SEEDS)) -> None:
+    """Build the start systems of ``families`` (names of :data:`BUILD_SEEDS`) into ``out_dir`` as ``NAME.npz``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    for name, seed in BUILD_SEEDS.items():
+    for name in families:
+        seed = BUILD_SEEDS[name]
         rng = np.random.default_rng(seed)
         t0 = time.perf_counter()
         if name == "hexapod_66":
@@ -123,9 +125,12 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glpma_ros.modes.monodromy",
                                  description="build the start systems of the parameter homotopy (offline, once)")
     ap.add_argument("--build-start-systems", action="store_true", required=True)
-    ap.add_argument("--out", default=str(START_SYSTEMS))
+    ap.add_argument("--out", default=str(START_SYSTEMS),
+                    help="directory of the NAME.npz files (default: the package's)")
+    ap.add_argument("--family", action="append", choices=sorted(BUILD_SEEDS),
+                    help="build only this family's start system (repeatable; default: every family)")
     args = ap.parse_args(argv)
-    build_all(args.out)
+    build_all(args.out, families=args.family or tuple(BUILD_SEEDS))
     return 0
 
 
