@@ -56,6 +56,17 @@ class FakeClock:
             return fn(*args, **kwargs)
         return call
 
+    def run(self, fn, *args, **kwargs):
+        """``fn(*args, **kwargs)`` with the starts of its compiled calls recorded (afresh); returns its result
+        and the clock when it was called."""
+        self.starts.clear()
+        self.recording = True
+        start = self.now
+        try:
+            return fn(*args, **kwargs), start
+        finally:
+            self.recording = False
+
 
 @pytest.fixture
 def clock(monkeypatch):
@@ -95,11 +106,8 @@ def test_no_solver_works_after_its_deadline(kind, clock, monkeypatch, request):
     for legs in RPR_CASES if kind == "rpr" else HEX_CASES:
         for name in solvers.SOLVERS:
             for budget in BUDGETS_S[1:]:          # the first evaluation runs whatever the budget
-                clock.starts.clear()
-                clock.recording = True
-                start = clock.now
-                solvers.solve(name, model, np.array(legs), rng=0, budget_s=budget, max_evals=10**9)
-                clock.recording = False
+                _, start = clock.run(solvers.solve, name, model, np.array(legs), rng=0, budget_s=budget,
+                                     max_evals=10**9)
                 assert clock.starts, (name, budget)
                 assert not _late(clock, start + budget), (name, legs, budget, "µs late", _late(clock, start + budget))
                 assert _returned_in_time(clock.now, start + budget), (name, legs, budget, clock.now - start - budget)
@@ -115,12 +123,8 @@ def test_no_solver_works_after_its_deadline_from_a_warm_start(kind, clock, monke
     for legs in RPR_CASES if kind == "rpr" else HEX_CASES:
         for name in solvers.SOLVERS:
             for budget in BUDGETS_S[1:]:
-                clock.starts.clear()
-                clock.recording = True
-                start = clock.now
-                solvers.solve(name, model, np.array(legs), rng=0, budget_s=budget, max_evals=10**9, center=center,
-                              spread=model.spread_vector(0.01 * model.scale))
-                clock.recording = False
+                _, start = clock.run(solvers.solve, name, model, np.array(legs), rng=0, budget_s=budget,
+                                     max_evals=10**9, center=center, spread=model.spread_vector(0.01 * model.scale))
                 deadline = start + budget
                 assert clock.starts and not _late(clock, deadline), (name, legs, budget, _late(clock, deadline))
                 assert _returned_in_time(clock.now, deadline), (name, legs, budget, clock.now - deadline)
@@ -140,11 +144,7 @@ def test_the_estimator_does_no_work_after_its_deadline(kind, warm, clock, monkey
         for budget in BUDGETS_S:
             est = Estimator(model, time_budget_s=budget, initial_pose=start_x, max_evals=10**9)
             _watch_model(monkeypatch, clock, model)
-            clock.starts.clear()
-            clock.recording = True
-            start = clock.now
-            e = est.estimate(legs)
-            clock.recording = False
+            e, start = clock.run(est.estimate, legs)
             end = clock.now
             deadline = start + budget
             assert not _late(clock, deadline), (legs, budget, e.status, "µs late", _late(clock, deadline))
@@ -185,11 +185,7 @@ def test_the_isolation_of_a_faulty_leg_does_no_work_after_its_deadline(warm, clo
     for budget in BUDGETS_S[1:] + (ISOLATION_FITS_S,):
         est = Estimator(model, time_budget_s=budget, initial_pose=x if warm else None, max_evals=10**9)
         _watch_model(monkeypatch, clock, model)
-        clock.starts.clear()
-        clock.recording = True
-        start = clock.now
-        e = est.estimate(legs)
-        clock.recording = False
+        e, start = clock.run(est.estimate, legs)
         deadline = start + budget
         assert not _late(clock, deadline), (budget, e.status, "µs late", _late(clock, deadline))
         assert _returned_in_time(clock.now, deadline), (budget, e.status, clock.now - deadline)
