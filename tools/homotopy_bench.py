@@ -50,9 +50,9 @@ def timed(fn, repeats):
 def paths_only(model, legs, seed):
     start = monodromy.load_start_system(model.kind)
     family = start.family
-    K = family.coefficient_path(start.params, family.target(model, legs).params)
+    path = family.parameter_path(start.params, family.target(model, legs).params)
     gammas = np.full(len(start.solutions), path_tracker.random_gammas(np.random.default_rng(seed), 1)[0])
-    return lambda: path_tracker.track(K, start.solutions, gammas)
+    return lambda: path_tracker.track(path, start.solutions, gammas)
 
 
 def main(argv=None) -> int:

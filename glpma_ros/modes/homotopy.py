@@ -197,8 +197,8 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
             gamma = random_gammas(rng, 1)[0]
             pending = np.arange(n_paths)
         retracked += pending.size if round_ else 0
-        K = family.coefficient_path(start.params, target.params)
-        ends, jac, outcome, steps, t_end = track(K, starts[pending], np.full(pending.size, gamma), settings)
+        path = family.parameter_path(start.params, target.params)
+        ends, jac, outcome, steps, t_end = track(path, starts[pending], np.full(pending.size, gamma), settings)
         total_steps += int(steps.sum())
         good = _regular(jac, outcome)
         outcome_of[pending] = outcome
@@ -224,15 +224,15 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
         # finds that the last did not (a path of the last that jumped) are added and another one confirms
         for _ in range(CONFIRM_ROUNDS):
             family = base_family.another_patch(rng)
-            K = family.coefficient_path(start.params, target.params)
+            path = family.parameter_path(start.params, target.params)
             starts, gammas = base_family.convert(start.solutions, family), np.full(n_paths, random_gammas(rng, 1)[0])
-            ends, jac, outcome, steps, t_end = track(K, starts, gammas, SETTINGS)
+            ends, jac, outcome, steps, t_end = track(path, starts, gammas, SETTINGS)
             total_steps += int(steps.sum())
             retracked += n_paths
             again = np.flatnonzero((outcome == STEP_FAILED) | (outcome == STEPS_EXHAUSTED))
             if again.size:              # the same paths, tracked carefully (as the second round above)
                 ends[again], jac[again], outcome[again], steps, t_end[again] = track(
-                    K, starts[again], gammas[again], CAREFUL_SETTINGS)
+                    path, starts[again], gammas[again], CAREFUL_SETTINGS)
                 total_steps += int(steps.sum())
                 retracked += again.size
             good = _regular(jac, outcome)

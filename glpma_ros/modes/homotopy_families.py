@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.hexapod_66 import matrix_from_quaternion
+from .path_tracker import HEXAPOD_66, PLANAR_3RPR, ParameterPath, dense_path, structured_path
 from .polynomials import qmul
 
 #: an endpoint is real when its imaginary part is below this share of its size (a real solution of the
@@ -85,6 +86,11 @@ class Family:
         q0, qh, q1 = self.quadrics(p0), self.quadrics(0.5 * (p0 + p1)), self.quadrics(p1)
         return np.ascontiguousarray(np.stack([q0, 4.0 * qh - 3.0 * q0 - q1, 2.0 * q0 + 2.0 * q1 - 4.0 * qh]))
 
+    def parameter_path(self, p0, p1) -> ParameterPath:
+        """The system along ``p0 -> p1`` for the compiled tracker: the dense quadrics (a family without an
+        evaluator of its own)."""
+        return dense_path(self.coefficient_path(p0, p1))
+
     def target(self, model, legs) -> Target:
         """The target's parameters: the first ``dof`` legs, frames moved to their joints' centroids, lengths
         divided by the scale (every coordinate of order one)."""
@@ -113,6 +119,10 @@ class Planar3RPRFamily(Family):
 
     def split(self, p):
         return p[0:6].reshape(3, 2), p[6:12].reshape(3, 2), p[12:15]
+
+    def parameter_path(self, p0, p1) -> ParameterPath:
+        """The 3-RPR's own evaluator (:func:`.path_tracker._evaluate_3rpr`) on the interpolated parameters."""
+        return structured_path(PLANAR_3RPR, p0, p1)
 
     def quadrics(self, p) -> np.ndarray:
         a, b, L = self.split(np.asarray(p, complex))
@@ -188,6 +198,11 @@ class Hexapod66Family(Family):
 
     def split(self, p):
         return p[0:18].reshape(6, 3), p[18:36].reshape(6, 3), p[36:42]
+
+    def parameter_path(self, p0, p1) -> ParameterPath:
+        """The 6-6's own evaluator (:func:`.path_tracker._evaluate_66`) on the interpolated parameters; the
+        patch as ``e_0 = c_0 + c . (e_1, e_2, e_3)``: the first row of ``T``."""
+        return structured_path(HEXAPOD_66, p0, p1, [self.T[0, 7], self.T[0, 0], self.T[0, 1], self.T[0, 2]])
 
     def homogeneous_quadrics(self, p) -> np.ndarray:
         """The seven quadrics in ``(e, f)`` (8x8 each): six legs and Study's quadric."""

@@ -74,8 +74,8 @@ def build_start_system(family: Family, seed: int, *, verbose=False) -> StartSyst
         current = sols
         ok = np.ones(len(current), bool)
         for pa, pb in ((p0, p1), (p1, p2), (p2, p0)):
-            K = family.coefficient_path(pa, pb)
-            ends, jac, outcome, _, _ = track(K, current, random_gammas(rng, 1).repeat(len(current)))
+            gammas = random_gammas(rng, 1).repeat(len(current))
+            ends, jac, outcome, _, _ = track(family.parameter_path(pa, pb), current, gammas)
             ok &= outcome == REGULAR
             current = ends
         found = current[ok]

@@ -8,13 +8,16 @@ adaptive predictor-corrector: classical Runge-Kutta of order 4 on ``dz/dt = -F_z
 the step halved on a failed correction; after a success the next step is chosen from the size of the first
 corrector update (the predictor's error, of order h^5), aiming at ``STEP_TARGET``.  Every path is tracked in
 one compiled call (:func:`track_paths`; complex LU with partial pivoting); at ``t = 1`` Newton's method
-polishes the endpoint.  The system's coefficients along the path are a quadratic polynomial in ``tau``
-(``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each path ends with an outcome
+polishes the endpoint.  The system along the path is evaluated by the family's own evaluator from its parameters
+interpolated at ``tau`` (3-RPR, 6-6: residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities
+prepared once per distinct ``tau``), or for any family of quadrics from their coefficients, a quadratic
+polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each path ends with an outcome
 (:data:`OUTCOMES`): regular, at infinity, a failed step, out of steps, or singular.  No ROS import.
 """
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -94,10 +97,53 @@ SAME_ENDPOINT = 1e-6
 
 
 # ==========================================================================================================
+# the system along the path: dense quadrics (any family) or a family's structured evaluator
+# ==========================================================================================================
+#: evaluator kinds (track_paths' ``kind``): the dense quadrics of a coefficient path (any family of quadrics,
+#: :meth:`.homotopy_families.Family.coefficient_path`), or a family's own evaluator from its parameters
+#: interpolated along the path (:meth:`.homotopy_families.Family.parameter_path`): the same polynomials in fewer
+#: operations (a 6-6 evaluation with dF/dtau: about 550 complex multiplications instead of about 1,500)
+DENSE, PLANAR_3RPR, HEXAPOD_66 = range(3)
+
+#: 3-RPR, the parameters p = (a (3x2), b (3x2), L (3)); per leg at a tau (_prepare_3rpr): a, b, L^2 and their
+#: tau-derivatives
+RPR_PARAMS = 15
+RPR_A, RPR_B, RPR_L2, RPR_DA, RPR_DB, RPR_DL2 = 0, 2, 4, 5, 7, 9
+RPR_WIDTH = 10
+#: 6-6, the parameters p = (a (6x3), b (6x3), L (6)) and after p_0 and dp the patch: e_0 = c_0 + c . (e_1, e_2, e_3);
+#: per leg at a tau (_prepare_66): a, b, b x a, d = b - a, s = b + a, a.b, k = a.a + b.b - L^2 and the
+#: tau-derivatives of b x a, d, s, a.b, k, a and b
+HEX_PARAMS = 42
+HEX_A, HEX_B, HEX_BXA, HEX_D, HEX_S, HEX_AB, HEX_K = 0, 3, 6, 9, 12, 15, 16
+HEX_DBXA, HEX_DD, HEX_DS, HEX_DAB, HEX_DK, HEX_DA, HEX_DB = 17, 20, 23, 26, 27, 28, 31
+HEX_WIDTH = 34
+
+
+class ParameterPath(NamedTuple):
+    """The system along ``p(tau) = p_0 + tau (p_1 - p_0)`` as :func:`track_paths` reads it: the evaluator
+    ``kind``; ``K`` (3, m, n + 1, n + 1) the dense quadrics' coefficients (DENSE; empty otherwise); ``P`` a
+    structured kind's ``p_0``, ``p_1 - p_0`` and the family's constants (empty for DENSE)."""
+
+    kind: int
+    K: np.ndarray
+    P: np.ndarray
+
+
+def dense_path(K) -> ParameterPath:
+    return ParameterPath(DENSE, np.ascontiguousarray(K, dtype=complex), np.zeros(0, complex))
+
+
+def structured_path(kind, p0, p1, constants=()) -> ParameterPath:
+    p0 = np.asarray(p0, complex)
+    P = np.concatenate([p0, np.asarray(p1, complex) - p0, np.asarray(constants, complex)])
+    return ParameterPath(kind, np.zeros((3, 0, 0, 0), complex), np.ascontiguousarray(P))
+
+
+# ==========================================================================================================
 # compiled tracker
 # ==========================================================================================================
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _evaluate(K, z, tau, dtau, w, H, J, Ht, with_t):
+def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t):
     """``H = F(z; p(tau))``, ``J = F_z`` and, when ``with_t``, ``Ht = F_tau dtau/dt``: every equation is
     ``w^T Q_i w`` with ``w = (z, 1)`` and ``Q_i = K_0 + tau K_1 + tau^2 K_2`` (symmetric), so with
     ``P_l = K_l w``: ``Q_i w = P_0 + tau P_1 + tau^2 P_2``, ``F_z = 2 (Q_i w)[:n]`` and
@@ -132,39 +178,251 @@ def _evaluate(K, z, tau, dtau, w, H, J, Ht, with_t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _lu_solve(A, b, x, LU):
-    """``x = A^{-1} b`` by Gaussian elimination with partial pivoting (``LU`` a work copy); False when a
-    pivot is exactly zero."""
+def _prepare_3rpr(P, tau, S):
+    """Per leg of a 3-RPR at ``tau`` (row of ``S``): ``a``, ``b``, ``L^2`` and their tau-derivatives."""
+    for i in range(3):
+        for k in range(2):
+            da = P[RPR_PARAMS + 2 * i + k]
+            db = P[RPR_PARAMS + 6 + 2 * i + k]
+            S[i, RPR_A + k] = P[2 * i + k] + tau * da
+            S[i, RPR_B + k] = P[6 + 2 * i + k] + tau * db
+            S[i, RPR_DA + k] = da
+            S[i, RPR_DB + k] = db
+        dL = P[RPR_PARAMS + 12 + i]
+        L = P[12 + i] + tau * dL
+        S[i, RPR_L2] = L * L
+        S[i, RPR_DL2] = 2.0 * L * dL
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_t, with_j):
+    """3-RPR, ``z = (x, y, c, s)``: leg ``i`` ``F_i = u.u - L_i^2`` with ``u = (x, y) + R(c, s) b_i - a_i``,
+    ``F_z = 2 u^T du/dz``, ``F_tau = 2 u.(R(c, s) b_i' - a_i') - (L_i^2)'``; and ``c^2 + s^2 - 1``."""
+    x, y, c, s = z[0], z[1], z[2], z[3]
+    for i in range(3):
+        ax, ay = S[i, RPR_A], S[i, RPR_A + 1]
+        bx, by = S[i, RPR_B], S[i, RPR_B + 1]
+        u0 = x + c * bx - s * by - ax
+        u1 = y + s * bx + c * by - ay
+        H[i] = u0 * u0 + u1 * u1 - S[i, RPR_L2]
+        if with_j:
+            J[i, 0] = 2.0 * u0
+            J[i, 1] = 2.0 * u1
+            J[i, 2] = 2.0 * (u0 * bx + u1 * by)
+            J[i, 3] = 2.0 * (u1 * bx - u0 * by)
+        if with_t:
+            dbx, dby = S[i, RPR_DB], S[i, RPR_DB + 1]
+            du0 = c * dbx - s * dby - S[i, RPR_DA]
+            du1 = s * dbx + c * dby - S[i, RPR_DA + 1]
+            Ht[i] = (2.0 * (u0 * du0 + u1 * du1) - S[i, RPR_DL2]) * dtau
+        else:
+            Ht[i] = 0j
+    H[3] = c * c + s * s - 1.0
+    if with_j:
+        J[3, 0] = 0j
+        J[3, 1] = 0j
+        J[3, 2] = 2.0 * c
+        J[3, 3] = 2.0 * s
+    Ht[3] = 0j
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _prepare_66(P, tau, S):
+    """Per leg of a 6-6 at ``tau`` (row of ``S``, the layout of ``HEX_*``)."""
+    for i in range(6):
+        ab = 0j
+        dab = 0j
+        aa_bb = 0j
+        daa_dbb = 0j
+        for k in range(3):
+            da = P[HEX_PARAMS + 3 * i + k]
+            db = P[HEX_PARAMS + 18 + 3 * i + k]
+            a = P[3 * i + k] + tau * da
+            b = P[18 + 3 * i + k] + tau * db
+            S[i, HEX_A + k] = a
+            S[i, HEX_B + k] = b
+            S[i, HEX_DA + k] = da
+            S[i, HEX_DB + k] = db
+            S[i, HEX_D + k] = b - a
+            S[i, HEX_S + k] = b + a
+            S[i, HEX_DD + k] = db - da
+            S[i, HEX_DS + k] = db + da
+            ab += a * b
+            dab += da * b + a * db
+            aa_bb += a * a + b * b
+            daa_dbb += a * da + b * db
+        for k in range(3):
+            k1 = (k + 1) % 3
+            k2 = (k + 2) % 3
+            S[i, HEX_BXA + k] = S[i, HEX_B + k1] * S[i, HEX_A + k2] - S[i, HEX_B + k2] * S[i, HEX_A + k1]
+            S[i, HEX_DBXA + k] = (S[i, HEX_DB + k1] * S[i, HEX_A + k2] - S[i, HEX_DB + k2] * S[i, HEX_A + k1]
+                                  + S[i, HEX_B + k1] * S[i, HEX_DA + k2] - S[i, HEX_B + k2] * S[i, HEX_DA + k1])
+        dL = P[HEX_PARAMS + 36 + i]
+        L = P[36 + i] + tau * dL
+        S[i, HEX_AB] = ab
+        S[i, HEX_DAB] = dab
+        S[i, HEX_K] = aa_bb - L * L
+        S[i, HEX_DK] = 2.0 * (daa_dbb - L * dL)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j):
+    """6-6 in Study parameters, ``z = (e_1, e_2, e_3, f)``, ``e_0 = c_0 + c . (e_1, e_2, e_3)`` (the patch).  Leg
+    ``i`` (the quadric of :meth:`.homotopy_families.Hexapod66Family.homogeneous_quadrics` written out):
+    ``F_i = k e.e - 2 G + 4 C + 4 f.f`` with ``G = (e b).(a e) = (e_0^2 - v.v) a.b + 2 (v.a)(v.b) + 2 e_0 v.(b x a)``
+    (``v`` the vector part of ``e``) and ``C = f.(e b - a e) = e_0 w.d - f_0 v.d - (v x w).s`` (``w`` that of ``f``,
+    ``d = b - a``, ``s = b + a``); their gradients by hand, through the patch by the chain rule; ``F_tau`` by the
+    product rule from the prepared tau-derivatives.  Study's quadric ``e.f``."""
+    c0, c1, c2, c3 = P[2 * HEX_PARAMS], P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3]
+    v1, v2, v3 = z[0], z[1], z[2]
+    f0, w1, w2, w3 = z[3], z[4], z[5], z[6]
+    e0 = c0 + c1 * v1 + c2 * v2 + c3 * v3
+    vv = v1 * v1 + v2 * v2 + v3 * v3
+    q = e0 * e0 - vv
+    ee = e0 * e0 + vv
+    ff = f0 * f0 + w1 * w1 + w2 * w2 + w3 * w3
+    x1 = v2 * w3 - v3 * w2                               # v x w
+    x2 = v3 * w1 - v1 * w3
+    x3 = v1 * w2 - v2 * w1
+    for i in range(6):
+        a1, a2, a3 = S[i, HEX_A], S[i, HEX_A + 1], S[i, HEX_A + 2]
+        b1, b2, b3 = S[i, HEX_B], S[i, HEX_B + 1], S[i, HEX_B + 2]
+        d1, d2, d3 = S[i, HEX_D], S[i, HEX_D + 1], S[i, HEX_D + 2]
+        s1, s2, s3 = S[i, HEX_S], S[i, HEX_S + 1], S[i, HEX_S + 2]
+        n1, n2, n3 = S[i, HEX_BXA], S[i, HEX_BXA + 1], S[i, HEX_BXA + 2]
+        ab = S[i, HEX_AB]
+        k = S[i, HEX_K]
+        va = v1 * a1 + v2 * a2 + v3 * a3
+        vb = v1 * b1 + v2 * b2 + v3 * b3
+        vn = v1 * n1 + v2 * n2 + v3 * n3
+        vd = v1 * d1 + v2 * d2 + v3 * d3
+        wd = w1 * d1 + w2 * d2 + w3 * d3
+        G = q * ab + 2.0 * (va * vb + e0 * vn)
+        C = e0 * wd - f0 * vd - (x1 * s1 + x2 * s2 + x3 * s3)
+        H[i] = k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
+        if with_j:
+            # dF/de_0 and dF/dv
+            g0 = 2.0 * k * e0 - 4.0 * (e0 * ab + vn) + 4.0 * wd
+            kv = 2.0 * k + 4.0 * ab
+            g1 = kv * v1 - 4.0 * (vb * a1 + va * b1 + e0 * n1 + f0 * d1 + w2 * s3 - w3 * s2)
+            g2 = kv * v2 - 4.0 * (vb * a2 + va * b2 + e0 * n2 + f0 * d2 + w3 * s1 - w1 * s3)
+            g3 = kv * v3 - 4.0 * (vb * a3 + va * b3 + e0 * n3 + f0 * d3 + w1 * s2 - w2 * s1)
+            J[i, 0] = g1 + c1 * g0
+            J[i, 1] = g2 + c2 * g0
+            J[i, 2] = g3 + c3 * g0
+            # dF/df_0 and dF/dw = 4 (e_0 d - s x v) + 8 w
+            J[i, 3] = 8.0 * f0 - 4.0 * vd
+            J[i, 4] = 4.0 * (e0 * d1 - s2 * v3 + s3 * v2) + 8.0 * w1
+            J[i, 5] = 4.0 * (e0 * d2 - s3 * v1 + s1 * v3) + 8.0 * w2
+            J[i, 6] = 4.0 * (e0 * d3 - s1 * v2 + s2 * v1) + 8.0 * w3
+        if with_t:
+            vda = v1 * S[i, HEX_DA] + v2 * S[i, HEX_DA + 1] + v3 * S[i, HEX_DA + 2]
+            vdb = v1 * S[i, HEX_DB] + v2 * S[i, HEX_DB + 1] + v3 * S[i, HEX_DB + 2]
+            vdn = v1 * S[i, HEX_DBXA] + v2 * S[i, HEX_DBXA + 1] + v3 * S[i, HEX_DBXA + 2]
+            vdd = v1 * S[i, HEX_DD] + v2 * S[i, HEX_DD + 1] + v3 * S[i, HEX_DD + 2]
+            wdd = w1 * S[i, HEX_DD] + w2 * S[i, HEX_DD + 1] + w3 * S[i, HEX_DD + 2]
+            xds = x1 * S[i, HEX_DS] + x2 * S[i, HEX_DS + 1] + x3 * S[i, HEX_DS + 2]
+            dG = q * S[i, HEX_DAB] + 2.0 * (vda * vb + va * vdb + e0 * vdn)
+            dC = e0 * wdd - f0 * vdd - xds
+            Ht[i] = (S[i, HEX_DK] * ee - 2.0 * dG + 4.0 * dC) * dtau
+        else:
+            Ht[i] = 0j
+    # Study's quadric e.f
+    H[6] = e0 * f0 + v1 * w1 + v2 * w2 + v3 * w3
+    if with_j:
+        J[6, 0] = w1 + c1 * f0
+        J[6, 1] = w2 + c2 * f0
+        J[6, 2] = w3 + c3 * f0
+        J[6, 3] = e0
+        J[6, 4] = v1
+        J[6, 5] = v2
+        J[6, 6] = v3
+    Ht[6] = 0j
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_t, with_j):
+    """``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` (the dense evaluator forms it anyway) and when
+    ``with_t`` ``Ht = F_tau dtau/dt``, by the evaluator ``kind``;
+    a structured one prepares its per-leg quantities once per distinct ``tau`` (``prepared``: the last one's,
+    with a flag: the predictor's middle stages share a tau, its last stage and the corrector another)."""
+    if kind == DENSE:
+        _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t)
+        return
+    if prepared[0] == 0.0 or prepared[1] != tau.real or prepared[2] != tau.imag:
+        if kind == PLANAR_3RPR:
+            _prepare_3rpr(P, tau, S)
+        else:
+            _prepare_66(P, tau, S)
+        prepared[0], prepared[1], prepared[2] = 1.0, tau.real, tau.imag
+    if kind == PLANAR_3RPR:
+        _evaluate_3rpr(S, z, dtau, H, J, Ht, with_t, with_j)
+    else:
+        _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_factor(A, LU, pivots):
+    """``LU`` = the LU factors of ``A`` by Gaussian elimination with partial pivoting (row ``c`` swapped with
+    ``pivots[c]``); False when a pivot is exactly zero.  The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's
+    complex routines choose it: within a factor sqrt(2) of the modulus, and no square root per candidate); its
+    reciprocal is formed once, as ``conj(p) / |p|^2`` (a pivot is never near overflow here), and kept on
+    ``LU``'s diagonal for the substitutions."""
     n = A.shape[0]
     for i in range(n):
         for j in range(n):
             LU[i, j] = A[i, j]
-        x[i] = b[i]
     for c in range(n):
         p = c
-        best = abs(LU[c, c])
+        best = abs(LU[c, c].real) + abs(LU[c, c].imag)
         for r in range(c + 1, n):
-            a = abs(LU[r, c])
+            a = abs(LU[r, c].real) + abs(LU[r, c].imag)
             if a > best:
                 best, p = a, r
         if best == 0.0:
             return False
+        pivots[c] = p
         if p != c:
             for j in range(n):
                 LU[c, j], LU[p, j] = LU[p, j], LU[c, j]
-            x[c], x[p] = x[p], x[c]
-        inv = 1.0 / LU[c, c]
+        pivot = LU[c, c]
+        inv = pivot.conjugate() / (pivot.real * pivot.real + pivot.imag * pivot.imag)
+        LU[c, c] = inv
         for r in range(c + 1, n):
             m = LU[r, c] * inv
+            LU[r, c] = m
             if m != 0:
                 for j in range(c + 1, n):
                     LU[r, j] -= m * LU[c, j]
-                x[r] -= m * x[c]
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_substitute(LU, pivots, b, x):
+    """``x = A^{-1} b`` from the factors of :func:`_lu_factor`."""
+    n = LU.shape[0]
+    for i in range(n):
+        x[i] = b[i]
+    for c in range(n):                                   # the rows swapped as in the factorisation (whole rows)
+        p = pivots[c]
+        if p != c:
+            x[c], x[p] = x[p], x[c]
+    for c in range(n):
+        for r in range(c + 1, n):
+            x[r] -= LU[r, c] * x[c]
     for c in range(n - 1, -1, -1):
         s = x[c]
         for j in range(c + 1, n):
             s -= LU[c, j] * x[j]
-        x[c] = s / LU[c, c]
+        x[c] = s * LU[c, c]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_solve(A, b, x, LU, pivots):
+    """``x = A^{-1} b`` (``LU``, ``pivots``: its factors, left for later solves); False when ``A`` is singular."""
+    if not _lu_factor(A, LU, pivots):
+        return False
+    _lu_substitute(LU, pivots, b, x)
     return True
 
 
@@ -177,26 +435,29 @@ def _tau(t, gamma):
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _norm(z):
+    """``max_k |z_k|`` (one square root, of the largest squared modulus)."""
     m = 0.0
     for k in range(z.shape[0]):
-        a = abs(z[k])
+        a = z[k].real * z[k].real + z[k].imag * z[k].imag
         if a > m:
             m = a
-    return m
+    return math.sqrt(m)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _velocity(K, z, t, gamma, out, w, H, J, Ht, LU, rhs):
-    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``; False when ``F_z`` is singular."""
+def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, LU, pivots, rhs):
+    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)`` (``F_z``'s factors left in ``LU``, ``pivots``); False when
+    ``F_z`` is singular."""
     tau, dtau = _tau(t, gamma)
-    _evaluate(K, z, tau, dtau, w, H, J, Ht, True)
+    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, True, True)
     for k in range(z.shape[0]):
         rhs[k] = -Ht[k]
-    return _lu_solve(J, rhs, out, LU)
+    return _lu_solve(J, rhs, out, LU, pivots)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k3, k4, zt):
+def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, LU, pivots, rhs, dz, k1, k2, k3, k4,
+               zt):
     """Tracks one path from ``start`` at t = 0; leaves the endpoint in ``z`` and ``F_z`` there in ``J``;
     returns (outcome, steps, t reached)."""
     n = start.shape[0]
@@ -223,29 +484,30 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
             h = 1.0 - t
         t1 = 1.0 if last else t + h
         # classical Runge-Kutta predictor
-        ok = _velocity(K, z, t, gamma, k1, w, H, J, Ht, LU, rhs)
+        ok = _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, LU, pivots, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k1[k]
-            ok = _velocity(K, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, LU, pivots, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k2[k]
-            ok = _velocity(K, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, LU, pivots, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h * k3[k]
-            ok = _velocity(K, zt, t1, gamma, k4, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, LU, pivots, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k])
-            # Newton corrector at t1
+            # Newton corrector at t1 (a chord method, F_z kept from the first iteration or from the predictor's
+            # last stage, converged so much more slowly that it took more steps and rejected more of them)
             tau, dtau = _tau(t1, gamma)
             ok = False
             previous = 0.0
             for it in range(iterations):
-                _evaluate(K, zt, tau, dtau, w, H, J, Ht, False)
-                if not _lu_solve(J, H, dz, LU):
+                _evaluate(kind, K, P, S, prepared, zt, tau, dtau, w, H, J, Ht, False, True)
+                if not _lu_solve(J, H, dz, LU, pivots):
                     break
                 for k in range(n):
                     zt[k] -= dz[k]
@@ -257,8 +519,11 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
                     break
                 if it > 0 and step > contraction * previous:
                     break
+                # the error left after this update: about the update times its contraction from the last one
+                # (the update itself on the first iteration)
+                error = step if it == 0 else step * (step / previous)
                 previous = step
-                if step <= tol * scale:
+                if error <= tol * scale:
                     ok = True
                     break
         if ok:
@@ -289,29 +554,31 @@ def _track_one(K, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k
                 return STEP_FAILED, steps, t
     # final polish at t = 1 (tau = 1)
     for _ in range(final_iterations):
-        _evaluate(K, z, 1.0 + 0j, 0j, w, H, J, Ht, False)
-        if not _lu_solve(J, H, dz, LU):
+        _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, False, True)
+        if not _lu_solve(J, H, dz, LU, pivots):
             return SINGULAR, steps, t
         for k in range(n):
             z[k] -= dz[k]
         if _norm(dz) <= final_tol * (1.0 + _norm(z)):
             break
-    _evaluate(K, z, 1.0 + 0j, 0j, w, H, J, Ht, False)
+    _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, False, True)
     return REGULAR, steps, t
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def track_paths(K, starts, gammas, settings, ends, jacobians, outcome, steps, t_end):
-    """Tracks every row of ``starts`` (its own ``gammas[p]``) from the start system to the target of the
-    coefficient path ``K`` (shape ``(3, m, n + 1, n + 1)``: ``Q_i(tau) = K_0 + tau K_1 + tau^2 K_2``):
-    endpoints in ``ends``, ``F_z`` there in ``jacobians``, outcome / steps / t reached per path."""
+def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end):
+    """Tracks every row of ``starts`` (its own ``gammas[p]``) from the start system to the target along the
+    parameter path ``(kind, K, P)`` (:class:`ParameterPath`): endpoints in ``ends``, ``F_z`` there in
+    ``jacobians``, outcome / steps / t reached per path."""
     n = starts.shape[1]
+    m = K.shape[1] if kind == DENSE else n
     z = np.empty(n, np.complex128)
     w = np.empty(n + 1, np.complex128)
-    H = np.empty(K.shape[1], np.complex128)
-    Ht = np.empty(K.shape[1], np.complex128)
+    H = np.empty(m, np.complex128)
+    Ht = np.empty(m, np.complex128)
     J = np.empty((n, n), np.complex128)
     LU = np.empty((n, n), np.complex128)
+    pivots = np.empty(n, np.int64)
     rhs = np.empty(n, np.complex128)
     dz = np.empty(n, np.complex128)
     k1 = np.empty(n, np.complex128)
@@ -319,8 +586,16 @@ def track_paths(K, starts, gammas, settings, ends, jacobians, outcome, steps, t_
     k3 = np.empty(n, np.complex128)
     k4 = np.empty(n, np.complex128)
     zt = np.empty(n, np.complex128)
+    if kind == PLANAR_3RPR:
+        S = np.empty((3, RPR_WIDTH), np.complex128)
+    elif kind == HEXAPOD_66:
+        S = np.empty((6, HEX_WIDTH), np.complex128)
+    else:
+        S = np.empty((0, 0), np.complex128)
+    prepared = np.zeros(3)
     for p in range(starts.shape[0]):
-        o, s, t = _track_one(K, starts[p], gammas[p], settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k3, k4, zt)
+        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, LU, pivots,
+                             rhs, dz, k1, k2, k3, k4, zt)
         outcome[p] = o
         steps[p] = s
         t_end[p] = t
@@ -330,15 +605,17 @@ def track_paths(K, starts, gammas, settings, ends, jacobians, outcome, steps, t_
                 jacobians[p, k, j] = J[k, j]
 
 
-def track(K, starts, gammas, settings=SETTINGS):
-    P, n = starts.shape
-    ends = np.empty((P, n), complex)
-    jac = np.empty((P, n, n), complex)
-    outcome = np.empty(P, np.int64)
-    steps = np.empty(P, np.int64)
-    t_end = np.empty(P)
-    track_paths(K, np.ascontiguousarray(starts), np.ascontiguousarray(gammas, dtype=complex), settings, ends,
-                jac, outcome, steps, t_end)
+def track(path: ParameterPath, starts, gammas, settings=SETTINGS):
+    """Every row of ``starts`` tracked along ``path`` (:func:`track_paths`): (endpoints, ``F_z`` there, outcomes,
+    steps, t reached)."""
+    count, n = starts.shape
+    ends = np.empty((count, n), complex)
+    jac = np.empty((count, n, n), complex)
+    outcome = np.empty(count, np.int64)
+    steps = np.empty(count, np.int64)
+    t_end = np.empty(count)
+    track_paths(path.kind, path.K, path.P, np.ascontiguousarray(starts, dtype=complex),
+                np.ascontiguousarray(gammas, dtype=complex), settings, ends, jac, outcome, steps, t_end)
     return ends, jac, outcome, steps, t_end
 
 
