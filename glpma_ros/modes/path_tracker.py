@@ -45,7 +45,9 @@ CORRECTOR_ITERATIONS = 3
 #: is polished to round-off at t = 1 anyway, so the path need only be followed closely enough to stay in its
 #: own basin (a path that jumps meets another's endpoint and the certificate catches it); on Dietmaier's and
 #: random 6-6s, 1e-7 and 1e-9 took 20 % more steps and missed as many endpoints, and 1e-9 stalled near
-#: ill-conditioned stretches, where round-off times the condition number is larger)
+#: ill-conditioned stretches, where round-off times the condition number is larger); stopping instead when the
+#: estimated error after the update (the update times its contraction) is below it saved a Newton iteration in
+#: four but left 14 of 120 random 6-6 rounds incomplete (a retrack round each) where this leaves 2
 CORRECTOR_TOLERANCE = 1e-5
 #: a corrector update that does not shrink at least by this factor from one iteration to the next fails:
 #: Newton's method converges quadratically near a regular path, so a slower one is off the path
@@ -195,7 +197,7 @@ def _prepare_3rpr(P, tau, S):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_t, with_j):
+def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_h, with_j, with_t):
     """3-RPR, ``z = (x, y, c, s)``: leg ``i`` ``F_i = u.u - L_i^2`` with ``u = (x, y) + R(c, s) b_i - a_i``,
     ``F_z = 2 u^T du/dz``, ``F_tau = 2 u.(R(c, s) b_i' - a_i') - (L_i^2)'``; and ``c^2 + s^2 - 1``."""
     x, y, c, s = z[0], z[1], z[2], z[3]
@@ -204,7 +206,8 @@ def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_t, with_j):
         bx, by = S[i, RPR_B], S[i, RPR_B + 1]
         u0 = x + c * bx - s * by - ax
         u1 = y + s * bx + c * by - ay
-        H[i] = u0 * u0 + u1 * u1 - S[i, RPR_L2]
+        if with_h:
+            H[i] = u0 * u0 + u1 * u1 - S[i, RPR_L2]
         if with_j:
             J[i, 0] = 2.0 * u0
             J[i, 1] = 2.0 * u1
@@ -217,7 +220,8 @@ def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_t, with_j):
             Ht[i] = (2.0 * (u0 * du0 + u1 * du1) - S[i, RPR_DL2]) * dtau
         else:
             Ht[i] = 0j
-    H[3] = c * c + s * s - 1.0
+    if with_h:
+        H[3] = c * c + s * s - 1.0
     if with_j:
         J[3, 0] = 0j
         J[3, 1] = 0j
@@ -266,7 +270,7 @@ def _prepare_66(P, tau, S):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j):
+def _evaluate_66(P, S, z, dtau, H, J, Ht, with_h, with_j, with_t):
     """6-6 in Study parameters, ``z = (e_1, e_2, e_3, f)``, ``e_0 = c_0 + c . (e_1, e_2, e_3)`` (the patch).  Leg
     ``i`` (the quadric of :meth:`.homotopy_families.Hexapod66Family.homogeneous_quadrics` written out):
     ``F_i = k e.e - 2 G + 4 C + 4 f.f`` with ``G = (e b).(a e) = (e_0^2 - v.v) a.b + 2 (v.a)(v.b) + 2 e_0 v.(b x a)``
@@ -297,9 +301,10 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j):
         vn = v1 * n1 + v2 * n2 + v3 * n3
         vd = v1 * d1 + v2 * d2 + v3 * d3
         wd = w1 * d1 + w2 * d2 + w3 * d3
-        G = q * ab + 2.0 * (va * vb + e0 * vn)
-        C = e0 * wd - f0 * vd - (x1 * s1 + x2 * s2 + x3 * s3)
-        H[i] = k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
+        if with_h:
+            G = q * ab + 2.0 * (va * vb + e0 * vn)
+            C = e0 * wd - f0 * vd - (x1 * s1 + x2 * s2 + x3 * s3)
+            H[i] = k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
         if with_j:
             # dF/de_0 and dF/dv
             g0 = 2.0 * k * e0 - 4.0 * (e0 * ab + vn) + 4.0 * wd
@@ -328,7 +333,8 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j):
         else:
             Ht[i] = 0j
     # Study's quadric e.f
-    H[6] = e0 * f0 + v1 * w1 + v2 * w2 + v3 * w3
+    if with_h:
+        H[6] = e0 * f0 + v1 * w1 + v2 * w2 + v3 * w3
     if with_j:
         J[6, 0] = w1 + c1 * f0
         J[6, 1] = w2 + c2 * f0
@@ -341,9 +347,9 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_t, with_j):
-    """``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` (the dense evaluator forms it anyway) and when
-    ``with_t`` ``Ht = F_tau dtau/dt``, by the evaluator ``kind``;
+def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_h, with_j, with_t):
+    """When ``with_h`` ``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` and when ``with_t`` ``Ht = F_tau dtau/dt``
+    (the dense evaluator forms ``H`` and ``J`` anyway), by the evaluator ``kind``;
     a structured one prepares its per-leg quantities once per distinct ``tau`` (``prepared``: the last one's,
     with a flag: the predictor's middle stages share a tau, its last stage and the corrector another)."""
     if kind == DENSE:
@@ -356,22 +362,22 @@ def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_t, with_j
             _prepare_66(P, tau, S)
         prepared[0], prepared[1], prepared[2] = 1.0, tau.real, tau.imag
     if kind == PLANAR_3RPR:
-        _evaluate_3rpr(S, z, dtau, H, J, Ht, with_t, with_j)
+        _evaluate_3rpr(S, z, dtau, H, J, Ht, with_h, with_j, with_t)
     else:
-        _evaluate_66(P, S, z, dtau, H, J, Ht, with_t, with_j)
+        _evaluate_66(P, S, z, dtau, H, J, Ht, with_h, with_j, with_t)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _lu_factor(A, LU, pivots):
-    """``LU`` = the LU factors of ``A`` by Gaussian elimination with partial pivoting (row ``c`` swapped with
-    ``pivots[c]``); False when a pivot is exactly zero.  The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's
-    complex routines choose it: within a factor sqrt(2) of the modulus, and no square root per candidate); its
-    reciprocal is formed once, as ``conj(p) / |p|^2`` (a pivot is never near overflow here), and kept on
-    ``LU``'s diagonal for the substitutions."""
+def _lu_solve(A, b, x, LU):
+    """``x = A^{-1} b`` by Gaussian elimination with partial pivoting (``LU`` a work copy); False when a
+    pivot is exactly zero.  The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's complex routines choose
+    it: within a factor sqrt(2) of the modulus, and no square root per candidate); its reciprocal is formed
+    once, as ``conj(p) / |p|^2`` (a pivot is never near overflow here), for the back substitution too."""
     n = A.shape[0]
     for i in range(n):
         for j in range(n):
             LU[i, j] = A[i, j]
+        x[i] = b[i]
     for c in range(n):
         p = c
         best = abs(LU[c, c].real) + abs(LU[c, c].imag)
@@ -381,48 +387,24 @@ def _lu_factor(A, LU, pivots):
                 best, p = a, r
         if best == 0.0:
             return False
-        pivots[c] = p
-        if p != c:
-            for j in range(n):
+        if p != c:                                       # the columns left of c are no longer read
+            for j in range(c, n):
                 LU[c, j], LU[p, j] = LU[p, j], LU[c, j]
+            x[c], x[p] = x[p], x[c]
         pivot = LU[c, c]
         inv = pivot.conjugate() / (pivot.real * pivot.real + pivot.imag * pivot.imag)
         LU[c, c] = inv
+        xc = x[c]
         for r in range(c + 1, n):
             m = LU[r, c] * inv
-            LU[r, c] = m
-            if m != 0:
-                for j in range(c + 1, n):
-                    LU[r, j] -= m * LU[c, j]
-    return True
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _lu_substitute(LU, pivots, b, x):
-    """``x = A^{-1} b`` from the factors of :func:`_lu_factor`."""
-    n = LU.shape[0]
-    for i in range(n):
-        x[i] = b[i]
-    for c in range(n):                                   # the rows swapped as in the factorisation (whole rows)
-        p = pivots[c]
-        if p != c:
-            x[c], x[p] = x[p], x[c]
-    for c in range(n):
-        for r in range(c + 1, n):
-            x[r] -= LU[r, c] * x[c]
+            for j in range(c + 1, n):
+                LU[r, j] -= m * LU[c, j]
+            x[r] -= m * xc
     for c in range(n - 1, -1, -1):
         s = x[c]
         for j in range(c + 1, n):
             s -= LU[c, j] * x[j]
         x[c] = s * LU[c, c]
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _lu_solve(A, b, x, LU, pivots):
-    """``x = A^{-1} b`` (``LU``, ``pivots``: its factors, left for later solves); False when ``A`` is singular."""
-    if not _lu_factor(A, LU, pivots):
-        return False
-    _lu_substitute(LU, pivots, b, x)
     return True
 
 
@@ -430,7 +412,8 @@ def _lu_solve(A, b, x, LU, pivots):
 def _tau(t, gamma):
     """``tau(t) = t / (t + gamma (1 - t))`` and ``dtau/dt = gamma / (t + gamma (1 - t))^2``."""
     d = t + gamma * (1.0 - t)
-    return t / d, gamma / (d * d)
+    inv = d.conjugate() / (d.real * d.real + d.imag * d.imag)      # 1 / d, one real division
+    return t * inv, gamma * inv * inv
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -445,18 +428,17 @@ def _norm(z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, LU, pivots, rhs):
-    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)`` (``F_z``'s factors left in ``LU``, ``pivots``); False when
-    ``F_z`` is singular."""
+def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, LU, rhs):
+    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``; False when ``F_z`` is singular."""
     tau, dtau = _tau(t, gamma)
-    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, True, True)
+    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, False, True, True)
     for k in range(z.shape[0]):
         rhs[k] = -Ht[k]
-    return _lu_solve(J, rhs, out, LU, pivots)
+    return _lu_solve(J, rhs, out, LU)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, LU, pivots, rhs, dz, k1, k2, k3, k4,
+def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k3, k4,
                zt):
     """Tracks one path from ``start`` at t = 0; leaves the endpoint in ``z`` and ``F_z`` there in ``J``;
     returns (outcome, steps, t reached)."""
@@ -475,6 +457,7 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
     t = 0.0
     steps = 0
     successes = 0
+    k1_current = False                                   # k1 is the velocity at (z, t): kept after a failed step
     while t < 1.0:
         if steps >= max_steps:
             return STEPS_EXHAUSTED, steps, t
@@ -484,19 +467,20 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             h = 1.0 - t
         t1 = 1.0 if last else t + h
         # classical Runge-Kutta predictor
-        ok = _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, LU, pivots, rhs)
+        ok = k1_current or _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, LU, rhs)
+        k1_current = ok
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k1[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, LU, pivots, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, LU, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k2[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, LU, pivots, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, LU, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h * k3[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, LU, pivots, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, LU, rhs)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k])
@@ -506,8 +490,8 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             ok = False
             previous = 0.0
             for it in range(iterations):
-                _evaluate(kind, K, P, S, prepared, zt, tau, dtau, w, H, J, Ht, False, True)
-                if not _lu_solve(J, H, dz, LU, pivots):
+                _evaluate(kind, K, P, S, prepared, zt, tau, dtau, w, H, J, Ht, True, True, False)
+                if not _lu_solve(J, H, dz, LU):
                     break
                 for k in range(n):
                     zt[k] -= dz[k]
@@ -519,17 +503,15 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
                     break
                 if it > 0 and step > contraction * previous:
                     break
-                # the error left after this update: about the update times its contraction from the last one
-                # (the update itself on the first iteration)
-                error = step if it == 0 else step * (step / previous)
                 previous = step
-                if error <= tol * scale:
+                if step <= tol * scale:
                     ok = True
                     break
         if ok:
             for k in range(n):
                 z[k] = zt[k]
             t = t1
+            k1_current = False
             successes += 1
             if step_target > 0.0:
                 # the predictor's error, measured by the first corrector update, grows like h^5: the next step
@@ -554,14 +536,14 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
                 return STEP_FAILED, steps, t
     # final polish at t = 1 (tau = 1)
     for _ in range(final_iterations):
-        _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, False, True)
-        if not _lu_solve(J, H, dz, LU, pivots):
+        _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
+        if not _lu_solve(J, H, dz, LU):
             return SINGULAR, steps, t
         for k in range(n):
             z[k] -= dz[k]
         if _norm(dz) <= final_tol * (1.0 + _norm(z)):
             break
-    _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, False, True)
+    _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
     return REGULAR, steps, t
 
 
@@ -578,7 +560,6 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
     Ht = np.empty(m, np.complex128)
     J = np.empty((n, n), np.complex128)
     LU = np.empty((n, n), np.complex128)
-    pivots = np.empty(n, np.int64)
     rhs = np.empty(n, np.complex128)
     dz = np.empty(n, np.complex128)
     k1 = np.empty(n, np.complex128)
@@ -594,8 +575,8 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
         S = np.empty((0, 0), np.complex128)
     prepared = np.zeros(3)
     for p in range(starts.shape[0]):
-        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, LU, pivots,
-                             rhs, dz, k1, k2, k3, k4, zt)
+        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, LU, rhs, dz,
+                             k1, k2, k3, k4, zt)
         outcome[p] = o
         steps[p] = s
         t_end[p] = t
@@ -617,6 +598,18 @@ def track(path: ParameterPath, starts, gammas, settings=SETTINGS):
     track_paths(path.kind, path.K, path.P, np.ascontiguousarray(starts, dtype=complex),
                 np.ascontiguousarray(gammas, dtype=complex), settings, ends, jac, outcome, steps, t_end)
     return ends, jac, outcome, steps, t_end
+
+
+def evaluate(path: ParameterPath, z, tau, dtau=1.0):
+    """``(F, F_z, F_tau dtau)`` at ``z`` and ``p(tau)`` by the evaluator the tracker calls for ``path``."""
+    z = np.ascontiguousarray(z, dtype=complex)
+    n = z.shape[0]
+    m = path.K.shape[1] if path.kind == DENSE else n
+    rows, width = {PLANAR_3RPR: (3, RPR_WIDTH), HEXAPOD_66: (6, HEX_WIDTH)}.get(path.kind, (0, 0))
+    H, Ht, J = np.empty(m, complex), np.empty(m, complex), np.empty((m, n), complex)
+    _evaluate(path.kind, path.K, path.P, np.empty((rows, width), complex), np.zeros(3), z, complex(tau),
+              complex(dtau), np.empty(n + 1, complex), H, J, Ht, True, True, True)
+    return H, J, Ht
 
 
 def random_gammas(rng, m):
