@@ -39,8 +39,10 @@ Morgan & Sommese 1989, "Coefficient-parameter polynomial continuation", Appl. Ma
   ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed correction; after a success the
   next step is chosen from the size of the first corrector update, the predictor's error, of order h^5, aiming
   at ``STEP_TARGET``), every path in one compiled call (:func:`.path_tracker.track_paths`; complex LU with
-  partial pivoting).  At ``t = 1`` Newton's method polishes the endpoint.  The coefficients along the path
-  are a quadratic polynomial in ``tau`` (they are of degree two in ``p``), interpolated exactly from three
+  partial pivoting).  At ``t = 1`` Newton's method polishes the endpoint.  The system along the path is
+  evaluated by the family's own evaluator from the parameters interpolated at ``tau`` (residual, Jacobian and
+  ``dF/dtau`` written out); a family without one by its quadrics, whose coefficients along the path are a
+  quadratic polynomial in ``tau`` (they are of degree two in ``p``), interpolated exactly from three
   evaluations.
 
 * **Certificate.**  The endpoints are classified: *regular* (finite, Newton converged, reciprocal

@@ -47,7 +47,8 @@ CORRECTOR_ITERATIONS = 3
 #: random 6-6s, 1e-7 and 1e-9 took 20 % more steps and missed as many endpoints, and 1e-9 stalled near
 #: ill-conditioned stretches, where round-off times the condition number is larger); stopping instead when the
 #: estimated error after the update (the update times its contraction) is below it saved a Newton iteration in
-#: four but left 14 of 120 random 6-6 rounds incomplete (a retrack round each) where this leaves 2
+#: four but left 14 of 123 rounds incomplete (Dietmaier's and 40 random 6-6s, 3 gammas each; a retrack round
+#: each) where this leaves 2
 CORRECTOR_TOLERANCE = 1e-5
 #: a corrector update that does not shrink at least by this factor from one iteration to the next fails:
 #: Newton's method converges quadratically near a regular path, so a slower one is off the path
