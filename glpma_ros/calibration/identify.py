@@ -279,9 +279,9 @@ def layout(nominal: Geometry, groups, scale: float) -> Layout:
     return Layout(labels, np.concatenate(columns, axis=1), component)
 
 
-def _residuals_jacobian(geometry: Geometry, meas: Measurements, groups, weights: np.ndarray):
+def residuals_jacobian(geometry: Geometry, meas: Measurements, groups, weights: np.ndarray):
     """Residuals (n, m) and the per-leg Jacobian blocks (n, m, k) of the identified groups, each column
-    divided by its weight (n, k): the derivative by the parameter in length units (:func:`_weights`).
+    divided by its weight (n, k): the derivative by the parameter in length units (:func:`parameter_weights`).
 
     With ``u_ij`` the unit vector of e_ij = p_j + R_j B_i - P_ij: dr/dA_i = dr/dorigin_i = -u_ij,
     dr/dB_i = R_j^T u_ij, dr/drod_i = -1; dr/dcrank_i = -Rot(axis_i, q_ij)^T u_ij; dr/daxis_i =
@@ -322,7 +322,7 @@ def _residuals_jacobian(geometry: Geometry, meas: Measurements, groups, weights:
     return r, np.ascontiguousarray(J)
 
 
-def _weights(nominal: Geometry, meas: Measurements, groups) -> np.ndarray:
+def parameter_weights(nominal: Geometry, meas: Measurements, groups) -> np.ndarray:
     """Each leg's parameter weights (n, k): the length a unit of the parameter moves the leg's proximal
     point by, so that every weighted parameter is a length in the config unit and the Jacobian's columns
     are commensurate (lengths: 1; a revolute offset: the crank's radius |crank_perp|, the arc its tip
@@ -412,13 +412,13 @@ def _gauge_basis(geometry: Geometry, groups, lay: Layout, weights: np.ndarray) -
     return (np.array(vectors).T if vectors else np.zeros((p, 0))), named
 
 
-def _vector(geometry: Geometry, groups) -> np.ndarray:
+def parameter_vector(geometry: Geometry, groups) -> np.ndarray:
     """Each leg's identified parameters, (n, k)."""
     parts = [getattr(geometry, FIELD[g]) for g in GROUPS if g in groups]
     return np.concatenate([p if p.ndim == 2 else p[:, None] for p in parts], axis=1)
 
 
-def _with_vector(geometry: Geometry, theta: np.ndarray, groups) -> Geometry:
+def with_parameters(geometry: Geometry, theta: np.ndarray, groups) -> Geometry:
     """``geometry`` with the identified parameters ``theta`` (n, k); a rail direction normalised."""
     g = geometry.copy()
     d, col = g.dim, 0
@@ -540,16 +540,16 @@ def identify(nominal: Geometry, meas: Measurements, groups=None, scale: float | 
     scale = float(scale if scale is not None else np.ptp(nominal.base, axis=0).max())
     se_limit = UNIDENTIFIABLE_SE_SHARE * scale
     lay = layout(nominal, groups, scale)
-    weights = _weights(nominal, meas, groups)
+    weights = parameter_weights(nominal, meas, groups)
     w = np.empty(lay.size)
     w[lay.index] = weights
     theta = np.empty(lay.size)
-    theta[lay.index] = _vector(nominal, groups)
-    geometry = _with_vector(nominal, theta[lay.index], groups)
+    theta[lay.index] = parameter_vector(nominal, groups)
+    geometry = with_parameters(nominal, theta[lay.index], groups)
     leg_component = lay.component[lay.index[:, 0]]
     components = np.unique(lay.component)
     k = lay.index.shape[1]
-    r, J = _residuals_jacobian(geometry, meas, groups, weights)
+    r, J = residuals_jacobian(geometry, meas, groups, weights)
     gauge, _ = _gauge_basis(geometry, groups, lay, weights)
     cost = np.einsum("nm,nm->n", r, r)
     dof = np.maximum(_leg_dof(len(meas), k, lay, gauge), 1)
@@ -572,7 +572,7 @@ def identify(nominal: Geometry, meas: Measurements, groups=None, scale: float | 
         allowed_c = np.array([allowed[leg_component == c].sum() for c in components])
         trial = theta + step / w                            # the step in the parameters' own units
         for _ in range(MAX_HALVINGS):
-            r_trial = leg_residuals(_with_vector(geometry, trial[lay.index], groups), meas).T
+            r_trial = leg_residuals(with_parameters(geometry, trial[lay.index], groups), meas).T
             cost_leg = np.einsum("nm,nm->n", r_trial, r_trial)
             worse = components[~(np.array([cost_leg[leg_component == c].sum() for c in components]) <= allowed_c)]
             if not worse.size:
@@ -582,9 +582,9 @@ def identify(nominal: Geometry, meas: Measurements, groups=None, scale: float | 
             trial[halve] = theta[halve] + step[halve] / w[halve]
         else:
             break                            # no descent left along the Gauss-Newton direction
-        geometry = _with_vector(geometry, trial[lay.index], groups)
-        theta[lay.index] = _vector(geometry, groups)        # a rail direction back to unit length
-        r, J = _residuals_jacobian(geometry, meas, groups, weights)
+        geometry = with_parameters(geometry, trial[lay.index], groups)
+        theta[lay.index] = parameter_vector(geometry, groups)        # a rail direction back to unit length
+        r, J = residuals_jacobian(geometry, meas, groups, weights)
         gauge, _ = _gauge_basis(geometry, groups, lay, weights)
         cost = np.einsum("nm,nm->n", r, r)
     return _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left, weights)
@@ -616,7 +616,7 @@ def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, 
     for (sub, _, V, G), (_, keep) in zip(spectra, kept):
         fixed_share[sub] = np.sum(V[:, ~keep] ** 2, axis=1) + np.sum(G ** 2, axis=1)
     theta0 = np.empty(lay.size)
-    theta0[lay.index] = _vector(nominal, groups)
+    theta0[lay.index] = parameter_vector(nominal, groups)
     params = [Parameter(legs, g, a, float(theta0[j]), float(theta[j]), float(se[j]), float(fixed_share[j]),
                         quantity(geometry, g))
               for j, (legs, g, a) in enumerate(lay.labels)]
