@@ -236,26 +236,27 @@ def test_rail_direction_column_against_finite_differences_across_the_rail():
         assert np.allclose(analytic, fd, atol=FD_RTOL * np.abs(fd).max())
 
 
-@pytest.mark.parametrize("family", ["planar_3rrr", "linear_delta"])
+@pytest.mark.parametrize("family", ["planar_3rrr", "linear_delta", "delta"])
 def test_cli_end_to_end_writes_new_yaml_keeps_the_input_and_its_comments(family, tmp_path, capsys):
-    """The documented commands on a revolute and a prismatic family: the simulator writes the CSV (a Delta's
-    without orientation columns), calibrate exits 0, writes NEW.yaml with each leg's identified entries
-    rewritten in place (comments kept), actuator_offsets added, everything else as in CONFIG; the text
-    report names the gauges and says the units."""
+    """The documented commands on revolute and prismatic families (the README's Delta example among them): the
+    simulator writes the CSV (a Delta's without orientation columns), calibrate exits 0, writes NEW.yaml with
+    each leg's identified entries rewritten in place (comments kept), actuator_offsets added, everything else
+    as in CONFIG; the text report names the gauges and says the units."""
     path, doc, model = load(FAMILIES[family])
     data, new = tmp_path / "m.csv", tmp_path / "new.yaml"
     assert S.main([FAMILIES[family], str(data), "120", "5"]) == 0
     header = data.read_text().splitlines()[0].split(",")
     dim = model.base.shape[1]
-    assert header == [f"leg_{i + 1}" for i in range(model.n_legs)] + list(
-        D.pose_columns(dim, family == "linear_delta"))
+    translation = family in ("delta", "linear_delta")
+    revolute = family != "linear_delta"
+    assert header == [f"leg_{i + 1}" for i in range(model.n_legs)] + list(D.pose_columns(dim, translation))
     capsys.readouterr()
     before = path.read_text()
     assert main(["calibrate", FAMILIES[family], str(data), "--out", str(new)]) == 0
     text = capsys.readouterr().out
     assert path.read_text() == before
     assert "gauge directions (no measurement separates them; kept at nominal):" in text
-    assert ("offsets in rad" in text) == (family == "planar_3rrr") and f"wrote {new}" in text
+    assert ("offsets in rad" in text) == revolute and f"wrote {new}" in text
     new_text, new_doc = new.read_text(), yaml.safe_load(new.read_text())
     comments = [ln.split("#", 1)[1] for ln in before.splitlines() if "#" in ln]
     assert all(c in new_text for c in comments)                         # every comment kept
@@ -263,7 +264,7 @@ def test_cli_end_to_end_writes_new_yaml_keeps_the_input_and_its_comments(family,
     assert {k: v for k, v in new_doc.items() if k not in ("legs", "actuator_offsets")} == \
         {k: v for k, v in doc.items() if k != "legs"}
     assert len(new_doc["actuator_offsets"]) == model.n_legs
-    keep = {"actuator"} | ({"axis"} if family == "planar_3rrr" else set())
+    keep = {"actuator"} | ({"axis"} if revolute else set())      # a revolute axis is not identified
     for old, leg in zip(doc["legs"], new_doc["legs"]):
         assert {k: old[k] for k in keep if k in old} == {k: leg[k] for k in keep if k in leg}
         assert leg["rod"] != old["rod"] and leg["origin"] != old["origin"]
@@ -273,7 +274,7 @@ def test_cli_end_to_end_writes_new_yaml_keeps_the_input_and_its_comments(family,
     code, out, err = calibrate(FAMILIES[family], data, "--out", tmp_path / "rod.yaml", "--identify", "rod",
                                capsys=capsys)
     assert code == 0 and out["identify"] == ["rod"] and {p["group"] for p in out["parameters"]} == {"rod"}
-    other = "axis" if family == "planar_3rrr" else "crank"
+    other = "axis" if revolute else "crank"
     code, _, err = calibrate(FAMILIES[family], data, "--out", tmp_path / "x.yaml", "--identify", other,
                              capsys=capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and f"--identify {other}" in err

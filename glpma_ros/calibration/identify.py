@@ -1,24 +1,42 @@
 """Kinematic calibration of a parallel manipulator from externally measured poses: the geometry
-(base joints A_i, platform joints B_i, leg-sensor offsets o_i) by nonlinear least squares on the
-inverse-kinematic leg residuals, with standard errors and an identifiability analysis.
+(base joints A_i, platform joints B_i, leg-sensor offsets o_i; for an actuated family the legs'
+origins, cranks or rail directions, rods, platform joints and actuator offsets) by nonlinear least
+squares on the inverse-kinematic leg residuals, with standard errors and an identifiability analysis.
 
 **Model** (Zhuang, Yan & Masory 1998, "inverse kinematic residuals"; Wampler, Hollerbach & Arai 1995).
-Measurement ``j`` is the n sensor readings ``l_ij`` and the platform pose ``(p_j, R_j)`` measured in the
-base frame by an external instrument (laser tracker, motion capture).  Leg ``i`` of a rigid geometry
-satisfies ``|p_j + R_j B_i - A_i| = l_ij + o_i``, so its residual is
+Measurement ``j`` is the n sensor readings ``q_ij`` and the platform pose ``(p_j, R_j)`` measured in the
+base frame by an external instrument (laser tracker, motion capture).  Every leg is the one leg model of
+:mod:`glpma_ros.models.legs`, a rod between the point ``P_i`` its actuator moves and its platform joint
+``B_i``, so a rigid geometry's leg residual is
 
-    r_ij(A_i, B_i, o_i) = |p_j + R_j B_i - A_i| - (l_ij + o_i),
+    r_ij = |p_j + R_j B_i - P_i(q_ij + o_i)| - rod_i,
 
-with the analytic Jacobian ``dr/dA_i = -u_ij``, ``dr/dB_i = R_j^T u_ij``, ``dr/do_i = -1`` where
-``u_ij`` is the unit vector of the leg.  All parameters are lengths in the config's unit, so the
-Jacobian's columns are commensurate as they stand.  Leg i's parameters appear in leg i's residuals
-only: the Jacobian is block-diagonal, one (m x k) block per leg (k = 2d + 1 parameters in d
-dimensions), and with the poses taken as given the problem separates into n independent small
-problems, solved here all at once (NumPy, vectorised over legs and measurements) by Gauss-Newton with
-step halving (Bjorck 1996, section 9.2), each step the pseudo-inverse solution from the
-eigen-decomposition of the leg's k x k normal matrix.  The base frame is the one the
-instrument measures in and the platform frame the one its pose refers to, so there is no gauge
-freedom by construction: every parameter is identifiable from poses that move and rotate enough.
+``P_i = A_i`` and ``rod_i = q_ij + o_i`` for a length leg (3-RPR, Gough-Stewart: ``|p_j + R_j B_i - A_i| -
+(l_ij + o_i)``), ``P_i = origin_i + Rot(axis_i, q + o_i) crank_i`` for a revolute actuator,
+``origin_i + (q + o_i) axis_i`` for a prismatic one (:func:`residuals_jacobian`).  The analytic
+Jacobian, with ``u_ij`` the unit vector of the leg: ``dr/dA_i = dr/dorigin_i = -u_ij``, ``dr/dB_i = R_j^T
+u_ij``, ``dr/drod_i = -1``, ``dr/dcrank_i = -Rot^T u_ij``, ``dr/daxis_i = -(q + o)(I - a a^T) u_ij`` (a unit
+vector), ``dr/do_i = -1`` (length) or ``-u_ij . dP_i/dq``.  Its columns are made commensurate by weights
+(:func:`parameter_weights`): every parameter is a length in the config's unit but a revolute offset
+(radians: times the crank's radius, the arc its tip moves) and a rail direction (times the carriage's RMS
+travel), so singular values, standard errors along directions and the thresholds below are in lengths;
+parameters and their standard errors are reported in their own units.  Leg i's parameters appear in leg
+i's residuals only: the Jacobian is block-diagonal, one (m x k) block per leg (k = 2d + 1 parameters in d
+dimensions for a length leg, 3d + 2 for an actuated one), and with the poses taken as given the problem
+separates into n independent small problems, solved here all at once (NumPy, vectorised over legs and
+measurements) by Gauss-Newton with step halving (Bjorck 1996, section 9.2), each step the
+pseudo-inverse solution from the eigen-decomposition of the leg's k x k normal matrix.  The base frame is
+the one the instrument measures in and the platform frame the one its pose refers to, so a length leg
+has no gauge freedom: every parameter is identifiable from poses that move and rotate enough.
+
+**Gauges** of the leg model (:func:`gauge_vectors`): an actuated leg has directions of parameter space
+that change no residual at any pose -- a crank turned about its axis against its offset, origin and
+crank moved oppositely along the axis (in space), a rail's origin moved along the rail against its offset,
+and for a platform that only translates (Delta: ``R_j = I``) the origin and the platform joint moved
+together (only ``B_i - origin_i`` is seen).  No data separate them: they are taken out of each leg's
+block (the normal matrix restricted to their orthogonal complement), left at nominal like the
+rank-deficient directions below, and reported apart, in words (not warnings: ``--strict`` does not
+refuse them); a parameter's share in them counts in its share left at nominal.
 
 **Statistics** (Seber & Wild 1989, "Nonlinear Regression", section 2.1).  The estimator is ordinary
 least squares with the measured poses taken as exact.  The pose errors are not ignored: a pose error

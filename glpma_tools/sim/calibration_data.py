@@ -256,8 +256,10 @@ def main(argv=None) -> int:
 
     p = Parser(prog="python -m glpma_tools.sim.calibration_data",
                       description="Simulated calibration data: CONFIG's geometry with every joint moved by up to "
-                                  f"{JOINT_ERROR_M * 1e3:g} mm and sensor offsets up to {OFFSET_ERROR_M * 1e3:g} mm, "
-                                  f"{NOISE_M * 1e3:g} mm noise on the legs and the poses.")
+                                  f"{JOINT_ERROR_M * 1e3:g} mm and sensor offsets up to {OFFSET_ERROR_M * 1e3:g} mm "
+                                  f"({OFFSET_ERROR_RAD:g} rad for revolute actuators), {NOISE_M * 1e3:g} mm noise on "
+                                  f"the legs and the poses; an actuated family's readings by the true geometry's "
+                                  f"inverse kinematics.")
     p.add_argument("config", metavar="CONFIG", help="manipulator YAML (or the name of a shipped one)")
     p.add_argument("out", metavar="OUT.csv", help="the calibration CSV to write")
     p.add_argument("poses", metavar="POSES", type=int, nargs="?", default=POSES,
@@ -269,7 +271,8 @@ def main(argv=None) -> int:
                         f"+- DEGREES (default: {PLANAR_POSITION_SHARE * 100:.0f} %% of the size and "
                         f"{math.degrees(PLANAR_ANGLE_RAD):.1f} degrees for a 3-RPR, "
                         f"{SPATIAL_POSITION_SHARE * 100:.0f} %% and {math.degrees(SPATIAL_ANGLE_RAD):.1f} for a "
-                        f"hexapod)")
+                        f"hexapod, a 6-RUS or a 6-PUS, as a 3-RPR for a 3-RRR or a 3-PRR, "
+                        f"{TRANSLATION_POSITION_SHARE * 100:.0f} %% and no rotation for a Delta)")
     try:
         args = p.parse_args(list(sys.argv[1:] if argv is None else argv))
     except SystemExit as exc:               # --help (0) or a usage error (2, already printed)
