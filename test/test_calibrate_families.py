@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 import yaml
+from test_calibrate import _write_calibration_bag
 
 from conftest import CONFIG, GENEROUS_BUDGET_S
 from glpma_ros.calibration import data as D
@@ -48,6 +49,11 @@ POSE_ERROR_SHRINK = 10.0
 #: through the legs' lever arms: a few hundredths of a millimetre)
 FK_BOUND_MM = 0.1
 NOMINAL_OFF_MM = 0.3
+#: two runs on the same measurements (CSV in config units, bag in SI: read back in config units) agree to round-off:
+#: the conversion loses ~1e-16 relative, the identification amplifies it by its condition number (~1e3), so 1e-9
+#: of the geometry's size is far above round-off and far below any standard error (a revolute offset, in radians,
+#: is far below it too: its standard errors are ~1e-5 rad)
+SAME_RTOL = 1e-9
 #: fresh poses the forward kinematics is checked at, and the evaluation cap of each solve
 FK_POSES = 3
 MAX_EVALS = 20_000
@@ -302,3 +308,22 @@ def test_family_bad_input_exit_2_one_line(make, words, tmp_path, capsys):
     code, _, err = calibrate("delta_irb360", data, "--out", tmp_path / "new.yaml", capsys=capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and words in err, err
     assert "Traceback" not in err and not (tmp_path / "new.yaml").exists()
+
+
+@pytest.mark.parametrize("family, storage, joint_state", [("delta", "mcap", False), ("linear_delta", "sqlite3", True)])
+def test_family_bag_calibrates_as_the_csv(family, storage, joint_state, tmp_path, capsys):
+    """A rosbag2 of the actuator readings as the node takes them (radians; metres for a prismatic actuator) and the
+    tracker's PoseStamped (metres) identifies what the CSV of the same measurements does."""
+    pytest.importorskip("rosbags")
+    path, doc, model = load(FAMILIES[family])
+    sim = S.simulate(model, start_pose(model, doc), np.random.default_rng(5))
+    bag, data = tmp_path / "bag", tmp_path / "data.csv"
+    _write_calibration_bag(bag, sim, model, storage, joint_state, to_si=model.readings_to_si)
+    S.write_csv(data, sim.measured, sim.nominal.translation)
+    code, from_bag, err = calibrate(path, bag, "--out", tmp_path / "from_bag.yaml", capsys=capsys)
+    assert code == 0, err
+    code, from_csv, err = calibrate(path, data, "--out", tmp_path / "from_csv.yaml", capsys=capsys)
+    assert code == 0, err
+    assert from_bag["bag"]["paired"] == from_bag["measurements"] == from_csv["measurements"] == S.POSES
+    for a, b in zip(from_bag["parameters"], from_csv["parameters"]):
+        assert a["name"] == b["name"] and abs(a["value"] - b["value"]) <= SAME_RTOL * model.scale
