@@ -184,31 +184,31 @@ def _perp(v: np.ndarray) -> np.ndarray:
 
 def _proximal(geometry: Geometry, meas: Measurements):
     """The leg model at every measurement: proximal points P (m, d, n), their derivative dP/dq (m, d, n;
-    None for length legs), the rods' lengths (m, n) or (1, n), the actuator positions q = reading + offset
-    (m, n) and, for revolute legs, Rot(axis, q) crank (m, d, n)."""
+    None for length legs), the rods' lengths (m, n) or (1, n) and the actuator positions q = reading +
+    offset (m, n)."""
     q = meas.legs + geometry.offsets
     m, d = q.shape[0], geometry.dim
     origin = geometry.base.T[None]
     if geometry.kind == LENGTH:
-        return np.broadcast_to(origin, (m, d, geometry.n_legs)), None, q, q, None
+        return np.broadcast_to(origin, (m, d, geometry.n_legs)), None, q, q
     rods = geometry.rods[None]
     if geometry.kind == PRISMATIC:
         a = geometry.axis.T[None]
-        return origin + q[:, None, :] * a, np.broadcast_to(a, (m, d, geometry.n_legs)), rods, q, None
+        return origin + q[:, None, :] * a, np.broadcast_to(a, (m, d, geometry.n_legs)), rods, q
     c = geometry.crank.T[None]
     cos, sin = np.cos(q)[:, None, :], np.sin(q)[:, None, :]
     if d == 2:                                                  # planar: about +z
         turned = c * cos + _perp(c) * sin
-        return origin + turned, _perp(turned), rods, q, turned
+        return origin + turned, _perp(turned), rods, q
     a = geometry.axis.T[None]                                   # Rodrigues' formula
     turned = c * cos + np.cross(a, c, axis=1) * sin + a * (a * c).sum(axis=1, keepdims=True) * (1.0 - cos)
-    return origin + turned, np.cross(a, turned, axis=1), rods, q, turned
+    return origin + turned, np.cross(a, turned, axis=1), rods, q
 
 
 def leg_residuals(geometry: Geometry, meas: Measurements) -> np.ndarray:
     """r_ij = |p_j + R_j B_i - P_i(q_ij + o_i)| - rod_i, shape (m, n) (length legs: P_i = A_i and
     rod_i = q_ij + o_i, i.e. ``|p_j + R_j B_i - A_i| - (l_ij + o_i)``)."""
-    P, _, rods, _, _ = _proximal(geometry, meas)
+    P, _, rods, _ = _proximal(geometry, meas)
     e = _leg_vectors(geometry, meas, P)
     return np.sqrt((e * e).sum(axis=1)) - rods
 
@@ -305,7 +305,7 @@ def residuals_jacobian(geometry: Geometry, meas: Measurements, groups, weights: 
     dr/dB_i = R_j^T u_ij, dr/drod_i = -1; dr/dcrank_i = -Rot(axis_i, q_ij)^T u_ij; dr/daxis_i =
     -q_ij (I - a_i a_i^T) u_ij (a unit vector: its length is no parameter); dr/do_i = -1 for a length leg,
     -u_ij . dP_i/dq otherwise (revolute: dP/dq = axis x Rot crank; prismatic: the axis)."""
-    P, dP, rods, q, turned = _proximal(geometry, meas)
+    P, dP, rods, q = _proximal(geometry, meas)
     e = _leg_vectors(geometry, meas, P)
     dist = np.sqrt((e * e).sum(axis=1))                                 # (m, n)
     u = e / dist[:, None, :]
