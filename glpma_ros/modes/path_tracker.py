@@ -39,7 +39,8 @@ STEP_MIN = 1e-13
 #: with STEP_TARGET 0: double the step after this many successful steps in a row (Bertini's default heuristics)
 STEP_EXPAND_AFTER = 3
 #: Newton iterations of the corrector after each predictor step: a predicted point needing more is too
-#: far from the path (or near another one) and the step is retried at half the size
+#: far from the path (or near another one) and the step is retried at half the size (4 or 5 took 15 % fewer
+#: steps but left 34 / 67 of 123 rounds incomplete, Dietmaier's and 40 random 6-6s with 3 gammas each: 3 leaves 2)
 CORRECTOR_ITERATIONS = 3
 #: the corrector has converged when its update is below this share of 1 + |z| (infinity norm): the endpoint
 #: is polished to round-off at t = 1 anyway, so the path need only be followed closely enough to stay in its
