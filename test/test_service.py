@@ -144,7 +144,7 @@ def test_shipped_params_files_are_valid():
     mode its initial_pose names."""
     names = sorted(p.name for p in CONFIG.glob("params_*.yaml"))
     assert {"params_3rpr.yaml", "params_hexapod.yaml", "params_delta.yaml", "params_rus6.yaml",
-            "params_linear_delta.yaml"} <= set(names)
+            "params_linear_delta.yaml", "params_pus6.yaml"} <= set(names)
     for name in names:
         values, warnings = P.resolve(ros_args.load_params_file(str(CONFIG / name)))
         assert not warnings, (name, warnings)
