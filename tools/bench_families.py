@@ -124,7 +124,7 @@ def report(rows, args, load_before, load_after, elapsed_s) -> str:
         lines.append(f"| {label} | {r['legs']} | {r['p50']:.1f} | {r['p99']:.1f} | {r['p99_calm']:.1f} | "
                      f"{r['max']:.0f} | {r['preempted']:.1f} % | {r['warm_ok']}/{r['steps']} | {r['error_rel']:.1e} | "
                      f"{r['cold_ok']}/{r['cold']} | {other} | {r['cold_evals']:.0f} | {r['cold_p50_ms']:.2f} | "
-                     f"{r['method']} | {r['modes']} | {r['all_s']:.2f} |")
+                     f"{r['method']} | {r['modes']} | {r['all_s']:.2g} |")
     return "\n".join(lines) + "\n"
 
 
