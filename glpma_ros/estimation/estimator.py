@@ -368,23 +368,22 @@ class Estimator:
         lm.lm_kernel(solver.kind, solver.data, solver.platform, solver.frame, arr, self.last_x, self.last_x,
                      self.last_legs, settings, out, solver.work)
         n = self._n
-        # the output read by its layout (local.POSE_OUT, lm.I_*): one list, no per-input named tuple
-        info = out[n + local.POSE_OUT:].tolist()
-        if info[lm.I_INPUT_OK] == 0.0:
+        o = local.LmOutput.of(out, n)
+        info = o.info
+        if info.input_ok == 0.0:
             model.check_legs(arr)                       # raises with the reason
-        if info[lm.I_CONVERGED] == 1.0 and \
-                info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
-            x = out[:n]
-            cond = info[lm.I_CONDITIONING]
+        if info.converged == 1.0 and info.distance <= max(CONTINUITY_FACTOR * info.movement, self._near_floor):
+            x = o.x
+            cond = info.conditioning
             note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
             how = "least-squares pose" if self.redundant.active else "leg residuals at round-off"
-            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + local.POSE_OUT]),
-                         info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond, self.solver,
-                         f"warm start, {how}{note}", info[lm.I_MAX_RESIDUAL])
+            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(o.position, o.orientation), info.fitness,
+                         int(info.nfev), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
+                         info.max_residual)
             if not self.redundant.active:       # the everyday case, no call more than needed
                 self.last_x, self.last_legs = x, arr
                 return e
-            return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
+            return self._accept(e, arr, info.leg_fitness, t0)
         return self._search(arr, t0, solver.result(out))
 
     def _advance(self, x, legs):
