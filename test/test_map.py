@@ -262,10 +262,13 @@ def test_exact_spot_check_certifies_a_sample(tmp_path):
 def test_exact_without_msolve_is_one_line_before_the_map(tmp_path, monkeypatch, capsys):
     from glpma_ros.modes import exact
     from glpma_ros.modes.exact import ExactUnavailableError
+    from glpma_tools.workspace_map import exact_check
 
     def missing():
         raise ExactUnavailableError("the exact mode needs msolve: pip install 'glpma_ros[exact]'")
+    # msolve missing, also where the exact extra is installed: both the module and the map's check look it up
     monkeypatch.setattr(exact, "msolve_executable", missing)
+    monkeypatch.setattr(exact_check, "msolve_executable", missing)
     assert W.main([str(RPR_YAML), "--out", str(tmp_path / "out"), "--resolution", "2", "--exact", "3"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--exact" in err and "glpma_ros[exact]" in err
