@@ -1,7 +1,9 @@
 """Solvers: one module per algorithm, one result type (:class:`SolveResult`)."""
 
+import contextlib
 import time
 
+from ..runtime.collector import HOLD
 from . import de, g3pcx, gasa, glpma, rcga, refine, sa
 from .common import BUDGET_EXHAUSTED, CONVERGED, MAX_EVALS, SolveResult, Termination
 
@@ -48,6 +50,12 @@ def solve(name, model, legs, **kwargs):
     (options of :data:`OPTIONS`; ``None`` keeps the default).  ``budget_s`` counts from this call:
     the settings and the solver's setup are inside it."""
     start = time.perf_counter()
+    # under a deadline the garbage collector waits until the solve returns (runtime.collector)
+    with HOLD if kwargs.get("budget_s") is not None else contextlib.nullcontext():
+        return _solve(name, model, legs, start, kwargs)
+
+
+def _solve(name, model, legs, start, kwargs):
     if name not in SOLVERS:
         raise ValueError(f"unknown solver {name!r}; choose one of {', '.join(SOLVERS)}")
     unknown = sorted(set(kwargs) - OPTIONS[name])

@@ -3,12 +3,14 @@ between which the wall clock is checked, the refinement is scheduled and the
 history of the best fitness is recorded."""
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
 import numpy as np
 
 from ..models.kernels import population_fitness
+from ..runtime.collector import HOLD
 from . import refine
 from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population
 
@@ -99,7 +101,16 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     time left and starts only when one generation still fits, a refinement's iteration cap is cut to the
     iterations that fit.  The search therefore returns by its deadline plus the error of that estimate on
     one compiled call.  The first population's evaluation runs whatever the budget (a result needs a point).
+    Under a deadline Python's garbage collector is held off until the search returns
+    (:data:`~glpma_ros.runtime.collector.HOLD`): its pauses, between two clock checks, are not bounded by them.
     """
+    with HOLD if budget_s is not None else contextlib.nullcontext():
+        return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
+                       budget_s=budget_s, polish=polish, center=center, start=start)
+
+
+def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center, start):
+    """:func:`run_evolution`'s search."""
     least_squares = polish and model.redundancy > 0
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, start=start)
     problem = Problem(model, legs)
