@@ -49,6 +49,9 @@ COLLECTION_TICK_S = 3e-4
 COLLECT_OFTEN = (1, 10**9, 10**9)
 #: budgets on the fake clock that hold a few collections and a few compiled calls
 COLLECTION_BUDGETS_S = (1e-3, 3e-3)
+#: what building a solver's result (the Python after its last compiled call) costs on the fake clock: more
+#: than the return allowance of _returned_in_time, so a solve that leaves no room for it returns late
+RESULT_TICK_S = 5e-4
 
 
 class FakeClock:
@@ -258,3 +261,27 @@ def test_no_garbage_collection_runs_after_a_deadline(kind, collector, monkeypatc
         assert not _late(collector, deadline), (budget, e.status, "µs late", _late(collector, deadline))
         assert _returned_in_time(collector.now, deadline), (budget, e.status, collector.now - deadline)
     assert gc.isenabled()       # the collector is back on after the solves
+
+
+@pytest.mark.parametrize("kind", ["rpr", "hexapod"])
+def test_a_solver_leaves_room_for_building_its_result(kind, clock, monkeypatch, request):
+    """The Python after a solver's last compiled call (its result built) costs RESULT_TICK_S on the fake clock:
+    measured by one solve, it is left room for by the next ones of that solver, which return within one
+    compiled call of their deadline."""
+    model = request.getfixturevalue(kind)
+    legs = np.array((RPR_CASES if kind == "rpr" else HEX_CASES)[0])
+    _watch_model(monkeypatch, clock, model)
+    monkeypatch.setattr(driver, "_LAST_COSTS", {})          # this test's fake costs stay in this test
+    result = driver.SolveResult
+
+    def slow_result(*args, **kwargs):
+        clock.now += RESULT_TICK_S
+        return result(*args, **kwargs)
+    monkeypatch.setattr(driver, "SolveResult", slow_result)
+    for name in solvers.SOLVERS:
+        clock.run(solvers.solve, name, model, legs, rng=0, budget_s=COLLECTION_BUDGETS_S[-1], max_evals=10**9)
+        for budget in COLLECTION_BUDGETS_S:
+            _, start = clock.run(solvers.solve, name, model, legs, rng=1, budget_s=budget, max_evals=10**9)
+            deadline = start + budget
+            assert not _late(clock, deadline), (name, budget, "µs late", _late(clock, deadline))
+            assert _returned_in_time(clock.now, deadline), (name, budget, clock.now - deadline)
