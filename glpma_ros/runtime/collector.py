@@ -39,11 +39,6 @@ class CollectorHold:
                 gc.enable()
         return False
 
-    @property
-    def held(self) -> bool:
-        """Whether a solve holds the collector off now."""
-        return self._holders > 0
-
 
 #: the one hold every solve under a deadline takes (the collector is one per process)
 HOLD = CollectorHold()
