@@ -19,6 +19,7 @@ from conftest import CONFIG
 from glpma_ros import solvers
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.runtime.collector import CollectorHold
 from glpma_ros.solvers import driver, gasa, lm, local
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)
@@ -285,3 +286,27 @@ def test_a_solver_leaves_room_for_building_its_result(kind, clock, monkeypatch, 
             deadline = start + budget
             assert not _late(clock, deadline), (name, budget, "µs late", _late(clock, deadline))
             assert _returned_in_time(clock.now, deadline), (name, budget, clock.now - deadline)
+
+
+def test_the_collector_hold_nests_and_restores():
+    """Nested holds (the Estimator around its solvers) keep the collector off until the outermost ends, which
+    restores it as it found it: on, or off when the caller had turned it off."""
+    enabled = gc.isenabled()
+    hold = CollectorHold()
+    try:
+        for before in (True, False):
+            if before:
+                gc.enable()
+            else:
+                gc.disable()
+            with hold:
+                assert not gc.isenabled()
+                with hold:
+                    assert not gc.isenabled()
+                assert not gc.isenabled()
+            assert gc.isenabled() == before
+    finally:
+        if enabled:
+            gc.enable()
+        else:
+            gc.disable()
