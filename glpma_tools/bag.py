@@ -58,6 +58,8 @@ from pathlib import Path
 from glpma_ros.cli.api import OneLineParser
 from glpma_ros.errors import GlpmaError, InputError
 from glpma_ros.node import params as P
+from glpma_ros.node.input_topic import config_is_actuated
+from glpma_ros.node.input_topic import input_topic as node_input_topic
 from glpma_ros.node.ros_args import ROS_ARGS_HELP, parse_ros_args
 
 from .bag_outcome import OFFLINE_BUDGET_MS, Summary
@@ -128,8 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
                         f"parameters is replaced)")
     p.add_argument("--input-type", choices=P.INPUT_TYPES, default=None,
                    help="input message type (default: parameter input_type, float64_multi_array)")
-    p.add_argument("--legs-topic", default="leg_lengths", metavar="TOPIC",
-                   help="Float64MultiArray input topic (default leg_lengths, i.e. /leg_lengths)")
+    p.add_argument("--legs-topic", default=None, metavar="TOPIC",
+                   help="Float64MultiArray input topic (default: the node's, leg_lengths -- i.e. /leg_lengths -- or "
+                        "actuator_positions for an actuated family's config)")
     p.add_argument("--joint-states-topic", default="joint_states", metavar="TOPIC",
                    help="JointState input topic (default joint_states)")
     p.add_argument("--joint-names", nargs="+", default=None, metavar="NAME",
@@ -253,7 +256,8 @@ def run(args, ros) -> int:
 
     name = ros.node_name
     input_type = values["input_type"]
-    input_topic = args.joint_states_topic if input_type == P.INPUT_JOINT_STATE else args.legs_topic
+    input_topic = (args.joint_states_topic if input_type == P.INPUT_JOINT_STATE else args.legs_topic or
+                   node_input_topic(input_type, config_is_actuated(values["manipulator_config"])))
     job = BagJob(values, name, input_topic=topic_name(input_topic, name, ros.remaps),
                  pose_topic=topic_name(args.pose_topic, name, ros.remaps),
                  tf_topic=None if args.no_tf else topic_name(args.tf_topic, name, ros.remaps),

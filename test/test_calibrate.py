@@ -405,14 +405,16 @@ def test_a_leg_that_never_changes_direction_names_its_offset_and_base_joint():
 
 # -- rosbag2 --------------------------------------------------------------------------------------
 
-def _write_calibration_bag(path, sim, model, storage, joint_state):
+def _write_calibration_bag(path, sim, model, storage, joint_state, to_si=None):
     """Leg readings at 100 Hz (five per held pose, each a fresh noisy reading; the one nearest the
-    reference pose is the CSV's), the reference PoseStamped at 20 Hz, stamped 1 ms after that reading."""
+    reference pose is the CSV's), the reference PoseStamped at 20 Hz, stamped 1 ms after that reading.
+    ``to_si``: the readings (config units) as the topic carries them (default: lengths in metres)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
     ts = get_typestore(Stores.ROS2_JAZZY)
     T = ts.types
     mpu = model.metres_per_unit
+    to_si = to_si or (lambda values: np.asarray(values) * mpu)
     t0, hold, period = 1_700_000_000_000_000_000, 50_000_000, 10_000_000
     rng = np.random.default_rng(9)
     names = [f"leg_{i + 1}" for i in range(model.n_legs)]
@@ -423,11 +425,11 @@ def _write_calibration_bag(path, sim, model, storage, joint_state):
     def legs_msg(t, values):
         if joint_state:
             msg = T["sensor_msgs/msg/JointState"](header=T["std_msgs/msg/Header"](stamp=stamp(t), frame_id=""),
-                                                  name=names[::-1], position=np.asarray(values[::-1]) * mpu,
+                                                  name=names[::-1], position=np.ascontiguousarray(to_si(values)[::-1]),
                                                   velocity=np.zeros(0), effort=np.zeros(0))
             return bytes(ts.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
         msg = T["std_msgs/msg/Float64MultiArray"](layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
-                                                  data=np.asarray(values) * mpu)
+                                                  data=to_si(values))
         return bytes(ts.serialize_cdr(msg, "std_msgs/msg/Float64MultiArray"))
 
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3

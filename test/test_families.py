@@ -407,13 +407,6 @@ def test_rus_bad_readings_are_rejected(rus):
         rus.check_legs([0.0, 0.0, 0.0, 1.5, 0.0, 0.0])
 
 
-def test_bad_commands_refuse_actuated_families_in_one_line():
-    for argv in (["calibrate", "rus6_simulator", "unused.csv", "--out", "x.yaml"],):
-        r = subprocess.run([sys.executable, "-m", "glpma_ros", *argv], capture_output=True, text=True, cwd=ROOT)
-        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
-        assert "actuated family" in r.stderr
-
-
 # -- planar 3-RRR: the 3-RPR's model with the crank tips as base joints ------------------------------------------
 
 @pytest.mark.parametrize("family", ["planar_3rrr", "planar_3prr"])

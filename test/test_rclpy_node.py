@@ -85,6 +85,32 @@ def test_leg_lengths_in_pose_out(fk_node):
         client.destroy_node()
 
 
+def test_the_input_is_taken_by_its_own_thread_not_the_executor(fk_node):
+    """The node's input is waited on and taken by its input thread (rcl_take): with no executor spinning the
+    node, legs published still get their pose, and the subscription is in the graph as any other (remapping,
+    ``ros2 node info``); the executor never waits on it."""
+    from glpma_ros.node.rcl_take import NotByExecutor
+    client = rclpy.create_node("glpma_fk_test_input_thread")
+    poses = []
+    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
+    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(client)                 # the client only: nothing spins fk_node
+    try:
+        assert isinstance(fk_node.endpoints.input_sub.callback_group, NotByExecutor)
+        assert not executor.can_execute(fk_node.endpoints.input_sub)
+        assert _spin_until(executor, lambda: bool(poses), timeout_s=120.0,   # a bound for a hang
+                           publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, 0.150])))
+        assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)   # metres, to round-off
+        names = fk_node.get_subscriber_names_and_types_by_node("glpma_fk", "/")
+        assert ("/leg_lengths", ["std_msgs/msg/Float64MultiArray"]) in names
+        fk_node.endpoints.input_thread.stop()
+        assert not fk_node.endpoints.input_thread.running
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+
+
 @pytest.mark.parametrize("config", ["delta_irb360", "linear_delta_kossel_mini"])
 def test_actuator_positions_in_pose_out(ros, config):
     """An actuated family on a real rclpy: the config's example reading in SI on actuator_positions (the Delta's

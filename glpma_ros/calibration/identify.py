@@ -1,24 +1,42 @@
 """Kinematic calibration of a parallel manipulator from externally measured poses: the geometry
-(base joints A_i, platform joints B_i, leg-sensor offsets o_i) by nonlinear least squares on the
-inverse-kinematic leg residuals, with standard errors and an identifiability analysis.
+(base joints A_i, platform joints B_i, leg-sensor offsets o_i; for an actuated family the legs'
+origins, cranks or rail directions, rods, platform joints and actuator offsets) by nonlinear least
+squares on the inverse-kinematic leg residuals, with standard errors and an identifiability analysis.
 
 **Model** (Zhuang, Yan & Masory 1998, "inverse kinematic residuals"; Wampler, Hollerbach & Arai 1995).
-Measurement ``j`` is the n sensor readings ``l_ij`` and the platform pose ``(p_j, R_j)`` measured in the
-base frame by an external instrument (laser tracker, motion capture).  Leg ``i`` of a rigid geometry
-satisfies ``|p_j + R_j B_i - A_i| = l_ij + o_i``, so its residual is
+Measurement ``j`` is the n sensor readings ``q_ij`` and the platform pose ``(p_j, R_j)`` measured in the
+base frame by an external instrument (laser tracker, motion capture).  Every leg is the one leg model of
+:mod:`glpma_ros.models.legs`, a rod between the point ``P_i`` its actuator moves and its platform joint
+``B_i``, so a rigid geometry's leg residual is
 
-    r_ij(A_i, B_i, o_i) = |p_j + R_j B_i - A_i| - (l_ij + o_i),
+    r_ij = |p_j + R_j B_i - P_i(q_ij + o_i)| - rod_i,
 
-with the analytic Jacobian ``dr/dA_i = -u_ij``, ``dr/dB_i = R_j^T u_ij``, ``dr/do_i = -1`` where
-``u_ij`` is the unit vector of the leg.  All parameters are lengths in the config's unit, so the
-Jacobian's columns are commensurate as they stand.  Leg i's parameters appear in leg i's residuals
-only: the Jacobian is block-diagonal, one (m x k) block per leg (k = 2d + 1 parameters in d
-dimensions), and with the poses taken as given the problem separates into n independent small
-problems, solved here all at once (NumPy, vectorised over legs and measurements) by Gauss-Newton with
-step halving (Bjorck 1996, section 9.2), each step the pseudo-inverse solution from the
-eigen-decomposition of the leg's k x k normal matrix.  The base frame is the one the
-instrument measures in and the platform frame the one its pose refers to, so there is no gauge
-freedom by construction: every parameter is identifiable from poses that move and rotate enough.
+``P_i = A_i`` and ``rod_i = q_ij + o_i`` for a length leg (3-RPR, Gough-Stewart: ``|p_j + R_j B_i - A_i| -
+(l_ij + o_i)``), ``P_i = origin_i + Rot(axis_i, q + o_i) crank_i`` for a revolute actuator,
+``origin_i + (q + o_i) axis_i`` for a prismatic one (:func:`residuals_jacobian`).  The analytic
+Jacobian, with ``u_ij`` the unit vector of the leg: ``dr/dA_i = dr/dorigin_i = -u_ij``, ``dr/dB_i = R_j^T
+u_ij``, ``dr/drod_i = -1``, ``dr/dcrank_i = -Rot^T u_ij``, ``dr/daxis_i = -(q + o)(I - a a^T) u_ij`` (a unit
+vector), ``dr/do_i = -1`` (length) or ``-u_ij . dP_i/dq``.  Its columns are made commensurate by weights
+(:func:`parameter_weights`): every parameter is a length in the config's unit but a revolute offset
+(radians: times the crank's radius, the arc its tip moves) and a rail direction (times the carriage's RMS
+travel), so singular values, standard errors along directions and the thresholds below are in lengths;
+parameters and their standard errors are reported in their own units.  Leg i's parameters appear in leg
+i's residuals only: the Jacobian is block-diagonal, one (m x k) block per leg (k = 2d + 1 parameters in d
+dimensions for a length leg, 3d + 2 for an actuated one), and with the poses taken as given the problem
+separates into n independent small problems, solved here all at once (NumPy, vectorised over legs and
+measurements) by Gauss-Newton with step halving (Bjorck 1996, section 9.2), each step the
+pseudo-inverse solution from the eigen-decomposition of the leg's k x k normal matrix.  The base frame is
+the one the instrument measures in and the platform frame the one its pose refers to, so a length leg
+has no gauge freedom: every parameter is identifiable from poses that move and rotate enough.
+
+**Gauges** of the leg model (:func:`gauge_vectors`): an actuated leg has directions of parameter space
+that change no residual at any pose -- a crank turned about its axis against its offset, origin and
+crank moved oppositely along the axis (in space), a rail's origin moved along the rail against its offset,
+and for a platform that only translates (Delta: ``R_j = I``) the origin and the platform joint moved
+together (only ``B_i - origin_i`` is seen).  No data separate them: they are taken out of each leg's
+block (the normal matrix restricted to their orthogonal complement), left at nominal like the
+rank-deficient directions below, and reported apart, in words (not warnings: ``--strict`` does not
+refuse them); a parameter's share in them counts in its share left at nominal.
 
 **Statistics** (Seber & Wild 1989, "Nonlinear Regression", section 2.1).  The estimator is ordinary
 least squares with the measured poses taken as exact.  The pose errors are not ignored: a pose error
@@ -99,6 +117,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..models.legs import LENGTH, PRISMATIC, REVOLUTE
 from .parameters import (
     Geometry,
     Identification,
@@ -106,10 +125,19 @@ from .parameters import (
     Observability,
     Parameter,
     describe_direction,
+    gauge_direction,
+    kind_groups,
 )
 
-#: parameter groups of a leg, in the order of the Jacobian's columns
-GROUPS = ("base", "platform", "offsets")
+#: parameter groups of every leg kind, in the order of the Jacobian's columns (a leg of a kind has
+#: :func:`~.parameters.kind_groups` of them: base platform offsets for length legs; origin, crank or
+#: axis, rod, platform, offsets for actuated ones)
+GROUPS = ("base", "origin", "crank", "axis", "rod", "platform", "offsets")
+#: the Geometry field each group is
+FIELD = {"base": "base", "origin": "base", "crank": "crank", "axis": "axis", "rod": "rods", "platform": "platform",
+         "offsets": "offsets"}
+#: groups of one parameter per leg (the others: one per coordinate)
+SCALAR_GROUPS = ("rod", "offsets")
 AXES = ("x", "y", "z")
 #: Gauss-Newton stops when no parameter moves by more than this share of the geometry's scale
 #: (1e-12: a few hundred times double round-off on the joints' coordinates)
@@ -144,16 +172,54 @@ WEAK_SE_SHARE = 1e-4
 #: their legs share (6-3, 3-6, 3-3 designs), identified once (the config's own coincidence rule)
 COINCIDENT_RTOL = 1e-9
 
+#: gauge vectors shorter than this share of the longest are linearly dependent on the others (their
+#: singular values are exact to round-off: 1e-9 is far above it and far below any real direction's)
+GAUGE_RTOL = 1e-9
+
+
+def _perp(v: np.ndarray) -> np.ndarray:
+    """A planar vector (axis 1 of length 2) turned a quarter turn about +z."""
+    return np.stack((-v[:, 1], v[:, 0]), axis=1)
+
+
+def _proximal(geometry: Geometry, meas: Measurements):
+    """The leg model at every measurement: proximal points P (m, d, n), their derivative dP/dq (m, d, n;
+    None for length legs), the rods' lengths (m, n) or (1, n) and the actuator positions q = reading +
+    offset (m, n)."""
+    q = meas.legs + geometry.offsets
+    m, d = q.shape[0], geometry.dim
+    origin = geometry.base.T[None]
+    if geometry.kind == LENGTH:
+        return np.broadcast_to(origin, (m, d, geometry.n_legs)), None, q, q
+    rods = geometry.rods[None]
+    if geometry.kind == PRISMATIC:
+        a = geometry.axis.T[None]
+        return origin + q[:, None, :] * a, np.broadcast_to(a, (m, d, geometry.n_legs)), rods, q
+    c = geometry.crank.T[None]
+    cos, sin = np.cos(q)[:, None, :], np.sin(q)[:, None, :]
+    if d == 2:                                                  # planar: about +z
+        turned = c * cos + _perp(c) * sin
+        return origin + turned, _perp(turned), rods, q
+    a = geometry.axis.T[None]                                   # Rodrigues' formula
+    turned = c * cos + np.cross(a, c, axis=1) * sin + a * (a * c).sum(axis=1, keepdims=True) * (1.0 - cos)
+    return origin + turned, np.cross(a, turned, axis=1), rods, q
+
 
 def leg_residuals(geometry: Geometry, meas: Measurements) -> np.ndarray:
-    """r_ij = |p_j + R_j B_i - A_i| - (l_ij + o_i), shape (m, n)."""
-    e = _leg_vectors(geometry, meas)
-    return np.sqrt((e * e).sum(axis=1)) - (meas.legs + geometry.offsets)
+    """r_ij = |p_j + R_j B_i - P_i(q_ij + o_i)| - rod_i, shape (m, n) (length legs: P_i = A_i and
+    rod_i = q_ij + o_i, i.e. ``|p_j + R_j B_i - A_i| - (l_ij + o_i)``)."""
+    P, _, rods, _ = _proximal(geometry, meas)
+    e = _leg_vectors(geometry, meas, P)
+    return np.sqrt((e * e).sum(axis=1)) - rods
 
 
-def _leg_vectors(geometry: Geometry, meas: Measurements) -> np.ndarray:
-    """e_ij = p_j + R_j B_i - A_i, laid out (m, d, n)."""
-    return meas.position[:, :, None] + meas.rotation @ geometry.platform.T - geometry.base.T
+def _leg_vectors(geometry: Geometry, meas: Measurements, P: np.ndarray) -> np.ndarray:
+    """e_ij = p_j + R_j B_i - P_ij, laid out (m, d, n)."""
+    return meas.position[:, :, None] + meas.rotation @ geometry.platform.T - P
+
+
+def _width(group: str, dim: int) -> int:
+    return 1 if group in SCALAR_GROUPS else dim
 
 
 def parameter_labels(dim: int, groups) -> list:
@@ -161,8 +227,16 @@ def parameter_labels(dim: int, groups) -> list:
     out = []
     for g in GROUPS:
         if g in groups:
-            out += [(g, "")] if g == "offsets" else [(g, AXES[a]) for a in range(dim)]
+            out += [(g, "")] if g in SCALAR_GROUPS else [(g, AXES[a]) for a in range(dim)]
     return out
+
+
+def quantity(geometry: Geometry, group: str) -> str:
+    """What a parameter of ``group`` measures: "angle" (radians), "direction" (a unit vector's component)
+    or "length" (config unit)."""
+    if group == "offsets" and geometry.kind == REVOLUTE:
+        return "angle"
+    return "direction" if group == "axis" else "length"
 
 
 @dataclass
@@ -200,13 +274,14 @@ def layout(nominal: Geometry, groups, scale: float) -> Layout:
     for g in GROUPS:
         if g not in groups:
             continue
-        ids = np.arange(n) if g == "offsets" else _joint_ids(getattr(nominal, g), scale)
-        axes = ("",) if g == "offsets" else AXES[:d]
+        joint = g in ("base", "origin", "platform")             # a point that legs may share
+        ids = _joint_ids(getattr(nominal, FIELD[g]), scale) if joint else np.arange(n)
+        axes = ("",) if g in SCALAR_GROUPS else AXES[:d]
         cols = np.empty((n, len(axes)), dtype=int)
-        for joint in dict.fromkeys(ids.tolist()):               # in the order of first appearance
-            legs = tuple(int(i) + 1 for i in np.flatnonzero(ids == joint))
+        for j in dict.fromkeys(ids.tolist()):                  # in the order of first appearance
+            legs = tuple(int(i) + 1 for i in np.flatnonzero(ids == j))
             for a, axis in enumerate(axes):
-                cols[ids == joint, a] = len(labels)
+                cols[ids == j, a] = len(labels)
                 labels.append((legs, g, axis))
         columns.append(cols)
     parent = list(range(n))                                     # union-find of legs sharing a joint
@@ -222,39 +297,158 @@ def layout(nominal: Geometry, groups, scale: float) -> Layout:
     return Layout(labels, np.concatenate(columns, axis=1), component)
 
 
-def _residuals_jacobian(geometry: Geometry, meas: Measurements, groups):
-    """Residuals (n, m) and the per-leg Jacobian blocks (n, m, k) of the identified groups."""
-    e = _leg_vectors(geometry, meas)
+def residuals_jacobian(geometry: Geometry, meas: Measurements, groups, weights: np.ndarray):
+    """Residuals (n, m) and the per-leg Jacobian blocks (n, m, k) of the identified groups, each column
+    divided by its weight (n, k): the derivative by the parameter in length units (:func:`parameter_weights`).
+
+    With ``u_ij`` the unit vector of e_ij = p_j + R_j B_i - P_ij: dr/dA_i = dr/dorigin_i = -u_ij,
+    dr/dB_i = R_j^T u_ij, dr/drod_i = -1; dr/dcrank_i = -Rot(axis_i, q_ij)^T u_ij; dr/daxis_i =
+    -q_ij (I - a_i a_i^T) u_ij (a unit vector: its length is no parameter); dr/do_i = -1 for a length leg,
+    -u_ij . dP_i/dq otherwise (revolute: dP/dq = axis x Rot crank; prismatic: the axis)."""
+    P, dP, rods, q = _proximal(geometry, meas)
+    e = _leg_vectors(geometry, meas, P)
     dist = np.sqrt((e * e).sum(axis=1))                                 # (m, n)
     u = e / dist[:, None, :]
-    r = (dist - (meas.legs + geometry.offsets)).T
+    r = (dist - rods).T
+    minus_one = -np.ones((u.shape[0], 1, u.shape[2]))
     blocks = []
-    if "base" in groups:
-        blocks.append(-u)                                               # dr/dA_i = -u_ij
-    if "platform" in groups:
-        blocks.append(meas.rotation.transpose(0, 2, 1) @ u)             # dr/dB_i = R_j^T u_ij
-    if "offsets" in groups:
-        blocks.append(-np.ones((u.shape[0], 1, u.shape[2])))            # dr/do_i = -1
-    return r, np.ascontiguousarray(np.concatenate(blocks, axis=1).transpose(2, 0, 1))
+    for g in GROUPS:
+        if g not in groups:
+            continue
+        if g in ("base", "origin"):
+            blocks.append(-u)
+        elif g == "crank":
+            cos, sin = np.cos(q)[:, None, :], np.sin(q)[:, None, :]
+            if geometry.dim == 2:
+                blocks.append(-(u * cos - _perp(u) * sin))              # Rot(-q) u
+            else:
+                a = geometry.axis.T[None]
+                blocks.append(-(u * cos - np.cross(a, u, axis=1) * sin
+                                + a * (a * u).sum(axis=1, keepdims=True) * (1.0 - cos)))
+        elif g == "axis":
+            a = geometry.axis.T[None]
+            blocks.append(-q[:, None, :] * (u - a * (a * u).sum(axis=1, keepdims=True)))
+        elif g == "rod":
+            blocks.append(minus_one)
+        elif g == "platform":
+            blocks.append(meas.rotation.transpose(0, 2, 1) @ u)
+        elif dP is None:                                                # a length leg's offset
+            blocks.append(minus_one)
+        else:
+            blocks.append(-(u * dP).sum(axis=1, keepdims=True))
+    J = np.concatenate(blocks, axis=1).transpose(2, 0, 1) / weights[:, None, :]
+    return r, np.ascontiguousarray(J)
 
 
-def _vector(geometry: Geometry, groups) -> np.ndarray:
+def parameter_weights(nominal: Geometry, meas: Measurements, groups) -> np.ndarray:
+    """Each leg's parameter weights (n, k): the length a unit of the parameter moves the leg's proximal
+    point by, so that every weighted parameter is a length in the config unit and the Jacobian's columns
+    are commensurate (lengths: 1; a revolute offset: the crank's radius |crank_perp|, the arc its tip
+    moves per radian; a rail's direction: the RMS of the carriage's position q + o over the measurements,
+    how far a change of the direction moves the carriage)."""
+    n, d = nominal.base.shape
+    cols = []
+    for g in GROUPS:
+        if g not in groups:
+            continue
+        w = np.ones((n, _width(g, d)))
+        if g == "offsets" and nominal.kind == REVOLUTE:
+            c = nominal.crank
+            along = 0.0 if d == 2 else (c * nominal.axis).sum(axis=1, keepdims=True) * nominal.axis
+            w[:, 0] = np.linalg.norm(c - along, axis=1)
+        elif g == "axis":
+            w *= np.sqrt(np.mean((meas.legs + nominal.offsets) ** 2, axis=0))[:, None]
+        cols.append(w)
+    return np.concatenate(cols, axis=1)
+
+
+def gauge_vectors(geometry: Geometry, groups) -> list:
+    """Per leg, the gauge directions of the leg model among the identified ``groups``: changes of the
+    leg's parameters (natural units, the Jacobian's column order) that change no residual at any pose,
+    as (name, axis word, vector); the name is a key of :data:`~.parameters.GAUGE_TEXT`, or "unit_axis" (a
+    rail direction's length, no parameter).
+
+    * a revolute leg: its crank turned about the axis against its offset (``dcrank = axis x crank``,
+      ``do = -1``); in space, origin and crank moved oppositely along the axis;
+    * a prismatic leg: its origin moved along the rail against its offset (``dorigin = axis``,
+      ``do = -1``); the rail direction's length (``daxis = axis``);
+    * a platform that only translates: the origin (or base joint) and the platform joint moved together."""
+    labels = parameter_labels(geometry.dim, groups)
+    col = {lab: c for c, lab in enumerate(labels)}
+    d, has = geometry.dim, set(groups)
+    proximal = "origin" if geometry.actuated else "base"
+    out = []
+
+    def vector(parts):
+        v = np.zeros(len(labels))
+        for key, value in parts.items():
+            v[col[key]] = value
+        return v
+    for i in range(geometry.n_legs):
+        found = []
+
+        def add(name, axis, parts, found=found):
+            found.append((name, axis, vector(parts)))
+        if geometry.translation and {proximal, "platform"} <= has:
+            for a in AXES[:d]:
+                add("translation", a, {(proximal, a): 1.0, ("platform", a): 1.0})
+        if geometry.kind == REVOLUTE:
+            c = geometry.crank[i]
+            if {"crank", "offsets"} <= has:
+                turn = np.array([-c[1], c[0]]) if d == 2 else np.cross(geometry.axis[i], c)
+                add("crank_turn", "", {**{("crank", a): t for a, t in zip(AXES, turn)}, ("offsets", ""): -1.0})
+            if d == 3 and {"origin", "crank"} <= has:
+                a_i = geometry.axis[i]
+                add("crank_along_axis", "", {**{("origin", a): t for a, t in zip(AXES, a_i)},
+                                             **{("crank", a): -t for a, t in zip(AXES, a_i)}})
+        if geometry.kind == PRISMATIC:
+            a_i = geometry.axis[i]
+            if {"origin", "offsets"} <= has:
+                add("rail_origin", "", {**{("origin", a): t for a, t in zip(AXES, a_i)}, ("offsets", ""): -1.0})
+            if "axis" in has:
+                add("unit_axis", "", {("axis", a): t for a, t in zip(AXES, a_i)})
+        out.append(found)
+    return out
+
+
+def _gauge_basis(geometry: Geometry, groups, lay: Layout, weights: np.ndarray) -> tuple:
+    """The gauge directions in the weighted distinct parameters: (their unit vectors as columns (p, g), the
+    (leg, name, axis, unit vector) of each).  A gauge that moves a joint several legs share is none (the
+    other legs see it) and is dropped."""
+    p = lay.size
+    shared = np.array([len(legs) > 1 for legs, _, _ in lay.labels])
+    vectors, named = [], []
+    for i, found in enumerate(gauge_vectors(geometry, groups)):
+        for name, axis, v in found:
+            full = np.zeros(p)
+            full[lay.index[i]] = v * weights[i]
+            if np.any(shared[full != 0.0]):
+                continue
+            full /= np.linalg.norm(full)
+            vectors.append(full)
+            named.append((i + 1, name, axis, full))
+    return (np.array(vectors).T if vectors else np.zeros((p, 0))), named
+
+
+def parameter_vector(geometry: Geometry, groups) -> np.ndarray:
     """Each leg's identified parameters, (n, k)."""
-    parts = [getattr(geometry, g) for g in GROUPS if g in groups]
+    parts = [getattr(geometry, FIELD[g]) for g in GROUPS if g in groups]
     return np.concatenate([p if p.ndim == 2 else p[:, None] for p in parts], axis=1)
 
 
-def _with_vector(geometry: Geometry, theta: np.ndarray, groups) -> Geometry:
+def with_parameters(geometry: Geometry, theta: np.ndarray, groups) -> Geometry:
+    """``geometry`` with the identified parameters ``theta`` (n, k); a rail direction normalised."""
     g = geometry.copy()
     d, col = g.dim, 0
-    if "base" in groups:
-        g.base = theta[:, col:col + d].copy()
-        col += d
-    if "platform" in groups:
-        g.platform = theta[:, col:col + d].copy()
-        col += d
-    if "offsets" in groups:
-        g.offsets = theta[:, col].copy()
+    for group in GROUPS:
+        if group not in groups:
+            continue
+        w = _width(group, d)
+        value = theta[:, col:col + w].copy()
+        if group == "axis":
+            value /= np.linalg.norm(value, axis=1, keepdims=True)
+        setattr(g, FIELD[group], value[:, 0] if group in SCALAR_GROUPS else value)
+        col += w
     return g
 
 
@@ -270,15 +464,27 @@ def _assemble(blocks: np.ndarray, index: np.ndarray, p: int) -> np.ndarray:
     return out
 
 
-def _spectra(N: np.ndarray, lay: Layout) -> list:
-    """(parameters, singular values ascending, right singular vectors as columns) of each component's
-    block of J: from the eigen-decomposition of its normal matrix (small: k parameters per leg), so
-    that a direction never mixes legs that share nothing."""
+def _spectra(N: np.ndarray, lay: Layout, gauge: np.ndarray) -> list:
+    """(parameters, singular values ascending, right singular vectors as columns, gauge basis) of each
+    component's block of J, over the complement of the gauge directions (``gauge``: unit columns, the
+    model's own null space, left at nominal and reported apart): from the eigen-decomposition of the
+    normal matrix restricted to that complement (small: k parameters per leg), so that a direction never
+    mixes legs that share nothing."""
     out = []
     for c in dict.fromkeys(lay.component.tolist()):
         sub = np.flatnonzero(lay.component == c)
-        lam, V = np.linalg.eigh(N[np.ix_(sub, sub)])
-        out.append((sub, np.sqrt(np.maximum(lam, 0.0)), V))
+        vectors = gauge[sub][:, np.any(gauge[sub] != 0.0, axis=0)]
+        Nc = N[np.ix_(sub, sub)]
+        G = vectors
+        if vectors.shape[1]:
+            U, sv, _ = np.linalg.svd(vectors, full_matrices=True)
+            rank = int(np.sum(sv > GAUGE_RTOL * sv[0]))
+            G, Q = U[:, :rank], U[:, rank:]              # the gauges' span (orthonormal) and its complement
+            lam, W = np.linalg.eigh(Q.T @ Nc @ Q)
+            V = Q @ W
+        else:
+            lam, V = np.linalg.eigh(Nc)
+        out.append((sub, np.sqrt(np.maximum(lam, 0.0)), V, G))
     return out
 
 
@@ -289,7 +495,7 @@ def _kept(spectra: list, M: np.ndarray, s_max: float, se_limit: float, cap=None)
     ``cap[c]`` directions of component c are left (the largest standard errors first), never fewer than
     those at round-off."""
     out = []
-    for c, (sub, s, V) in enumerate(spectra):
+    for c, (sub, s, V, _) in enumerate(spectra):
         seen = s > RANK_RTOL * s_max
         se = np.full(len(s), math.inf)
         Vs = V[:, seen]
@@ -307,17 +513,18 @@ def _kept(spectra: list, M: np.ndarray, s_max: float, se_limit: float, cap=None)
 def _pinv(spectra: list, p: int, kept: list) -> np.ndarray:
     """N^+ over the kept directions: ``sum_k v_k v_k^T / sigma_k^2`` (the truncated SVD's)."""
     out = np.zeros((p, p))
-    for (sub, s, V), (_, keep) in zip(spectra, kept):
+    for (sub, s, V, _), (_, keep) in zip(spectra, kept):
         out[np.ix_(sub, sub)] = (V[:, keep] / s[keep] ** 2) @ V[:, keep].T
     return out
 
 
-def _cost_roundoff(r: np.ndarray, meas: Measurements, scale: float) -> np.ndarray:
+def _cost_roundoff(r: np.ndarray, meas: Measurements, geometry: Geometry, scale: float) -> np.ndarray:
     """How much each leg's sum of squares may rise by round-off alone, (n,): a residual is the
-    difference of two lengths of the order of the leg (|e_ij| and l_ij + o_i), exact to
-    ``d_ij = ROUNDOFF_ULPS eps (l_ij + scale)``, so its square moves by up to ``2 |r_ij| d_ij + d_ij^2``
-    (far above the sum's own rounding when the residuals are small beside the legs)."""
-    d = ROUNDOFF_ULPS * EPS * (meas.legs.T + scale)
+    difference of two lengths of the order of the leg (|e_ij| and the rod, l_ij + o_i for a length leg),
+    exact to ``d_ij = ROUNDOFF_ULPS eps (rod_ij + scale)``, so its square moves by up to
+    ``2 |r_ij| d_ij + d_ij^2`` (far above the sum's own rounding when the residuals are small beside the legs)."""
+    rods = meas.legs.T if geometry.kind == LENGTH else geometry.rods[:, None]
+    d = ROUNDOFF_ULPS * EPS * (np.abs(rods) + scale)
     return np.einsum("nm,nm->n", 2.0 * np.abs(r) + d, d)
 
 
@@ -329,33 +536,47 @@ def _normal(J: np.ndarray, r: np.ndarray, lay: Layout):
             _assemble(np.einsum("nmk,nm->nk", J, r), lay.index, lay.size))
 
 
-def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float | None = None) -> Identification:
+def _leg_dof(m: int, k: int, lay: Layout, gauge: np.ndarray) -> np.ndarray:
+    """Each leg's residual degrees of freedom: measurements less the parameters the data can see (its
+    k parameters less its gauge directions)."""
+    g = np.array([np.linalg.matrix_rank(gauge[lay.index[i]]) if gauge.shape[1] else 0
+                  for i in range(lay.index.shape[0])])
+    return m - (k - g)
+
+
+def identify(nominal: Geometry, meas: Measurements, groups=None, scale: float | None = None) -> Identification:
     """Least-squares geometry from ``meas``, starting from ``nominal``; only ``groups`` (a subset of
-    :data:`GROUPS`) are estimated, the others stay as in ``nominal``; joints that coincide in
-    ``nominal`` stay one joint; directions the data do not identify stay at nominal (truncated SVD,
-    see the module's docstring).  ``scale``: the geometry's size (config unit) for the thresholds
-    (default: the largest extent of the base joints)."""
-    groups = tuple(g for g in GROUPS if g in groups)
+    :data:`GROUPS`; default: every group of the legs' kind) are estimated, the others stay as in
+    ``nominal``; joints that coincide in ``nominal`` stay one joint; directions the data do not identify
+    and the leg model's gauge directions stay at nominal (truncated SVD, see the module's docstring).
+    ``scale``: the geometry's size (config unit) for the thresholds (default: the largest extent of the
+    base joints)."""
+    own = kind_groups(nominal.kind)
+    groups = tuple(g for g in own if groups is None or g in groups)
     if not groups:
         raise ValueError("nothing to identify")
     scale = float(scale if scale is not None else np.ptp(nominal.base, axis=0).max())
     se_limit = UNIDENTIFIABLE_SE_SHARE * scale
     lay = layout(nominal, groups, scale)
+    weights = parameter_weights(nominal, meas, groups)
+    w = np.empty(lay.size)
+    w[lay.index] = weights
     theta = np.empty(lay.size)
-    theta[lay.index] = _vector(nominal, groups)
-    geometry = _with_vector(nominal, theta[lay.index], groups)
+    theta[lay.index] = parameter_vector(nominal, groups)
+    geometry = with_parameters(nominal, theta[lay.index], groups)
     leg_component = lay.component[lay.index[:, 0]]
     components = np.unique(lay.component)
     k = lay.index.shape[1]
-    r, J = _residuals_jacobian(geometry, meas, groups)
+    r, J = residuals_jacobian(geometry, meas, groups, weights)
+    gauge, _ = _gauge_basis(geometry, groups, lay, weights)
     cost = np.einsum("nm,nm->n", r, r)
-    dof = max(len(meas) - k, 1)
+    dof = np.maximum(_leg_dof(len(meas), k, lay, gauge), 1)
     converged, iterations, left = False, 0, None
     for iterations in range(1, MAX_ITERATIONS + 1):  # noqa: B007 - the count is reported after the loop
         JtJ, N, G = _normal(J, r, lay)
-        spectra = _spectra(N, lay)
+        spectra = _spectra(N, lay, gauge)
         M = _assemble((cost / dof)[:, None, None] * JtJ, lay.index, lay.size)     # the current noise s_i^2
-        kept = _kept(spectra, M, max(float(s.max()) for _, s, _ in spectra), se_limit, left)
+        kept = _kept(spectra, M, max(float(s.max()) for _, s, _, _ in spectra), se_limit, left)
         now = [int(np.sum(~keep)) for _, keep in kept]
         step = -_pinv(spectra, lay.size, kept) @ G          # Gauss-Newton, truncated: -(J^T J)_k^+ J^T r
         predicted = np.einsum("nmk,nk->nm", J, step[lay.index])     # J d: the step's change of the residuals
@@ -365,60 +586,77 @@ def identify(nominal: Geometry, meas: Measurements, groups=GROUPS, scale: float 
             converged = True
             break
         left = now
-        allowed = cost + _cost_roundoff(r, meas, scale)
+        allowed = cost + _cost_roundoff(r, meas, geometry, scale)
         allowed_c = np.array([allowed[leg_component == c].sum() for c in components])
-        trial = theta + step
+        trial = theta + step / w                            # the step in the parameters' own units
         for _ in range(MAX_HALVINGS):
-            r_trial = leg_residuals(_with_vector(geometry, trial[lay.index], groups), meas).T
+            r_trial = leg_residuals(with_parameters(geometry, trial[lay.index], groups), meas).T
             cost_leg = np.einsum("nm,nm->n", r_trial, r_trial)
             worse = components[~(np.array([cost_leg[leg_component == c].sum() for c in components]) <= allowed_c)]
             if not worse.size:
                 break
             halve = np.isin(lay.component, worse)            # only where a component's sum of squares rose
             step[halve] *= 0.5
-            trial[halve] = theta[halve] + step[halve]
+            trial[halve] = theta[halve] + step[halve] / w[halve]
         else:
             break                            # no descent left along the Gauss-Newton direction
-        theta = trial
-        geometry = _with_vector(geometry, theta[lay.index], groups)
-        r, J = _residuals_jacobian(geometry, meas, groups)
+        geometry = with_parameters(geometry, trial[lay.index], groups)
+        theta[lay.index] = parameter_vector(geometry, groups)        # a rail direction back to unit length
+        r, J = residuals_jacobian(geometry, meas, groups, weights)
+        gauge, _ = _gauge_basis(geometry, groups, lay, weights)
         cost = np.einsum("nm,nm->n", r, r)
-    return _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left)
+    return _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left, weights)
 
 
-def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left) -> Identification:
+def _statistics(nominal, geometry, theta, lay, r, J, groups, scale, iterations, converged, left,
+                weights) -> Identification:
     """Standard errors (sandwich ``N_k^+ M N_k^+`` over the kept directions, with ``M = sum_i s_i^2
     J_i^T J_i``: each leg with its own noise; for legs that share nothing and nothing left at nominal
-    this is ``s_i^2 (J_i^T J_i)^-1``), the identifiability of every direction, the observability."""
+    this is ``s_i^2 (J_i^T J_i)^-1``), the identifiability of every direction, the gauge directions, the
+    observability.  Standard errors and parameters in their own units (a weighted one divided by its
+    weight); directions in the weighted parameters (lengths)."""
     n, m, k = J.shape
-    dof = m - k
-    resid_std = np.sqrt(np.einsum("nm,nm->n", r, r) / dof) if dof > 0 else np.full(n, math.nan)
+    gauge, named_gauges = _gauge_basis(geometry, groups, lay, weights)
+    dof = _leg_dof(m, k, lay, gauge)
+    resid_std = np.where(dof > 0, np.sqrt(np.einsum("nm,nm->n", r, r) / np.maximum(dof, 1)), math.nan)
     JtJ, N, _ = _normal(J, r, lay)
     M = _assemble(resid_std[:, None, None] ** 2 * JtJ, lay.index, lay.size)
-    spectra = _spectra(N, lay)
-    s_all = np.sort(np.concatenate([s for _, s, _ in spectra]))
+    spectra = _spectra(N, lay, gauge)
+    s_all = np.sort(np.concatenate([s for _, s, _, _ in spectra]))
     s_max = float(s_all[-1])
     se_limit = UNIDENTIFIABLE_SE_SHARE * scale
     kept = _kept(spectra, M, s_max, se_limit, left)
     Np = _pinv(spectra, lay.size, kept)
-    se = np.sqrt(np.maximum(np.diag(Np @ M @ Np), 0.0))
+    w = np.empty(lay.size)
+    w[lay.index] = weights
+    se = np.sqrt(np.maximum(np.diag(Np @ M @ Np), 0.0)) / w
     fixed_share = np.zeros(lay.size)
-    for (sub, _, V), (_, keep) in zip(spectra, kept):
-        fixed_share[sub] = np.sum(V[:, ~keep] ** 2, axis=1)
+    for (sub, _, V, G), (_, keep) in zip(spectra, kept):
+        fixed_share[sub] = np.sum(V[:, ~keep] ** 2, axis=1) + np.sum(G ** 2, axis=1)
     theta0 = np.empty(lay.size)
-    theta0[lay.index] = _vector(nominal, groups)
-    params = [Parameter(legs, g, a, float(theta0[j]), float(theta[j]), float(se[j]), float(fixed_share[j]))
+    theta0[lay.index] = parameter_vector(nominal, groups)
+    params = [Parameter(legs, g, a, float(theta0[j]), float(theta[j]), float(se[j]), float(fixed_share[j]),
+                        quantity(geometry, g))
               for j, (legs, g, a) in enumerate(lay.labels)]
     s_min = float(s_all[0])
     cond = s_max / s_min if s_min > 0 else math.inf
     per_pose = s_all / math.sqrt(m)
     o1 = float(np.exp(np.mean(np.log(per_pose)))) if per_pose[0] > 0 else 0.0
     unident, weak = [], []
-    for (sub, s, V), (dir_se, keep) in zip(spectra, kept):
+    for (sub, s, V, _), (dir_se, keep) in zip(spectra, kept):
         for c in range(len(s)):
             if not keep[c] or dir_se[c] > WEAK_SE_SHARE * scale:
                 d = describe_direction(V[:, c], [lay.labels[j] for j in sub], float(s[c]) / math.sqrt(m),
                                        float(dir_se[c]), geometry.dim, rank_deficient=not s[c] > RANK_RTOL * s_max)
                 (weak if keep[c] else unident).append(d)
-    return Identification(geometry, params, resid_std, cond, unident, weak, iterations, converged,
-                          Observability(per_pose, o1, float(per_pose[0]), cond), se_limit)
+    gauges = []
+    for leg, name, axis, v in named_gauges:
+        if name == "unit_axis":                 # a unit vector's length: no parameter, nothing to report
+            continue
+        components = {Parameter(lay.labels[j][0], lay.labels[j][1], lay.labels[j][2], 0.0, 0.0, 0.0).name:
+                      float(v[j]) for j in np.flatnonzero(v)}
+        gauges.append(gauge_direction(name, leg, axis, components))
+    result = Identification(geometry, params, resid_std, cond, unident, weak, iterations, converged,
+                            Observability(per_pose, o1, float(per_pose[0]), cond), se_limit)
+    result.gauges = gauges
+    return result

@@ -6,9 +6,11 @@ an entry is its key's line at column 0 and the lines after it that are indented,
 (a block sequence at the key's indentation) or are blank.  A block list keeps its key line (with
 its comment) and the first item's indentation; a flow list (``key: [[..], ..]``) stays a flow list
 with its comment; comments on the old items go with them.  ``leg_offsets``, when CONFIG has none,
-goes after ``platform`` with a comment saying what it is.  Everything else -- other keys, comments,
-blank lines, order -- is CONFIG's text unchanged, and a header comment says what was calibrated.
-The result is parsed again and checked against the values it should hold.
+goes after ``platform`` with a comment saying what it is.  An actuated family's per-leg entries (``origin``,
+``crank``, ``axis``, ``rod``, ``platform`` of each item of ``legs``) are rewritten in place, each on its
+own line with its comment; its ``actuator_offsets`` goes after ``legs`` when CONFIG has none.  Everything
+else -- other keys, comments, blank lines, order -- is CONFIG's text unchanged, and a header comment says
+what was calibrated.  The result is parsed again and checked against the values it should hold.
 """
 from __future__ import annotations
 
@@ -73,34 +75,99 @@ def _rewrite(lines: list, start: int, end: int, key: str, value) -> list:
     return [lines[start]] + [f"{indent}- {_row(r)}" for r in arr]
 
 
-def edit_config(text: str, values: dict, header: list, offsets_comment: list) -> str:
-    """CONFIG's ``text`` with the entries in ``values`` (key -> array) rewritten, ``header`` comment
-    lines first; ``offsets_comment`` goes above a ``leg_offsets`` entry that CONFIG did not have."""
+def _scalar_or_flow(value) -> str:
+    arr = np.asarray(value, dtype=float)
+    return _number(arr) if arr.ndim == 0 else _flow(arr)
+
+
+def _leg_items(lines: list, start: int, end: int) -> list:
+    """(first line, end line exclusive) of each item of the block list ``legs`` spanning lines
+    [start, end): an item starts at a ``-`` at the first item's indentation."""
+    starts = []
+    indent = None
+    for k in range(start + 1, end):
+        stripped = lines[k].lstrip()
+        if not stripped.startswith("-"):
+            continue
+        here = len(lines[k]) - len(stripped)
+        if indent is None:
+            indent = here
+        if here == indent:
+            starts.append(k)
+    return [(a, b) for a, b in zip(starts, starts[1:] + [end])]
+
+
+def _edit_leg_items(lines: list, start: int, end: int, per_leg: dict) -> list:
+    """The lines [start, end) of the ``legs`` entry with each item's keys in ``per_leg`` (key -> one value
+    per leg) rewritten as flow values, their comments kept."""
+    out = list(lines[start:end])
+    items = _leg_items(lines, start, end)
+    if len(items) != len(next(iter(per_leg.values()))):
+        raise RuntimeError("NEW.yaml: the 'legs' list is not one block item per leg")
+    for key, values in per_leg.items():
+        pattern = re.compile(r"^(\s*(?:-\s+)?)" + key + r"\s*:(.*)$")
+        for (a, b), value in zip(items, values):
+            k = next((k for k in range(a, b) if pattern.match(lines[k])), None)
+            if k is None:
+                raise RuntimeError(f"NEW.yaml: a leg has no '{key}' line to rewrite")
+            m = pattern.match(lines[k])
+            val, comment = _split_comment(m.group(2))
+            if not val.strip():
+                raise RuntimeError(f"NEW.yaml: a leg's '{key}' is not a flow value")
+            new = f"{m.group(1)}{key}: {_scalar_or_flow(value)}"
+            if comment:                     # at its old column where the new value leaves room
+                column = len(lines[k]) - len(comment)
+                new = new.ljust(column) if len(new) + 2 <= column else f"{new}  "
+                new += comment.strip()
+            out[k - start] = new
+    return out
+
+
+def edit_config(text: str, values: dict, header: list, offsets_comment: list, per_leg: dict | None = None,
+                after: str = "platform") -> str:
+    """CONFIG's ``text`` with the top-level entries in ``values`` (key -> array) and the ``legs`` items'
+    entries in ``per_leg`` (key -> one value per leg) rewritten, ``header`` comment lines first;
+    ``offsets_comment`` goes above an offsets entry that CONFIG did not have, after the entry ``after``."""
     lines = text.splitlines()
     entries = _entries(lines)
+    if per_leg:
+        lines[entries["legs"][0]:entries["legs"][1]] = _edit_leg_items(lines, *entries["legs"], per_leg)
     # bottom-up, so that the earlier entries' line numbers stay valid
     edits = []
     for key, value in values.items():
         if key in entries:
             edits.append((*entries[key], _rewrite(lines, *entries[key], key, value)))
         else:
-            at = entries["platform"][1] if "platform" in entries else len(lines)
+            at = entries[after][1] if after in entries else len(lines)
             edits.append((at, at, [*offsets_comment, f"{key}: {_flow(value)}"]))
     for start, end, new in sorted(edits, key=lambda e: e[0], reverse=True):
         lines[start:end] = new
     return "\n".join([*header, *lines]) + "\n"
 
 
-def check_edit(text: str, values: dict, original: dict, scale: float) -> dict:
-    """The parsed NEW text; raises RuntimeError (a bug here) unless it holds ``values`` (to the digits written)
-    and every other key of the ``original`` document unchanged."""
+def _written(got, value, scale: float) -> bool:
+    got = np.asarray(got, dtype=float)
+    return got.shape == np.shape(value) and bool(np.allclose(got, value, rtol=10.0 ** (1 - DIGITS),
+                                                             atol=scale * 10.0 ** (1 - DIGITS)))
+
+
+def check_edit(text: str, values: dict, original: dict, scale: float, per_leg: dict | None = None) -> dict:
+    """The parsed NEW text; raises RuntimeError (a bug here) unless it holds ``values`` and ``per_leg`` (to
+    the digits written) and every other key of the ``original`` document (and of its legs) unchanged."""
     doc = yaml.safe_load(text)
     for key, value in values.items():
-        got = np.asarray(doc[key], dtype=float)
-        if got.shape != np.shape(value) or not np.allclose(got, value, rtol=10.0 ** (1 - DIGITS),
-                                                           atol=scale * 10.0 ** (1 - DIGITS)):
+        if not _written(doc[key], value, scale):
             raise RuntimeError(f"NEW.yaml: '{key}' was not written as identified")
+    per_leg = per_leg or {}
     for key, value in original.items():
-        if key not in values and doc.get(key) != value:
+        if key == "legs" and per_leg:
+            for leg, old in zip(doc[key], value):
+                if {k: v for k, v in leg.items() if k not in per_leg} != {k: v for k, v in old.items()
+                                                                            if k not in per_leg}:
+                    raise RuntimeError("NEW.yaml: a leg's other entries changed")
+        elif key not in values and doc.get(key) != value:
             raise RuntimeError(f"NEW.yaml: '{key}' changed")
+    for key, values_ in per_leg.items():
+        if not all(_written(leg[key], v, scale) for leg, v in zip(doc["legs"], values_)):
+            raise RuntimeError(f"NEW.yaml: the legs' '{key}' were not written as identified")
     return doc

@@ -175,7 +175,7 @@ class SolveLoop:
       no thread hand-off on the way from input to pose;
     * :meth:`submit`: the input goes to the mailbox and the loop's own thread (started by
       :meth:`start`) solves it -- a thread hand-off per input, which both transports avoid (the
-      rclpy adapter solves in its subscription callback through :meth:`offer`); BENCHMARKS.md
+      rclpy adapter solves in the thread that takes its input through :meth:`offer`); BENCHMARKS.md
       compares the two.
 
     Either way the newest input wins and every input replaced unsolved counts as dropped."""

@@ -7,18 +7,18 @@ descriptions and ranges), changes are validated and applied by
 through :class:`~glpma_ros.node.loops.AssemblyModesLoop`, and messages are
 converted here.  Importable only where rclpy is.
 
-Executor: a ``SingleThreadedExecutor`` (the recommended one for this node), spinning in a
-thread of its own, and the default callback group.  The input callback takes the newest input
-waiting in the subscription's queue (the ones it passes over count as dropped: the node's
-newest-input rule) and solves it right there (:meth:`SolveLoop.offer
-<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and hands it to the extras
-thread (:class:`~glpma_ros.node.loops.ExtrasLoop`), which publishes TF, covariance, twist and
-markers on the topics that have subscribers; a solve holds up the diagnostics timer and the
-parameter services for at most the time budget.
-Solving in the callback saves the thread switch per input that a solver thread would cost, and the
-executor does not compete with such a thread for the GIL; a ``MultiThreadedExecutor`` would add a
-thread pool and futures to every callback (BENCHMARKS.md, "Extra outputs and the transport path",
-measures the three).  Messages: the input is taken as bytes (``raw=True``) and read with
+Threads: the input is waited on and taken by a thread of its own
+(:class:`~glpma_ros.node.rcl_take.InputThread`: a wait set of the input subscription alone, the interpreter
+lock released while it waits), which takes the newest input waiting (the ones it passes over count as
+dropped: the node's newest-input rule) and solves it right there (:meth:`SolveLoop.offer
+<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and hands it to the extras thread
+(:class:`~glpma_ros.node.loops.ExtrasLoop`), which publishes TF, covariance, twist and markers on the
+topics that have subscribers.  A ``SingleThreadedExecutor`` spinning in a thread of its own runs the rest
+(parameters, services, the assembly-modes request, lifecycle transitions) and never waits on the input:
+rclpy's executors rebuild their wait set from every entity of the node on each wake-up, several hundred
+microseconds of Python per input on a small machine.  Solving in the thread that takes the input saves the
+thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
+path", measures the set-ups).  Messages: the input is taken as bytes (``raw=True``) and read with
 ``struct``, the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from
 the DDS twin's :class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per
 input (test_rclpy_node checks that rclpy reads those bytes as the same messages); diagnostics and
@@ -60,6 +60,7 @@ from . import qos
 from .dds import cdr
 from .loops import node_loops
 from .rcl_publish import RawPublisher
+from .rcl_take import InputThread, NotByExecutor, taken_by_input_thread
 from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput
 
@@ -162,9 +163,10 @@ class FkEndpoints:
             return self._create_publisher(msg_type, topic, qos_profile(profiles[(topic, qos.PUBLISHER)]),
                                           qos_overriding_options=QOS_OVERRIDING)
 
-        def sub(msg_type, topic, callback, raw=False):
+        def sub(msg_type, topic, callback, raw=False, callback_group=None):
             return node.create_subscription(msg_type, topic, callback, qos_profile(profiles[(topic, qos.SUBSCRIPTION)]),
-                                            qos_overriding_options=QOS_OVERRIDING, raw=raw)
+                                            qos_overriding_options=QOS_OVERRIDING, raw=raw,
+                                            callback_group=callback_group)
 
         # every output has its publisher from the start: the publish_* parameters switch them at runtime;
         # the pose and the extra outputs go out as bytes from cdr.Encoder (Publisher.publish(bytes))
@@ -190,11 +192,14 @@ class FkEndpoints:
             service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
             subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_diagnostics)
         self.modes.start()
-        # the input is taken as bytes and read with struct (cdr): no message object per input
+        # the input is taken as bytes and read with struct (cdr): no message object per input; by a thread of
+        # its own waiting on it alone (rcl_take.InputThread), not by the executor
         if values["input_type"] == P.INPUT_JOINT_STATE:     # read-only: fixed for the node's life
-            self.input_sub = sub(JointState, "joint_states", self._on_joint_state, raw=True)
+            input_type, input_name, on_input = JointState, "joint_states", self._on_joint_state
         else:
-            self.input_sub = sub(Float64MultiArray, input_topic, self._on_legs, raw=True)
+            input_type, input_name, on_input = Float64MultiArray, input_topic, self._on_legs
+        self.input_sub = sub(input_type, input_name, taken_by_input_thread, raw=True, callback_group=NotByExecutor())
+        self.input_thread = InputThread(self.input_sub, node.context, on_input).start()
         self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
         # /diagnostics from a thread of its own, off the executor's (ReportLoop)
         self.reports.start()
@@ -210,34 +215,21 @@ class FkEndpoints:
             self._destroy_publisher(publisher)
         self._publishers_opened, self._extra_pubs, self.extra_writers, self.service = [], {}, {}, None
 
-    def _newest(self, msg):
-        """The newest input waiting: ``msg`` or a later one still in the subscription's queue (taken
-        now, as the executor would; the ones passed over count as dropped)."""
-        sub, passed_over = self.input_sub, 0
-        while True:
-            with sub.handle:
-                taken = sub.handle.take_message(sub.msg_type, sub.raw)
-            if taken is None:
-                break
-            msg, passed_over = taken[0], passed_over + 1
+    def _taking(self, passed_over: int) -> bool:
+        """True when inputs are solved (the ``passed_over`` older ones taken with it count as dropped);
+        otherwise (an inactive lifecycle node) the input and those count as received and dropped."""
         if passed_over:
             self.service.note_dropped(passed_over)
-        return msg
-
-    def _taking(self) -> bool:
-        """True when inputs are solved; otherwise (an inactive lifecycle node) the input and the
-        ones waiting behind it are counted as received and dropped."""
         if self.active:
             return True
-        self._newest(None)
         self.service.note_dropped(1)
         return False
 
-    def _on_legs(self, data: bytes) -> None:
-        if not self._taking():
+    def _on_legs(self, data: bytes, passed_over: int) -> None:
+        """The newest input taken (:class:`~.rcl_take.InputThread`), ``passed_over``: the older ones taken with it."""
+        if not self._taking(passed_over):
             return
-        data = self._newest(data)       # the pose's stamp is the arrival of the input it answers:
-        stamp_ns = self.node.get_clock().now().nanoseconds             # taken after the newest
+        stamp_ns = self.node.get_clock().now().nanoseconds   # the pose's stamp: the arrival of its input
         try:
             legs = (cdr.float64_multi_array_data(data) if cdr.little_endian_cdr(data)
                     else tuple(deserialize_message(data, Float64MultiArray).data))
@@ -246,10 +238,9 @@ class FkEndpoints:
             return
         self.loop.offer(legs, stamp_ns)
 
-    def _on_joint_state(self, data: bytes) -> None:
-        if not self._taking():
+    def _on_joint_state(self, data: bytes, passed_over: int) -> None:
+        if not self._taking(passed_over):
             return
-        data = self._newest(data)
         try:
             if cdr.little_endian_cdr(data):
                 stamp_ns, names, positions, velocities = cdr.joint_state_fields(data)
@@ -328,6 +319,7 @@ class FkEndpoints:
         if self._stopped:
             return
         self._stopped = True
+        self.input_thread.stop()
         self.reports.stop()
         self.loop.stop()
         self.modes.stop()
@@ -341,6 +333,7 @@ class FkEndpoints:
             self.stop()
         elif not self._stopped:     # the context is gone: no logging through rosout any more
             self._stopped = True
+            self.input_thread.stop()
             self.reports.stop()
             self.loop.stop()
             self.modes.stop()
