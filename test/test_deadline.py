@@ -299,11 +299,13 @@ def test_the_collector_hold_nests_and_restores():
                 gc.enable()
             else:
                 gc.disable()
-            with hold:
-                assert not gc.isenabled()
-                with hold:
-                    assert not gc.isenabled()
-                assert not gc.isenabled()
+            hold.acquire()
+            assert not gc.isenabled()
+            hold.acquire()
+            assert not gc.isenabled()
+            hold.release()
+            assert not gc.isenabled()
+            hold.release()
             assert gc.isenabled() == before
     finally:
         if enabled:

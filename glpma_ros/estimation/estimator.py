@@ -347,8 +347,11 @@ class Estimator:
         collector is held off until the estimate returns (:data:`~glpma_ros.runtime.collector.HOLD`):
         its pauses, between two clock checks, are not bounded by the deadline."""
         t0 = time.perf_counter()
-        with HOLD:
+        HOLD.acquire()
+        try:
             return self._estimate(legs, t0)
+        finally:
+            HOLD.release()
 
     def _estimate(self, legs, t0: float) -> Estimate:
         model = self.model

@@ -6,10 +6,12 @@ cannot see it coming.  One such collection pauses the thread for 0.1-0.7 ms (mea
 2-core machine, a young generation's collection in a process with Numba and SciPy loaded): more than a
 compiled call's time, so a solve that checked its clock in time still returned that much late.
 
-:data:`HOLD` (``with HOLD:``) disables the collector for the duration of a solve and enables it again
-afterwards if it was enabled before; the garbage of the solve is collected after it returns, on the
-caller's time (the node's time between two inputs).  Nested holds (the Estimator around its solvers)
-and holds on several threads at once keep the collector off until the last one ends."""
+:data:`HOLD` disables the collector for the duration of a solve (``HOLD.acquire()``, then
+``HOLD.release()`` in a ``finally``) and enables it again afterwards if it was enabled before; the garbage
+of the solve is collected after it returns, on the caller's time (the node's time between two inputs).
+Nested holds (the Estimator around its solvers) and holds on several threads at once keep the collector
+off until the last one ends.  ``acquire`` allocates no object before the collector is off (a ``with``
+statement would: its bound ``__enter__`` and ``__exit__``, and an allocation can start a collection)."""
 from __future__ import annotations
 
 import gc
@@ -17,27 +19,29 @@ import threading
 
 
 class CollectorHold:
-    """A context manager that keeps the cyclic garbage collector disabled while any holder is inside it."""
+    """Keeps the cyclic garbage collector disabled while any holder holds it."""
 
     def __init__(self):
         self._lock = threading.Lock()
         self._holders = 0
         self._was_enabled = False
 
-    def __enter__(self):
-        with self._lock:
-            if self._holders == 0:
-                self._was_enabled = gc.isenabled()
-                gc.disable()
-            self._holders += 1
-        return self
+    def acquire(self) -> None:
+        """Hold the collector off (every call is matched by one :meth:`release`)."""
+        self._lock.acquire()
+        if self._holders == 0:
+            self._was_enabled = gc.isenabled()
+            gc.disable()
+        self._holders += 1
+        self._lock.release()
 
-    def __exit__(self, *exc):
-        with self._lock:
-            self._holders -= 1
-            if self._holders == 0 and self._was_enabled:
-                gc.enable()
-        return False
+    def release(self) -> None:
+        """End one hold; the last one restores the collector as the first found it."""
+        self._lock.acquire()
+        self._holders -= 1
+        if self._holders == 0 and self._was_enabled:
+            gc.enable()
+        self._lock.release()
 
 
 #: the one hold every solve under a deadline takes (the collector is one per process)

@@ -1,6 +1,5 @@
 """Solvers: one module per algorithm, one result type (:class:`SolveResult`)."""
 
-import contextlib
 import time
 
 from ..runtime.collector import HOLD
@@ -50,9 +49,13 @@ def solve(name, model, legs, **kwargs):
     (options of :data:`OPTIONS`; ``None`` keeps the default).  ``budget_s`` counts from this call:
     the settings and the solver's setup are inside it."""
     start = time.perf_counter()
-    # under a deadline the garbage collector waits until the solve returns (runtime.collector)
-    with HOLD if kwargs.get("budget_s") is not None else contextlib.nullcontext():
+    if kwargs.get("budget_s") is None:
         return _solve(name, model, legs, start, kwargs)
+    HOLD.acquire()          # under a deadline the garbage collector waits until the solve returns
+    try:
+        return _solve(name, model, legs, start, kwargs)
+    finally:
+        HOLD.release()
 
 
 def _solve(name, model, legs, start, kwargs):

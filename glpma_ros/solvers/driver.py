@@ -3,7 +3,6 @@ between which the wall clock is checked, the refinement is scheduled and the
 history of the best fitness is recorded."""
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 
@@ -108,9 +107,15 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     Under a deadline Python's garbage collector is held off until the search returns
     (:data:`~glpma_ros.runtime.collector.HOLD`): its pauses, between two clock checks, are not bounded by them.
     """
-    with HOLD if budget_s is not None else contextlib.nullcontext():
+    if budget_s is None:
         return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
                        budget_s=budget_s, polish=polish, center=center, start=start)
+    HOLD.acquire()
+    try:
+        return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
+                       budget_s=budget_s, polish=polish, center=center, start=start)
+    finally:
+        HOLD.release()
 
 
 def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center, start):
