@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 from glpma_ros import solvers
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.node import realtime
+from glpma_ros.runtime import precompile
 from glpma_ros.solvers.lm import LEG_RTOL
 from glpma_tools import timing
 from glpma_tools.sim import trajectories as traj
@@ -246,6 +247,12 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
         cases.append((f"{sc.label}, legs without an assembly, told by a pair's loop bounds", f"{sc.label} told", told))
         cells += [(f"{case} (Estimator: GLPMA, cold)", short, "Estimator", b, cold(sc.model, legs, b))
                   for case, short, legs in cases for b in budgets_ms]
+    # every compiled path a cell may take loaded before any is timed, as the node's warm-up does: a kernel's first
+    # use loads it from Numba's cache, tens of milliseconds inside the solve that happens to need it first (the
+    # cells' own warm-up stops after a few quick calls, which need not take every path)
+    for sc in scenarios:
+        for name in dict.fromkeys([*(names or solvers.SOLVERS), *(est.solver for _, est in estimators)]):
+            precompile.exercise(sc.model, name)
     rows = []
     for load in loads:
         fifo = load == LOADS[2]
