@@ -2,6 +2,7 @@
 Delta (translation, closed form), the 6-RUS and 6-PUS (full pose), the planar 3-RRR and 3-PRR."""
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -235,6 +236,23 @@ def test_bad_carriage_readings_are_rejected_in_the_config_unit(family, reading, 
     model = family_model(family)
     with pytest.raises(InputError, match=message.replace("[", r"\[").replace("]", r"\]")):
         model.legs_from_sensors(reading)
+
+
+@pytest.mark.parametrize("family", sorted(ALL_FAMILIES))
+def test_si_readings_are_the_config_unit_readings(family):
+    """The node's input (radians; metres for a rail) converted in one compiled call is the leg vector of the
+    readings in the config's units, and a bad one gets the same reason."""
+    model = family_model(family)
+    q = model.example_actuator_positions
+    si = model.readings_to_si(q)
+    # the same divisions, up to the round trip through metres (a few units in the last place)
+    np.testing.assert_allclose(model.legs_from_si(si), model.legs_from_sensors(q), rtol=1e-14, atol=0.0)
+    np.testing.assert_allclose(model.legs_from_si(si.tolist()), model.legs_from_si(si), rtol=1e-15, atol=0.0)
+    for bad in (si[:-1], np.r_[si[:-1], math.nan], np.r_[si[:-1], 1e3]):
+        with pytest.raises(InputError) as expected:
+            model.legs_from_sensors(model.readings_from_si(bad))
+        with pytest.raises(InputError, match=re.escape(str(expected.value))):
+            model.legs_from_si(bad)
 
 
 def test_cli_solve_and_solve_all(delta):

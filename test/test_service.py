@@ -133,12 +133,31 @@ def test_bad_configuration_is_a_one_line_error(tmp_path):
         FkService({"manipulator_config": str(RPR_YAML), "initial_pose": [1.0, 2.0]})
 
 
+#: a mode other than the one initial_pose names is farther than this share of the scale from it (the shipped
+#: initial poses are the tracked mode, written to 1e-3 mm or closer)
+OTHER_MODE_SHARE = 1e-2
+
+
 def test_shipped_params_files_are_valid():
-    for name in ("params_3rpr.yaml", "params_hexapod.yaml"):
+    """Every shipped params file loads without a warning, starts the service on its manipulator and answers
+    the config's example input (the leg lengths, or the actuator readings in radians / metres) with the
+    mode its initial_pose names."""
+    names = sorted(p.name for p in CONFIG.glob("params_*.yaml"))
+    assert {"params_3rpr.yaml", "params_hexapod.yaml", "params_delta.yaml", "params_rus6.yaml",
+            "params_linear_delta.yaml", "params_pus6.yaml"} <= set(names)
+    for name in names:
         values, warnings = P.resolve(ros_args.load_params_file(str(CONFIG / name)))
-        assert not warnings
-        svc = FkService(values)
-        assert svc.model.n_vars == len(values["initial_pose"])
+        assert not warnings, (name, warnings)
+        svc = FkService(dict(values, time_budget_ms=GENEROUS_BUDGET_MS))   # correctness here, not speed
+        model = svc.model
+        assert model.n_vars == len(values["initial_pose"])
+        if getattr(model, "actuated", False):
+            reading = model.readings_to_si(model.example_actuator_positions)
+        else:
+            reading = np.asarray(model.example_leg_lengths) * model.metres_per_unit
+        out = svc.handle(reading.tolist(), 1)
+        assert out.pose is not None and out.estimate.converged, (name, out.reason)
+        assert model.distance(out.estimate.x, values["initial_pose"]) < OTHER_MODE_SHARE * model.scale, name
 
 
 # -- solving, units, stamps ------------------------------------------------------------------------------

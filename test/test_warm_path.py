@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from conftest import CONFIG
+from glpma_ros.config import load_manipulator
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models import linalg, pose_kernels
 from glpma_ros.models.hexapod_66 import kabsch, quaternion_from_matrix, rotation_from_vector
@@ -99,6 +101,46 @@ def test_jacobi_svd_equals_numpy():
             np.testing.assert_allclose(np.sort(s)[::-1], expected, rtol=0, atol=1e-14 * expected[0])
             np.testing.assert_allclose(V.T @ V, np.eye(n), atol=1e-14)
             np.testing.assert_allclose(A @ V, work, atol=1e-13 * expected[0])
+
+
+def test_jacobi_svd_options_keep_the_singular_values():
+    """``vectors=False`` gives the singular values alone; ``negligible`` leaves a round-off column of a
+    rank-deficient matrix alone (the Kabsch fit of three points in the plane z = 0: a zero row), with the
+    singular values and V of NumPy's SVD all the same."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        A = rng.standard_normal((6, 6))
+        full, V, s = A.copy(), np.empty((6, 6)), np.empty(6)
+        linalg.jacobi_svd(full, V, s)
+        values, V2, s2 = A.copy(), np.zeros((6, 6)), np.empty(6)
+        linalg.jacobi_svd(values, V2, s2, 0.0, False)
+        # the same rotations of A in the same order: equal to a few units in the last place
+        np.testing.assert_allclose(s2, s, rtol=1e-15, atol=0.0)
+        assert not V2.any()                                   # V untouched
+        points = np.c_[rng.standard_normal((3, 2)), np.zeros(3)]
+        targets = rng.standard_normal((3, 3))
+        H = (points - points.mean(axis=0)).T @ (targets - targets.mean(axis=0))
+        work, V3, s3 = H.copy(), np.empty((3, 3)), np.empty(3)
+        linalg.jacobi_svd(work, V3, s3, linalg.KABSCH_NEGLIGIBLE)
+        expected = np.linalg.svd(H, compute_uv=False)
+        # the columns left alone are below KABSCH_NEGLIGIBLE of |H|: far inside this tolerance
+        np.testing.assert_allclose(np.sort(s3)[::-1], expected, rtol=0, atol=1e-14 * expected[0])
+        np.testing.assert_allclose(V3.T @ V3, np.eye(3), atol=1e-14)
+        np.testing.assert_allclose(H @ V3, work, atol=1e-13 * expected[0])
+
+
+def test_kabsch_start_of_a_planar_platform_equals_the_rigid_fit():
+    """The 6-RUS's frame joints lie in the plane z = 0 of the platform (its Kabsch matrix has a zero row): the
+    compiled fit equals the model's NumPy one."""
+    model = load_manipulator(CONFIG / "rus6_simulator.yaml")
+    legs = model.legs_from_sensors(model.example_actuator_positions)
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        x = model.known_solutions[0] + rng.normal(0, 5.0, 9)
+        a = local.local_solve(model, x, legs, max_iter=0)
+        R, p = kabsch(model.frame, x.reshape(3, 3))
+        # round-off of a fit of points some 300 mm from the origin
+        np.testing.assert_allclose(a.x, (p + model.frame @ R.T).reshape(-1), atol=1e-11)
 
 
 def test_quaternions_and_rodrigues_equal_the_models(hexapod):

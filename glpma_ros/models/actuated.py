@@ -87,6 +87,8 @@ class ActuatedLegs:
         self._lo = np.full(n, -np.inf) if actuator_limits is None else np.ascontiguousarray(self.actuator_limits[:, 0])
         self._hi = np.full(n, np.inf) if actuator_limits is None else np.ascontiguousarray(self.actuator_limits[:, 1])
         self._no_offsets = np.zeros(n)
+        self._unit_divisor = np.ones(n)          # readings in the model's units (legs_from_sensors)
+        self._si = (None, None)                  # (metres_per_unit, divisor) of readings in SI (legs_from_si)
 
     # -- the leg vector --------------------------------------------------------------------------
     @property
@@ -129,6 +131,16 @@ class ActuatedLegs:
                                  f"[{lo[i]:g}, {hi[i]:g}] {self._unit(i)}")
         return arr
 
+    def _readings(self, q, divisor) -> np.ndarray | None:
+        """The leg vector of readings ``q / divisor`` (contiguous, one per leg) by one compiled call, or None
+        when a reading is not finite or outside its limits (the caller's checks then name the problem)."""
+        out = np.empty(self.leg_vector_size)
+        offsets = self._no_offsets if self.actuator_offsets is None else self.actuator_offsets
+        if readings_into(self.actuators, self.origin, self.axis, self.crank, self.rods, self._lo, self._hi, offsets,
+                         divisor, q, out) == -1:
+            return out
+        return None
+
     def legs_from_sensors(self, measured) -> np.ndarray:
         """The leg vector of the actuators' readings ``measured`` (validated: count, finite, limits; the
         config's ``actuator_offsets`` added)."""
@@ -137,13 +149,29 @@ class ActuatedLegs:
         except (TypeError, ValueError):
             q = None
         if q is not None and q.size == self.n_legs:     # the usual input: checked and converted compiled
-            out = np.empty(self.leg_vector_size)
-            offsets = self._no_offsets if self.actuator_offsets is None else self.actuator_offsets
-            if readings_into(self.actuators, self.origin, self.axis, self.crank, self.rods, self._lo, self._hi,
-                             offsets, np.ascontiguousarray(q), np.empty(self.n_legs), out) == -1:
+            out = self._readings(np.ascontiguousarray(q), self._unit_divisor)
+            if out is not None:
                 return out
         self.check_actuators(measured)                    # raises with the reason
         raise InputError("actuator positions rejected")   # not reached: the check above names the problem
+
+    def legs_from_si(self, values) -> np.ndarray:
+        """:meth:`legs_from_sensors` of :meth:`readings_from_si` (the node's input: radians, metres for
+        prismatic actuators), the usual input converted and checked in one compiled call."""
+        try:
+            q = np.ascontiguousarray(values, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            q = None
+        if q is not None and q.size == self.n_legs:
+            mpu, divisor = self._si
+            if mpu != self.metres_per_unit:         # built on first use (the config sets metres_per_unit)
+                mpu = self.metres_per_unit
+                divisor = np.where(self.actuators == PRISMATIC, mpu, 1.0)
+                self._si = (mpu, divisor)
+            out = self._readings(q, divisor)
+            if out is not None:
+                return out
+        return self.legs_from_sensors(self.readings_from_si(values))   # raises with the reason
 
     def sensors_from_legs(self, legs) -> np.ndarray:
         """What the actuators read for leg vector ``legs``: the inverse of :meth:`legs_from_sensors`."""

@@ -65,20 +65,23 @@ def leg_vector_into(kinds, origin, axis, crank, rod, q, out):
 
 
 @njit(cache=True, error_model="numpy")
-def readings_into(kinds, origin, axis, crank, rod, lo, hi, offsets, q, scratch, out):
-    """The leg vector of actuator readings ``q`` (``offsets`` added) into ``out`` when every reading is finite
-    and within ``[lo, hi]``: returns -1; else nothing written and returns -2 (a reading not finite) or the
-    index of the first reading outside its limits.  ``scratch``: ``len(q)`` floats."""
+def readings_into(kinds, origin, axis, crank, rod, lo, hi, offsets, divisor, q, out):
+    """The leg vector of actuator readings ``q / divisor`` (``divisor``: per actuator, the reading's unit in the
+    model's: 1, or the config unit in metres for a prismatic reading in metres; then ``offsets`` added) into
+    ``out`` when every reading is finite and within ``[lo, hi]``: returns -1; else nothing written and returns
+    -2 (a reading not finite) or the index of the first reading outside its limits."""
     n = q.shape[0]
+    scaled = np.empty(n)
     for i in range(n):
-        if not math.isfinite(q[i]):
+        scaled[i] = q[i] / divisor[i]
+        if not math.isfinite(scaled[i]):
             return -2
     for i in range(n):
-        if q[i] < lo[i] or q[i] > hi[i]:
+        if scaled[i] < lo[i] or scaled[i] > hi[i]:
             return i
     for i in range(n):
-        scratch[i] = q[i] + offsets[i]
-    leg_vector_into(kinds, origin, axis, crank, rod, scratch, out)
+        scaled[i] += offsets[i]
+    leg_vector_into(kinds, origin, axis, crank, rod, scaled, out)
     return -1
 
 

@@ -18,6 +18,11 @@ numba_cache.install()      # before the first compiled function (see numba_cache
 JACOBI_SWEEPS = 30
 #: two columns count as orthogonal when |a.b| <= JACOBI_TOL |a| |b| (a few units in the last place)
 JACOBI_TOL = 4e-16
+#: the Kabsch fit's matrix (three points: rank 2 at most) has a column that the sweeps drive to round-off; its
+#: direction is noise, so the test above never passes for it and the sweeps would run to JACOBI_SWEEPS.  A column
+#: shorter than this share of the matrix's Frobenius norm is left alone (rotating it would change no
+#: singular value by more than that share: a few units in the last place)
+KABSCH_NEGLIGIBLE = 1e-15
 
 
 @njit(cache=True, error_model="numpy")
@@ -69,15 +74,26 @@ def damped_solve(A, lam, g, step, L):
 
 
 @njit(cache=True, error_model="numpy")
-def jacobi_svd(A, V, s):
+def jacobi_svd(A, V, s, negligible=0.0, vectors=True):
     """One-sided Jacobi SVD (Hestenes 1958) of ``A`` (m x n, m >= n), in place: on return
     ``A = U diag(s)`` (columns) and ``A_in V = U diag(s)``; singular values unsorted.  The squared
     column norms are carried through each rotation (``alpha - t gamma``, ``beta + t gamma``) and
-    recomputed at every sweep, so a pair costs one dot product."""
+    recomputed at every sweep, so a pair costs one dot product.  ``negligible`` (a share of the Frobenius
+    norm, e.g. :data:`KABSCH_NEGLIGIBLE`; 0: none): a column shorter than that is not rotated, for a matrix
+    known to be rank deficient (the default keeps the method's high relative accuracy for every column).
+    ``vectors=False``: only the singular values are wanted (``V`` is left as it was; the rotations of ``A``, and
+    so ``s``, are the same)."""
     m, n = A.shape
-    for i in range(n):
-        for j in range(n):
-            V[i, j] = 1.0 if i == j else 0.0
+    if vectors:
+        for i in range(n):
+            for j in range(n):
+                V[i, j] = 1.0 if i == j else 0.0
+    floor = 0.0                              # squared: compared with squared column norms
+    if negligible > 0.0:
+        for i in range(n):
+            for k in range(m):
+                floor += A[k, i] * A[k, i]
+        floor *= negligible * negligible
     for _ in range(JACOBI_SWEEPS):
         for j in range(n):
             acc = 0.0
@@ -92,7 +108,7 @@ def jacobi_svd(A, V, s):
                 gamma = 0.0
                 for k in range(m):
                     gamma += A[k, p] * A[k, q]
-                if not abs(gamma) > JACOBI_TOL * math.sqrt(alpha * beta):
+                if not abs(gamma) > JACOBI_TOL * math.sqrt(alpha * beta) or min(alpha, beta) < floor:
                     continue
                 rotated = True
                 zeta = (beta - alpha) / (2.0 * gamma)
@@ -103,10 +119,11 @@ def jacobi_svd(A, V, s):
                     ap = A[k, p]
                     A[k, p] = c * ap - sn * A[k, q]
                     A[k, q] = sn * ap + c * A[k, q]
-                for k in range(n):
-                    vp = V[k, p]
-                    V[k, p] = c * vp - sn * V[k, q]
-                    V[k, q] = sn * vp + c * V[k, q]
+                if vectors:
+                    for k in range(n):
+                        vp = V[k, p]
+                        V[k, p] = c * vp - sn * V[k, q]
+                        V[k, q] = sn * vp + c * V[k, q]
                 s[p] = max(alpha - t * gamma, 0.0)
                 s[q] = max(beta + t * gamma, 0.0)
         if not rotated:

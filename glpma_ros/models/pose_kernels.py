@@ -20,7 +20,7 @@ import math
 
 from numba import njit
 
-from .linalg import jacobi_svd
+from .linalg import KABSCH_NEGLIGIBLE, jacobi_svd
 from .residuals import (
     KIND_ACTUATED_PLANAR,
     KIND_ACTUATED_SPATIAL,
@@ -233,7 +233,7 @@ def kabsch_state(platform, x, state, H, V, s):
         for a in range(3):
             for b in range(3):
                 H[a, b] += sa[a] * db[b]
-    jacobi_svd(H, V, s)                      # H_in V = U S
+    jacobi_svd(H, V, s, KABSCH_NEGLIGIBLE)   # H_in V = U S (H: rank 2, its third column round-off)
     i1 = 0
     for j in range(1, 3):
         if s[j] > s[i1]:

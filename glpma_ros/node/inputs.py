@@ -100,7 +100,7 @@ class InputConverter:
         family's actuator positions (radians, or metres for prismatic ones) as its leg vector."""
         model = self.model
         if model_is_actuated(model):
-            return model.legs_from_sensors(model.readings_from_si(self.legs_m(raw)))
+            return model.legs_from_si(self.legs_m(raw))
         try:
             legs_m = np.asarray(self.legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):

@@ -450,7 +450,7 @@ def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, 
     den = math.sqrt(jn) * math.sqrt(f)
     info[I_STATIONARITY] = math.sqrt(gn) / den if (den > 0.0 and math.isfinite(den)) else math.inf
     if math.isfinite(jn):
-        jacobi_svd(Js, V, sv)
+        jacobi_svd(Js, V, sv, 0.0, False)     # the singular values only
         smax = 0.0
         smin = math.inf
         for k in range(n_pose):
