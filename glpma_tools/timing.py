@@ -3,8 +3,10 @@
 measurement names.
 
 Each call is timed with the wall clock and flagged when another process preempted it (the
-thread's involuntary context switches grew) or Python's garbage collector ran during it: on a
-shared machine these explain most overruns, so the reports also give the figures without them."""
+thread's involuntary context switches grew), when the thread was off its core without a context switch
+(the wall clock ran ahead of the thread's CPU clock: an interrupt, or the hypervisor running another
+virtual machine) or when Python's garbage collector ran during it: on a shared machine these explain
+most overruns, so the reports also give the figures without them."""
 from __future__ import annotations
 
 import contextlib
@@ -33,6 +35,9 @@ WARM_UP_QUIET = 20
 WARM_UP_MAX_CALLS = 500
 #: evaluation cap that never ends a search before its deadline
 NO_CAP = 10**9
+#: a call whose wall time exceeds its thread's CPU time by more than this (s) was off its core: the timed
+#: calls compute and never wait, and the clocks' reads around a call differ by a few microseconds
+OFF_CORE_S = 50e-6
 
 
 def progress_bar(iterable, desc, progress: bool, total=None):
@@ -110,7 +115,8 @@ def warm_up(call, budget_ms: float, quiet: int = WARM_UP_QUIET, max_calls: int =
 
 @dataclass
 class TimedCalls:
-    """Per call: wall time (s), preempted, garbage collector ran, what the call returned."""
+    """Per call: wall time (s), preempted, garbage collector ran, what the call returned, off its core
+    (wall time more than :data:`OFF_CORE_S` over the thread's CPU time, without a context switch)."""
 
     budget_ms: float
     elapsed_s: np.ndarray
@@ -118,6 +124,7 @@ class TimedCalls:
     collected: np.ndarray
     results: list = field(default_factory=list)
     stopped_early: bool = False
+    off_core: np.ndarray | None = None
 
     @property
     def overrun_ms(self) -> np.ndarray:
@@ -144,7 +151,7 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
         if phase == "start":
             collections[0] += 1
 
-    el, pre, col, results = [], [], [], []
+    el, pre, col, off, results = [], [], [], [], []
     stopped = False
     gc.collect()
     gc.callbacks.append(on_gc)
@@ -153,9 +160,11 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
             if rest_s:
                 time.sleep(rest_s)
             c0, g0 = involuntary_switches(), collections[0]
+            cpu0 = time.thread_time()
             t0 = time.perf_counter()
             results.append(call(i))
             el.append(time.perf_counter() - t0)
+            off.append(el[-1] - (time.thread_time() - cpu0) > OFF_CORE_S)
             pre.append(involuntary_switches() > c0)
             col.append(collections[0] > g0)
             if (stop_early and i + 1 == STOP_AFTER and n > STOP_AFTER
@@ -165,7 +174,7 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
     finally:
         gc.callbacks.remove(on_gc)
     return TimedCalls(budget_ms, np.array(el), np.array(pre, dtype=bool), np.array(col, dtype=bool), results,
-                      stopped)
+                      stopped, np.array(off, dtype=bool) & ~np.array(pre, dtype=bool))
 
 
 def _version(name):

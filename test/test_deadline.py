@@ -6,8 +6,12 @@ generations); every compiled call the
 solvers and the Estimator make (population evaluations and generations, the Levenberg-Marquardt
 kernels, the round-off search's evaluations, the leave-one-out solves of redundant legs) records the
 clock when it starts.  A call that starts after the deadline is work after the deadline: none may; and
-the call returns within one compiled call of its deadline.  No wall-clock figure is asserted (the real
+the call returns within one compiled call of its deadline.  Python's garbage collector is work too: with
+its threshold lowered so that it would run at almost every allocation, each collection moves the clock by
+COLLECTION_TICK_S and none may start after the deadline.  No wall-clock figure is asserted (the real
 overruns are measured by ``glpma-fk bench``, deadline section)."""
+import gc
+
 import numpy as np
 import pytest
 
@@ -15,6 +19,7 @@ from conftest import CONFIG
 from glpma_ros import solvers
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.runtime.collector import CollectorHold
 from glpma_ros.solvers import driver, gasa, lm, local
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)
@@ -36,13 +41,33 @@ FAULT_MM = 10.0
 #: a budget on the fake clock in which the whole isolation of a faulty leg fits (7 leave-one-out solves
 #: from the previous pose, or 7 x 8 calls of the fixed starts without one, at WORK_TICK_S each)
 ISOLATION_FITS_S = 0.05
+#: what one collection of the young objects costs on the fake clock (0.1-0.7 ms measured in the bench's
+#: process, Numba and SciPy loaded)
+COLLECTION_TICK_S = 3e-4
+#: the collector's thresholds while collections are simulated: one collection of the youngest generation
+#: every second allocation of a container (the older generations never: a full collection takes
+#: tens of milliseconds of the test's real time, and the young one is what runs inside a solve)
+COLLECT_OFTEN = (1, 10**9, 10**9)
+#: budgets on the fake clock that hold a few collections and a few compiled calls
+COLLECTION_BUDGETS_S = (1e-3, 3e-3)
+#: what building a solver's result (the Python after its last compiled call) costs on the fake clock: more
+#: than the return allowance of _returned_in_time, so a solve that leaves no room for it returns late
+RESULT_TICK_S = 5e-4
 
 
 class FakeClock:
     def __init__(self):
         self.now = 1000.0
         self.starts = []            # clock at the start of each compiled call, while recording
+        self.collections = []       # clock at the start of each garbage collection, while recording one
+        self.collection_s = 0.0     # what a collection costs on this clock (0: collections are not watched)
         self.recording = False
+
+    def on_collection(self, phase, info):
+        """A ``gc.callbacks`` entry: a collection while recording is work that moves the clock."""
+        if phase == "start" and self.recording and self.collection_s:
+            self.collections.append(self.now)
+            self.now += self.collection_s
 
     def read(self):
         self.now += READ_TICK_S
@@ -60,12 +85,16 @@ class FakeClock:
         """``fn(*args, **kwargs)`` with the starts of its compiled calls recorded (afresh); returns its result
         and the clock when it was called."""
         self.starts.clear()
+        self.collections.clear()
+        if self.collection_s:
+            gc.collect(0)           # the young generation empty: no collection before ``fn`` is entered
         self.recording = True
         start = self.now
         try:
-            return fn(*args, **kwargs), start
+            result = fn(*args, **kwargs)
         finally:
-            self.recording = False
+            self.recording = False      # before building the returned pair: the caller's allocation
+        return result, start
 
 
 @pytest.fixture
@@ -90,8 +119,26 @@ def _watch_model(monkeypatch, clock, model):
     monkeypatch.setattr(model, "fitness", clock.work(model.fitness))
 
 
+@pytest.fixture
+def collector(clock):
+    """Python's garbage collector running at almost every allocation, each collection costing
+    COLLECTION_TICK_S on the fake clock."""
+    thresholds, enabled = gc.get_threshold(), gc.isenabled()
+    clock.collection_s = COLLECTION_TICK_S
+    gc.callbacks.append(clock.on_collection)
+    gc.enable()
+    gc.set_threshold(*COLLECT_OFTEN)
+    try:
+        yield clock
+    finally:
+        gc.set_threshold(*thresholds)
+        gc.callbacks.remove(clock.on_collection)
+        if not enabled:
+            gc.disable()
+
+
 def _late(clock, deadline):
-    return [round((t - deadline) * 1e6, 3) for t in clock.starts if t >= deadline]
+    return [round((t - deadline) * 1e6, 3) for t in clock.starts + clock.collections if t >= deadline]
 
 
 def _returned_in_time(end, deadline):
@@ -192,3 +239,76 @@ def test_the_isolation_of_a_faulty_leg_does_no_work_after_its_deadline(warm, clo
         found[budget] = (e.status, e.suspect_leg)
     assert found[ISOLATION_FITS_S] == ("inconsistent_legs", 3), found
     assert ("budget_exhausted", None) in found.values(), found
+
+
+@pytest.mark.parametrize("kind", ["rpr", "hexapod"])
+def test_no_garbage_collection_runs_after_a_deadline(kind, collector, monkeypatch, request):
+    """Every solver and the Estimator, cold, on legs with no real assembly (they search until the deadline),
+    with the garbage collector running at almost every allocation: a collection is a pause the clock checks
+    between compiled calls do not bound, so none may start after the deadline (nor delay a compiled call or
+    the return past it)."""
+    model = request.getfixturevalue(kind)
+    legs = np.array((RPR_CASES if kind == "rpr" else HEX_CASES)[0])
+    _watch_model(monkeypatch, collector, model)
+    for budget in COLLECTION_BUDGETS_S:
+        for name in solvers.SOLVERS:
+            _, start = collector.run(solvers.solve, name, model, legs, rng=0, budget_s=budget, max_evals=10**9)
+            deadline = start + budget
+            assert not _late(collector, deadline), (name, budget, "µs late", _late(collector, deadline))
+            assert _returned_in_time(collector.now, deadline), (name, budget, collector.now - deadline)
+        est = Estimator(model, time_budget_s=budget, max_evals=10**9)
+        e, start = collector.run(est.estimate, legs)
+        deadline = start + budget
+        assert not _late(collector, deadline), (budget, e.status, "µs late", _late(collector, deadline))
+        assert _returned_in_time(collector.now, deadline), (budget, e.status, collector.now - deadline)
+    assert gc.isenabled()       # the collector is back on after the solves
+
+
+@pytest.mark.parametrize("kind", ["rpr", "hexapod"])
+def test_a_solver_leaves_room_for_building_its_result(kind, clock, monkeypatch, request):
+    """The Python after a solver's last compiled call (its result built) costs RESULT_TICK_S on the fake clock:
+    measured by one solve, it is left room for by the next ones of that solver, which return within one
+    compiled call of their deadline."""
+    model = request.getfixturevalue(kind)
+    legs = np.array((RPR_CASES if kind == "rpr" else HEX_CASES)[0])
+    _watch_model(monkeypatch, clock, model)
+    monkeypatch.setattr(driver, "_LAST_COSTS", {})          # this test's fake costs stay in this test
+    result = driver.SolveResult
+
+    def slow_result(*args, **kwargs):
+        clock.now += RESULT_TICK_S
+        return result(*args, **kwargs)
+    monkeypatch.setattr(driver, "SolveResult", slow_result)
+    for name in solvers.SOLVERS:
+        clock.run(solvers.solve, name, model, legs, rng=0, budget_s=COLLECTION_BUDGETS_S[-1], max_evals=10**9)
+        for budget in COLLECTION_BUDGETS_S:
+            _, start = clock.run(solvers.solve, name, model, legs, rng=1, budget_s=budget, max_evals=10**9)
+            deadline = start + budget
+            assert not _late(clock, deadline), (name, budget, "µs late", _late(clock, deadline))
+            assert _returned_in_time(clock.now, deadline), (name, budget, clock.now - deadline)
+
+
+def test_the_collector_hold_nests_and_restores():
+    """Nested holds (the Estimator around its solvers) keep the collector off until the outermost ends, which
+    restores it as it found it: on, or off when the caller had turned it off."""
+    enabled = gc.isenabled()
+    hold = CollectorHold()
+    try:
+        for before in (True, False):
+            if before:
+                gc.enable()
+            else:
+                gc.disable()
+            hold.acquire()
+            assert not gc.isenabled()
+            hold.acquire()
+            assert not gc.isenabled()
+            hold.release()
+            assert not gc.isenabled()
+            hold.release()
+            assert gc.isenabled() == before
+    finally:
+        if enabled:
+            gc.enable()
+        else:
+            gc.disable()

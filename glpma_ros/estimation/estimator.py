@@ -66,6 +66,7 @@ from .. import solvers
 from ..errors import InputError
 from ..models.base import Pose
 from ..models.reach import PairBounds
+from ..runtime.collector import HOLD
 from ..solvers import lm, local
 from ..solvers.driver import POLISH_MAX_ITER
 from ..units import UNIT_TO_METRES
@@ -342,8 +343,17 @@ class Estimator:
 
     # -- solving ------------------------------------------------------------------
     def estimate(self, legs) -> Estimate:
-        """Solve one set of leg lengths (config unit); raises :class:`InputError`."""
+        """Solve one set of leg lengths (config unit); raises :class:`InputError`.  Python's garbage
+        collector is held off until the estimate returns (:data:`~glpma_ros.runtime.collector.HOLD`):
+        its pauses, between two clock checks, are not bounded by the deadline."""
         t0 = time.perf_counter()
+        HOLD.acquire()
+        try:
+            return self._estimate(legs, t0)
+        finally:
+            HOLD.release()
+
+    def _estimate(self, legs, t0: float) -> Estimate:
         model = self.model
         if self.redundant.active:
             self.redundant.note_input()

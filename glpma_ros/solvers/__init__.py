@@ -2,6 +2,7 @@
 
 import time
 
+from ..runtime.collector import HOLD
 from . import de, g3pcx, gasa, glpma, rcga, refine, sa
 from .common import BUDGET_EXHAUSTED, CONVERGED, MAX_EVALS, SolveResult, Termination
 
@@ -48,6 +49,16 @@ def solve(name, model, legs, **kwargs):
     (options of :data:`OPTIONS`; ``None`` keeps the default).  ``budget_s`` counts from this call:
     the settings and the solver's setup are inside it."""
     start = time.perf_counter()
+    if kwargs.get("budget_s") is None:
+        return _solve(name, model, legs, start, kwargs)
+    HOLD.acquire()          # under a deadline the garbage collector waits until the solve returns
+    try:
+        return _solve(name, model, legs, start, kwargs)
+    finally:
+        HOLD.release()
+
+
+def _solve(name, model, legs, start, kwargs):
     if name not in SOLVERS:
         raise ValueError(f"unknown solver {name!r}; choose one of {', '.join(SOLVERS)}")
     unknown = sorted(set(kwargs) - OPTIONS[name])

@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from ..models.kernels import population_fitness
+from ..runtime.collector import HOLD
 from . import refine
 from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population
 
@@ -54,6 +55,9 @@ class EvolutionaryState:
         self.pop = np.ascontiguousarray(pop, dtype=float)
         self.fit = np.ascontiguousarray(fit, dtype=float)
         self.rng = rng
+        #: the ``time.perf_counter()`` value by which the compiled calls of a chunk must end (the deadline less
+        #: the Python that follows the last one), set by the driver before each chunk; None: no deadline
+        self.work_deadline = None
 
     def best(self):
         i = int(np.argmin(self.fit))
@@ -97,9 +101,25 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     time per evaluation, first from the initial population's evaluation, then from every chunk) so that it
     is expected to end before the deadline; a chunk of generations takes at most :data:`CHUNK_SHARE` of the
     time left and starts only when one generation still fits, a refinement's iteration cap is cut to the
-    iterations that fit.  The search therefore returns by its deadline plus the error of that estimate on
-    one compiled call.  The first population's evaluation runs whatever the budget (a result needs a point).
+    iterations that fit, both before the deadline less the measured tail (the Python that builds the
+    result).  The search therefore returns by its deadline plus the error of that estimate on one compiled
+    call.  The first population's evaluation runs whatever the budget (a result needs a point).
+    Under a deadline Python's garbage collector is held off until the search returns
+    (:data:`~glpma_ros.runtime.collector.HOLD`): its pauses, between two clock checks, are not bounded by them.
     """
+    if budget_s is None:
+        return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
+                       budget_s=budget_s, polish=polish, center=center, start=start)
+    HOLD.acquire()
+    try:
+        return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
+                       budget_s=budget_s, polish=polish, center=center, start=start)
+    finally:
+        HOLD.release()
+
+
+def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center, start):
+    """:func:`run_evolution`'s search."""
     least_squares = polish and model.redundancy > 0
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, start=start)
     problem = Problem(model, legs)
@@ -119,7 +139,8 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED)
     c0, nfev0 = time.thread_time(), term.nfev
     state = make_state(problem, term)
-    costs.note_evals(time.thread_time() - c0, term.nfev - nfev0)
+    last_work = time.thread_time()              # the end of the last compiled call: the tail counts from it
+    costs.note_evals(last_work - c0, term.nfev - nfev0)
     if warm is not None and warm[1] < state.best()[1]:
         state.inject(warm[0], warm[1])
         last_polish_f = warm[1]
@@ -130,6 +151,7 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
         if polish and f * POLISH_GAIN < last_polish_f and term.status(f) is None:
             last_polish_f = f
             xp, fp, n, reached = costs.polish(model, x, problem.legs, rng, tolerance)
+            last_work = time.thread_time()
             if math.isfinite(fp) and (refined is None or fp < refined[1]):
                 refined = (xp, fp)
             if fp < f:
@@ -149,18 +171,23 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
             if chunk == 0:                      # not even one generation fits: stop at the deadline
                 stop = BUDGET_EXHAUSTED
                 break
+        if term.deadline is not None:
+            state.work_deadline = term.deadline - costs.tail_s
         c0, nfev = time.thread_time(), term.nfev
         gens = state.step(chunk, term)
-        costs.note_evals(time.thread_time() - c0, term.nfev - nfev)
+        last_work = time.thread_time()
+        costs.note_evals(last_work - c0, term.nfev - nfev)
         costs.on_chunks = costs.on_chunks or term.nfev > nfev
         nit += gens
         if term.nfev == nfev and term.status(state.best()[1]) is None:
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()
+    result = _result(name, model, x, f, term, nit, polished, history, refined,
+                     stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
+    costs.note_tail(time.thread_time() - last_work)
     costs.keep()
-    return _result(name, model, x, f, term, nit, polished, history, refined,
-                   stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
+    return result
 
 
 #: the costs measured by the last solve under a deadline, per solver and model (kind, legs): the next solve's
@@ -173,14 +200,16 @@ class Costs:
     """The measured cost of the compiled work under a deadline, which sizes every compiled call so that it
     is expected to end before the deadline: the thread's CPU time (``time.thread_time``: the work itself,
     not the time other processes took the core meanwhile) per evaluation of the fitness and per iteration
-    of the refinement.  Each estimate is the latest measure, or :data:`COST_DECAY` less than the previous
-    estimate when that is larger."""
+    of the refinement, and the *tail*: the Python from the end of the last compiled call to the result,
+    which the compiled work leaves room for before the deadline.  Each estimate is the latest measure, or
+    :data:`COST_DECAY` less than the previous estimate when that is larger."""
 
     def __init__(self, term: Termination, name: str, model):
         self.term = term
         self.key = (name, model.kind, model.n_legs)
         # s per fitness evaluation (0: not measured yet), s per refinement iteration (None: not measured yet)
-        self.per_eval, self.per_iteration = _LAST_COSTS.get(self.key, (0.0, None))
+        # s of Python from the end of the last compiled call to the result (0: not measured yet)
+        self.per_eval, self.per_iteration, self.tail_s = _LAST_COSTS.get(self.key, (0.0, None, 0.0))
         # the time per evaluation was measured on a chunk of generations (the initial population's evaluation
         # alone, one vectorised call, says nothing of what a generation adds around its evaluations)
         self.on_chunks = self.key in _LAST_COSTS
@@ -188,7 +217,7 @@ class Costs:
     def keep(self) -> None:
         """These estimates become the next solve's first ones."""
         if self.term.deadline is not None and self.on_chunks:
-            _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration)
+            _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration, self.tail_s)
 
     @staticmethod
     def _track(old, seconds):
@@ -198,8 +227,12 @@ class Costs:
         if evals > 0:
             self.per_eval = self._track(self.per_eval, seconds / evals)
 
+    def note_tail(self, seconds: float) -> None:
+        self.tail_s = self._track(self.tail_s, seconds)
+
     def left(self) -> float:
-        return self.term.deadline - time.perf_counter()
+        """Seconds to the deadline less the tail: what compiled work may still fill."""
+        return self.term.deadline - self.tail_s - time.perf_counter()
 
     def generations(self, state) -> int:
         """Generations of the next chunk: as many as fit in :data:`CHUNK_SHARE` of the time left (at most
@@ -221,6 +254,7 @@ class Costs:
         its round-off search stops one round of it before the deadline.  Counts its evaluations."""
         max_iter, deadline = POLISH_MAX_ITER, self.term.deadline
         if deadline is not None:
+            deadline -= self.tail_s                                     # the Python after the last call
             per_iteration = self.per_iteration
             if per_iteration is None:
                 per_iteration = POLISH_ITERATION_EVALS * self.per_eval

@@ -231,10 +231,10 @@ class GASAPopulation(EvolutionaryState):
     def advance(self, n_generations, max_evals, tolerance):
         if self.term is None or self.term.deadline is None:
             return self._run(n_generations, UNLIMITED, max_evals, tolerance)
+        deadline = self.term.deadline if self.work_deadline is None else self.work_deadline
         gens = evals = 0
         call_s = 0.0            # the longest call so far (the thread's CPU time): the next starts only if it fits
-        while gens < n_generations and evals < max_evals and \
-                time.perf_counter() + call_s < self.term.deadline:
+        while gens < n_generations and evals < max_evals and time.perf_counter() + call_s < deadline:
             c0 = time.thread_time()
             g, e = self._run(n_generations - gens, DEADLINE_CHAINS, max_evals - evals, tolerance)
             call_s = max(call_s, time.thread_time() - c0)

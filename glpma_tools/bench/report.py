@@ -53,7 +53,8 @@ def summary_section(res, md_path) -> list[str]:
               for key, r in res["all_solutions"].items()]
     if res["deadline"]:
         total, calm = all_overruns(res["deadline"])
-        calm_part = f"; without the preempted solves {share_on_time(calm):.2f} %, worst {worst_overrun(calm)} ms"
+        calm_part = (f"; without the disturbed solves (preempted, off their core, collected) "
+                     f"{share_on_time(calm):.2f} %, worst {worst_overrun(calm)} ms")
         lines.append(f"- Deadlines: {share_on_time(total):.2f} % within budget + {DEADLINE_MARGIN_MS} ms, worst "
                      f"overrun {worst_overrun(total)} ms{calm_part if calm.size else ''}.")
     return ["## Summary", "", *lines, ""]
