@@ -102,7 +102,7 @@ def test_the_extras_thread_gets_its_priority():
     loop = SolveLoop(svc, lambda pose: None, publish_extras=publish_extras, stats=svc.stats, modes=svc.modes)
     try:
         _in_thread(lambda: loop.offer(LEGS_M, 0))
-        assert loop.extras.flush()
+        assert loop.extras.flush(timeout=120.0)      # a bound for a hang: the first extras may load compiled code
     finally:
         loop.stop()
     assert seen == {"policy": os.SCHED_FIFO, "priority": 9}
