@@ -1,6 +1,6 @@
 """Measuring on a shared machine, for every tool that times (``glpma-fk bench``, ``glpma-fk stress``,
-``tools/bench_gough.py``): timed calls and the warm-up before them, and the machine and revision a
-measurement names.
+``tools/bench_gough.py``, ``tools/bench_families.py``): timed calls and the warm-up before them, the machine,
+load and revision a measurement names.
 
 Each call is timed with the wall clock and flagged when another process preempted it (the
 thread's involuntary context switches grew), when the thread was off its core without a context switch
@@ -208,3 +208,34 @@ def git_revision() -> str:
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return rev + (" (with uncommitted changes)" if dirty else "") if rev else "unknown"
+
+
+@dataclass
+class RunConditions:
+    """What a stand-alone measurement ran in: the load average (1 min) before and after it, its wall time."""
+
+    load_before: float
+    load_after: float
+    elapsed_s: float
+
+    def sentence(self, seed: int) -> str:
+        """The report's line on the machine and its load (the tools beside the bench: ``tools/bench_*.py``)."""
+        cpu = platform.processor() or platform.machine()
+        return (f"Measured on {os.cpu_count()} cores ({cpu}), load average (1 min) {self.load_before:.1f} before "
+                f"and {self.load_after:.1f} after the run ({self.elapsed_s:.0f} s), shared with other work; "
+                f"seed {seed}.")
+
+
+def measured_run(run):
+    """``run()`` and the :class:`RunConditions` it ran in."""
+    load_before, t0 = os.getloadavg()[0], time.perf_counter()
+    result = run()
+    return result, RunConditions(load_before, os.getloadavg()[0], time.perf_counter() - t0)
+
+
+def emit_report(text: str, markdown: str | None) -> None:
+    """Print a tool's Markdown report, and write it to ``markdown`` too when given."""
+    print(text)
+    if markdown:
+        with open(markdown, "w") as f:
+            f.write(text)

@@ -23,8 +23,6 @@ Prints Markdown (and writes it to ``--markdown``).
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
 
@@ -37,7 +35,7 @@ from glpma_ros.models.families import is_family
 from glpma_ros.models.rotations import quaternion_from_matrix
 from glpma_ros.modes.multistart import default_method, solve_all
 from glpma_tools.sim.trajectories import start_pose, variables_along
-from glpma_tools.timing import git_revision, timed_calls, warm_up
+from glpma_tools.timing import emit_report, git_revision, measured_run, timed_calls, warm_up
 
 #: the leg-length models, measured in the same run as the families
 LEG_LENGTH_CONFIGS = (("3-RPR", "planar_3rpr_seed.yaml"), ("6-6 hexapod", "hexapod_66_rolland.yaml"))
@@ -101,11 +99,8 @@ def measure(name: str, steps: int, cold: int, rng) -> dict:
             "method": method, "modes": len(modes.solutions), "all_s": all_s}
 
 
-def report(rows, args, load_before, load_after, elapsed_s) -> str:
-    cpu = platform.processor() or platform.machine()
-    lines = ["## Every family in one run (`tools/bench_families.py`)", "",
-             f"Measured on {os.cpu_count()} cores ({cpu}), load average (1 min) {load_before:.1f} before and "
-             f"{load_after:.1f} after the run ({elapsed_s:.0f} s), shared with other work; seed {args.seed}.", "",
+def report(rows, args, conditions) -> str:
+    lines = ["## Every family in one run (`tools/bench_families.py`)", "", conditions.sentence(args.seed), "",
              f"Warm: `Estimator.estimate` along one loop of the demo's trajectory, {args.steps} inputs (exact inverse "
              f"kinematics), warm from the previous estimate, solve only, wall clock; error = largest distance to the "
              f"true pose over the geometry's scale. Cold: {args.cold} inputs at random points of the loop, each by a "
@@ -140,15 +135,9 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 2
     rng = np.random.default_rng(args.seed)
-    load_before = os.getloadavg()[0]
-    t0 = time.perf_counter()
-    rows = [(label, measure(name, args.steps, args.cold, rng)) for label, name in
-            LEG_LENGTH_CONFIGS + tuple(family_configs())]
-    text = report(rows, args, load_before, os.getloadavg()[0], time.perf_counter() - t0)
-    print(text)
-    if args.markdown:
-        with open(args.markdown, "w") as f:
-            f.write(text)
+    rows, conditions = measured_run(lambda: [(label, measure(name, args.steps, args.cold, rng)) for label, name in
+                                             LEG_LENGTH_CONFIGS + tuple(family_configs())])
+    emit_report(report(rows, args, conditions), args.markdown)
     return 0
 
 

@@ -22,10 +22,7 @@ Prints Markdown (and writes it to ``--markdown``).
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
-import time
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -36,7 +33,7 @@ from glpma_ros.estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT
 from glpma_ros.models.random_geometry import random_hexapod, random_hexapod_33, random_hexapod_63
 from glpma_ros.models.rotations import matrix_from_quaternion, quaternion_from_matrix
 from glpma_tools.sim.trajectories import PERIOD_S, start_pose, trajectory, variables_along
-from glpma_tools.timing import timed_calls, warm_up
+from glpma_tools.timing import emit_report, measured_run, timed_calls, warm_up
 
 #: the designs timed, in the table's order: shipped configs, and random geometries (symmetric designs
 #: like the shipped 6-3 and 3-3 may cost more per evaluation than a general one)
@@ -158,11 +155,9 @@ def _pct(a, b):
     return f"{100.0 * a / b:.1f} %" if b else "n/a"
 
 
-def report(warm, faults, healthy, args, load_before, load_after, elapsed_s) -> str:
-    cpu = platform.processor() or platform.machine()
-    lines = ["## Gough-Stewart designs and redundant legs (`tools/bench_gough.py`)", "",
-             f"Measured on {os.cpu_count()} cores ({cpu}), load average (1 min) {load_before:.1f} before and "
-             f"{load_after:.1f} after the run ({elapsed_s:.0f} s), shared with other work; seed {args.seed}.", "",
+def report(warm, faults, healthy, args, conditions) -> str:
+    lines = ["## Gough-Stewart designs and redundant legs (`tools/bench_gough.py`)", "", conditions.sentence(args.seed),
+             "",
              f"Warm solve along one loop of the demo's trajectory, {args.steps} inputs, `Estimator.estimate` per "
              f"input (solve only, budget {BUDGET_MS:g} ms, CPU-independent evaluations, wall-clock times); the "
              f"7-leg hexapod's legs carry noise of {SIGMA_M:g} m, the others are exact; the random geometries "
@@ -215,15 +210,9 @@ def main(argv=None) -> int:
         print("error: bench_gough: --steps must be at least 20 and --loops at least 1", file=sys.stderr)
         return 2
     rng = np.random.default_rng(args.seed)
-    load_before = os.getloadavg()[0]
-    t0 = time.perf_counter()
-    warm = [warm_solve(design, args.steps, rng) for _, design in DESIGNS]
-    faults, healthy = fault_detection(args.loops, rng)
-    text = report(warm, faults, healthy, args, load_before, os.getloadavg()[0], time.perf_counter() - t0)
-    print(text)
-    if args.markdown:
-        with open(args.markdown, "w") as f:
-            f.write(text)
+    (warm, (faults, healthy)), conditions = measured_run(lambda: (
+        [warm_solve(design, args.steps, rng) for _, design in DESIGNS], fault_detection(args.loops, rng)))
+    emit_report(report(warm, faults, healthy, args, conditions), args.markdown)
     return 0
 
 
