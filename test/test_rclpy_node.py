@@ -182,7 +182,7 @@ def test_tf_covariance_twist_and_markers(ros):
         third = iter(0.150 + 1e-5 * k for k in range(10**6))
         assert _spin_until(executor, lambda: len(got["twist"]) >= 2 and len(got["markers"]) >= 2,
                            publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, next(third)])))
-        # the extra outputs follow each pose from the node's extras thread: wait for those of the
+        # the extra outputs follow each pose, written after it by the thread taking the input: wait for those of the
         # first poses (a pose without its TF and covariance fails below)
         poses = list(got["pose"][:5])       # more may arrive while waiting (inputs still in flight)
         first = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in poses}

@@ -74,14 +74,19 @@ class ExtrasLoop:
     Hand-off: the solving thread appends to a queue and wakes the extras thread only when it
     sleeps in a blocking wait; while poses stream in, the extras thread polls the queue every
     :data:`EXTRAS_POLL_S` instead (hybrid polling), so the real-time path pays an append, and an
-    extra output follows its pose by at most that period plus its building and writing."""
+    extra output follows its pose by at most that period plus its building and writing.
+
+    ``own_thread=False``: no thread; the solving thread builds and writes them itself, right after
+    the pose (a transport whose writes release the interpreter lock, where a second Python thread
+    would take that lock from the thread taking the next input: the rclpy adapter)."""
 
     def __init__(self, service: FkService, publish_extras, subscribed=None, name: str = "glpma_fk-extras", *,
-                 stats: Statistics, realtime: RealtimeThreads | None = None):
+                 stats: Statistics, realtime: RealtimeThreads | None = None, own_thread: bool = True):
         """``service`` builds the extra outputs; ``stats``: where their times and drops are counted;
         ``realtime``: applied to the thread when it starts (the solving thread's
-        :meth:`~glpma_ros.node.realtime.RealtimeSettings.helper` settings)."""
+        :meth:`~glpma_ros.node.realtime.RealtimeSettings.helper` settings); ``own_thread``: see the class."""
         self.service = service
+        self.own_thread = own_thread
         self.realtime = realtime
         self.stats = stats
         self.publish_extras = publish_extras
@@ -96,7 +101,14 @@ class ExtrasLoop:
         self._name = name
 
     def put(self, outcome) -> None:
-        """Hand ``outcome`` (a published pose) over; the thread starts on the first call."""
+        """Hand ``outcome`` (a published pose) over; the thread starts on the first call.  Without a thread of
+        its own: publish its extra outputs now."""
+        if not self.own_thread:
+            if not self._closed:
+                self._handed += 1
+                self.publish(outcome, self.service.params)
+                self._finished += 1
+            return
         if self._thread is None:
             with self._start_lock:
                 if self._thread is None and not self._closed:
@@ -181,9 +193,10 @@ class SolveLoop:
     Either way the newest input wins and every input replaced unsolved counts as dropped."""
 
     def __init__(self, service: FkService, publish, name: str = "glpma_fk-solver", publish_extras=None,
-                 subscribed=None, *, stats: Statistics, modes: AssemblyModes):
+                 subscribed=None, *, stats: Statistics, modes: AssemblyModes, extras_thread: bool = True):
         """``service`` solves each input; ``publish(PoseOutput)``; ``publish_extras(ExtraOutputs)`` (TF,
-        covariance, twist, markers; None: not published), called by the extras thread; ``subscribed()``:
+        covariance, twist, markers; None: not published), called by the extras thread (``extras_thread``,
+        else by the solving thread after the pose: :class:`ExtrasLoop`'s ``own_thread``); ``subscribed()``:
         the outputs that have subscribers (see :class:`ExtrasLoop`); ``stats``: where dropped inputs and
         hand-off times are counted; ``modes``: told of every input received (the assembly modes are
         computed for the last one)."""
@@ -196,7 +209,8 @@ class SolveLoop:
         settings = RealtimeSettings.from_params(service.params)
         self.realtime = RealtimeThreads(settings, service.log)
         self.extras = None if publish_extras is None else ExtrasLoop(
-            service, publish_extras, subscribed, stats=stats, realtime=RealtimeThreads(settings.helper()))
+            service, publish_extras, subscribed, stats=stats, realtime=RealtimeThreads(settings.helper()),
+            own_thread=extras_thread)
         self._cond = threading.Condition()
         self._pending = None            # the input waiting for the solver
         self._busy = False              # a thread is solving (and will take _pending next)
@@ -414,11 +428,12 @@ class ReportLoop:
 
 
 def node_loops(service: FkService, *, publish_pose, publish_extras, subscribed, publish_modes, publish_report,
-               modes_solve=None) -> tuple[SolveLoop, AssemblyModesLoop, ReportLoop]:
+               modes_solve=None, extras_thread: bool = True) -> tuple[SolveLoop, AssemblyModesLoop, ReportLoop]:
     """The loops of a node over ``service``, not started, handed the collaborators each reads; the transport
-    gives how its outputs are written (``publish_*``), whether an extra output has subscribers and, for the
-    assembly modes, where they are computed (``modes_solve``, default in the node's process)."""
+    gives how its outputs are written (``publish_*``), whether an extra output has subscribers, whether they
+    are written by a thread of their own (``extras_thread``, :class:`ExtrasLoop`) and, for the assembly modes,
+    where they are computed (``modes_solve``, default in the node's process)."""
     return (SolveLoop(service, publish_pose, publish_extras=publish_extras, subscribed=subscribed,
-                      stats=service.stats, modes=service.modes),
+                      stats=service.stats, modes=service.modes, extras_thread=extras_thread),
             AssemblyModesLoop(service.modes, publish_modes, solve=modes_solve, log=service.log),
             ReportLoop(service.reporter, publish_report, service.params["diagnostics_period_s"], log=service.log))

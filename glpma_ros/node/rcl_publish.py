@@ -2,11 +2,11 @@
 
 rclpy's ``Publisher.publish(bytes)`` hands the bytes to ``rcl_publish_serialized_message`` while it
 holds the interpreter lock (GIL) for the whole middleware write (copy, then the socket send to each
-reader: 4-20 us).  The node's extras thread writes three messages per pose (/tf, covariance,
-twist); each write then keeps the thread that takes the next input from running Python -- the
-cost of the extra outputs on the pose's path (BENCHMARKS.md, "Extra outputs and the transport
-path", part 4).  :class:`RawPublisher` makes the same ``rcl`` call through :mod:`ctypes`, which
-releases the lock for the duration of a foreign call: the write runs beside the Python of the
+reader: 4-20 us).  The node writes three more messages after each pose (/tf, covariance, twist);
+with the lock held, each write keeps the node's other threads (the executor's parameters and
+services, the diagnostics) from running Python meanwhile (BENCHMARKS.md, "Extra outputs and the
+transport path", part 4).  :class:`RawPublisher` makes the same ``rcl`` call through :mod:`ctypes`,
+which releases the lock for the duration of a foreign call: the write runs beside the Python of the
 other threads.  The ``rcl`` publisher is used while rclpy's handle is held (``with
 publisher.handle``), as rclpy does, so it cannot be destroyed under the call; a managed
 (lifecycle) publisher writes only while activated, as its own ``publish`` does.

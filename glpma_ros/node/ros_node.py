@@ -11,11 +11,12 @@ Threads: the input is waited on and taken by a thread of its own
 (:class:`~glpma_ros.node.rcl_take.InputThread`: a wait set of the input subscription alone, the interpreter
 lock released while it waits), which takes the newest input waiting (the ones it passes over count as
 dropped: the node's newest-input rule) and solves it right there (:meth:`SolveLoop.offer
-<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and hands it to the extras thread
-(:class:`~glpma_ros.node.loops.ExtrasLoop`), which publishes TF, covariance, twist and markers on the
-topics that have subscribers.  A ``SingleThreadedExecutor`` spinning in a thread of its own runs the rest
-(parameters, services, the assembly-modes request, lifecycle transitions) and never waits on the input:
-rclpy's executors rebuild their wait set from every entity of the node on each wake-up, several hundred
+<glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and, after it, TF, covariance, twist and
+markers on the topics that have subscribers (:class:`~glpma_ros.node.loops.ExtrasLoop` without a thread of its
+own: their writes release the interpreter lock, see below, and a second Python thread building them would take
+that lock from this one when the next input arrives).  A ``SingleThreadedExecutor`` spinning in a thread of
+its own runs the rest (parameters, services, the assembly-modes request, lifecycle transitions) and never
+waits on the input: rclpy's executors rebuild their wait set from every entity of the node on each wake-up, several hundred
 microseconds of Python per input on a small machine.  Solving in the thread that takes the input saves the
 thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
 path", measures the set-ups).  Messages: the input is taken as bytes (``raw=True``) and read with
@@ -70,7 +71,7 @@ QOS_OVERRIDING = QoSOverridingOptions([QoSPolicyKind[name.upper()] for name in q
 #: seconds main() waits at exit for the executor's thread to leave rclpy (it wakes at once on
 #: executor.shutdown(); the cap only guards against a wedged middleware)
 SPINNER_JOIN_TIMEOUT_S = 10.0
-#: seconds the extras thread reuses the extra outputs' subscriber counts: a count is a call into rcl that
+#: seconds the extra outputs' subscriber counts are reused: a count is a call into rcl that
 #: holds the interpreter lock (5 outputs, about 4 us each, per pose); a new subscriber waits this much
 #: longer for its first message, well within the discovery's own delay
 SUBSCRIBED_REFRESH_S = 0.1
@@ -184,13 +185,13 @@ class FkEndpoints:
         # inputs are solved in the executor's thread (SolveLoop.offer): its own thread is not started
         self._extra_pubs = {"tf": self.tf_pub, "covariance": self.cov_pub, "twist": self.twist_pub,
                             "markers": self.markers_pub, "joint_states": self.joint_states_pub}
-        # the extras thread writes with the interpreter lock released (rcl_publish.RawPublisher): the thread
-        # taking the inputs runs meanwhile
+        # the extra outputs are written with the interpreter lock released (rcl_publish.RawPublisher)
         self.extra_writers = {name: RawPublisher(p) for name, p in self._extra_pubs.items()}
         self._subscribed_cache, self._subscribed_at = set(), -math.inf
         self.loop, self.modes, self.reports = node_loops(
             service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
-            subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_diagnostics)
+            subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_diagnostics,
+            extras_thread=False)    # built and written by the thread taking the input, after the pose
         self.modes.start()
         # the input is taken as bytes and read with struct (cdr): no message object per input; by a thread of
         # its own waiting on it alone (rcl_take.InputThread), not by the executor
@@ -274,7 +275,7 @@ class FkEndpoints:
 
     def _subscribed(self) -> set:
         """The extra outputs some subscription is matched with (the others are not built), counted
-        again at most every :data:`SUBSCRIBED_REFRESH_S` (called by the extras thread only)."""
+        again at most every :data:`SUBSCRIBED_REFRESH_S` (called by the thread taking the input only)."""
         now = time.monotonic()
         if now - self._subscribed_at >= SUBSCRIBED_REFRESH_S:
             self._subscribed_cache = {name for name, pub in self._extra_pubs.items() if pub.get_subscription_count()}
