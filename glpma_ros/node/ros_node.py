@@ -16,8 +16,8 @@ markers on the topics that have subscribers (:class:`~glpma_ros.node.loops.Extra
 own: their writes release the interpreter lock, see below, and a second Python thread building them would take
 that lock from this one when the next input arrives).  A ``SingleThreadedExecutor`` spinning in a thread of
 its own runs the rest (parameters, services, the assembly-modes request, lifecycle transitions) and never
-waits on the input: rclpy's executors rebuild their wait set from every entity of the node on each wake-up, several hundred
-microseconds of Python per input on a small machine.  Solving in the thread that takes the input saves the
+waits on the input: rclpy's executors rebuild their wait set from every entity of the node on each
+wake-up, several hundred microseconds of Python per input on a small machine.  Solving in the thread that takes the input saves the
 thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
 path", measures the set-ups).  Messages: the input is taken as bytes (``raw=True``) and read with
 ``struct``, the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from
