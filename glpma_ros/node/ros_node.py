@@ -9,23 +9,23 @@ converted here.  Importable only where rclpy is.
 
 Threads: the input is waited on and taken by a thread of its own
 (:class:`~glpma_ros.node.rcl_take.InputThread`: a wait set of the input subscription alone, the interpreter
-lock released while it waits), which takes the newest input waiting (the ones it passes over count as
-dropped: the node's newest-input rule) and solves it right there (:meth:`SolveLoop.offer
+lock released while it waits), which takes the newest input waiting (the ones it passes over count as dropped:
+the node's newest-input rule) and solves it right there (:meth:`SolveLoop.offer
 <glpma_ros.node.loops.SolveLoop.offer>`), then publishes the pose and, after it, TF, covariance, twist and
 markers on the topics that have subscribers (:class:`~glpma_ros.node.loops.ExtrasLoop` without a thread of its
 own: their writes release the interpreter lock, see below, and a second Python thread building them would take
-that lock from this one when the next input arrives).  A ``SingleThreadedExecutor`` spinning in a thread of
-its own runs the rest (parameters, services, the assembly-modes request, lifecycle transitions) and never
-waits on the input: rclpy's executors rebuild their wait set from every entity of the node on each
-wake-up, several hundred microseconds of Python per input on a small machine.  Solving in the thread that takes the input saves the
-thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
-path", measures the set-ups).  Messages: the input is taken as bytes (``raw=True``) and read with
-``struct``, the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from
-the DDS twin's :class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per
-input (test_rclpy_node checks that rclpy reads those bytes as the same messages); diagnostics and
-assembly modes are rclpy messages.  Signals: rclpy's own handler is not installed
-(``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node, which logs its summary while
-the context is still valid and then shuts down -- no "publisher's context is invalid" at Ctrl-C.
+that lock from this one when the next input arrives). A ``SingleThreadedExecutor`` spinning in a thread of its
+own runs the rest (parameters, services, the assembly-modes request, lifecycle transitions) and never waits on
+the input: rclpy's executors rebuild their wait set from every entity of the node on each wake-up, several
+hundred microseconds of Python per input on a small machine. Solving in the thread that takes the input saves
+the thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
+path", measures the set-ups). Messages: the input is taken as bytes (``raw=True``) and read with ``struct``,
+the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from the DDS twin's
+:class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per input (test_rclpy_node checks
+that rclpy reads those bytes as the same messages); diagnostics and assembly modes are rclpy messages.
+Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node,
+which logs its summary while the context is still valid and then shuts down -- no "publisher's context is
+invalid" at Ctrl-C.
 """
 from __future__ import annotations
 
