@@ -265,6 +265,28 @@ def test_extras_thread_publishes_in_order_only_what_is_subscribed(service):
     loop.stop()
 
 
+def test_extras_without_a_thread_are_written_after_each_pose_by_the_solving_thread(service):
+    """``extras_thread=False`` (the rclpy adapter): no extras thread; the thread that solved the pose
+    builds and writes its extra outputs right after it, before it returns."""
+    import threading
+
+    from glpma_ros.node.loops import SolveLoop
+    order, writers = [], set()
+
+    def publish_extras(e):
+        writers.add(threading.get_ident())
+        order.append(("extras", e.stamp_ns))
+    loop = SolveLoop(service, lambda p: order.append(("pose", p.stamp_ns)), publish_extras=publish_extras,
+                     subscribed=lambda: {"tf"}, stats=service.stats, modes=service.modes, extras_thread=False)
+    for k in range(5):
+        loop.offer((0.1, 0.12, 0.15 + 1e-5 * k), 1_000_000 * (k + 1))
+        assert order[-2:] == [("pose", 1_000_000 * (k + 1)), ("extras", 1_000_000 * (k + 1))]   # before offer returns
+    assert writers == {threading.get_ident()} and loop.extras.flush(0.0)
+    assert loop.extras._thread is None                            # never started
+    assert len(service.stats.extras_s) == 5
+    loop.stop()
+
+
 def test_extras_backlog_drops_the_oldest_and_counts_them(service):
     """A stalled extras thread never holds up the poses: beyond EXTRAS_BACKLOG the oldest
     waiting extras are dropped and counted on /diagnostics."""
