@@ -48,6 +48,15 @@ class NotByExecutor(CallbackGroup):
         pass
 
 
+def subscribe_taken_by_thread(create_subscription, msg_type, topic: str, qos, context, handle, **options):
+    """A raw subscription (``create_subscription(msg_type, topic, callback, qos, raw=True, ...)``, rclpy's
+    signature, ``options`` passed on) in a :class:`NotByExecutor` group, and the started :class:`InputThread`
+    that takes its samples and calls ``handle(data, passed_over)``."""
+    subscription = create_subscription(msg_type, topic, taken_by_input_thread, qos, raw=True,
+                                       callback_group=NotByExecutor(), **options)
+    return subscription, InputThread(subscription, context, handle).start()
+
+
 class InputThread:
     """Waits on ``subscription`` (created with a :class:`NotByExecutor` group, ``raw=True``) and calls
     ``handle(data, passed_over)`` with the newest sample taken and the number of older ones taken with it."""

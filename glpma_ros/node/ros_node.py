@@ -61,7 +61,7 @@ from . import qos
 from .dds import cdr
 from .loops import node_loops
 from .rcl_publish import RawPublisher
-from .rcl_take import InputThread, NotByExecutor, taken_by_input_thread
+from .rcl_take import subscribe_taken_by_thread
 from .ros_args import check_params_files, node_values, remapped
 from .service import FkService, JointStateInput
 
@@ -164,10 +164,8 @@ class FkEndpoints:
             return self._create_publisher(msg_type, topic, qos_profile(profiles[(topic, qos.PUBLISHER)]),
                                           qos_overriding_options=QOS_OVERRIDING)
 
-        def sub(msg_type, topic, callback, raw=False, callback_group=None):
-            return node.create_subscription(msg_type, topic, callback, qos_profile(profiles[(topic, qos.SUBSCRIPTION)]),
-                                            qos_overriding_options=QOS_OVERRIDING, raw=raw,
-                                            callback_group=callback_group)
+        def sub_qos(topic):
+            return qos_profile(profiles[(topic, qos.SUBSCRIPTION)])
 
         # every output has its publisher from the start: the publish_* parameters switch them at runtime;
         # the pose and the extra outputs go out as bytes from cdr.Encoder (Publisher.publish(bytes))
@@ -199,9 +197,12 @@ class FkEndpoints:
             input_type, input_name, on_input = JointState, "joint_states", self._on_joint_state
         else:
             input_type, input_name, on_input = Float64MultiArray, input_topic, self._on_legs
-        self.input_sub = sub(input_type, input_name, taken_by_input_thread, raw=True, callback_group=NotByExecutor())
-        self.input_thread = InputThread(self.input_sub, node.context, on_input).start()
-        self.request_sub = sub(Empty, "~/request_assembly_modes", self._on_request_modes)
+        self.input_sub, self.input_thread = subscribe_taken_by_thread(
+            node.create_subscription, input_type, input_name, sub_qos(input_name), node.context, on_input,
+            qos_overriding_options=QOS_OVERRIDING)
+        self.request_sub = node.create_subscription(Empty, "~/request_assembly_modes", self._on_request_modes,
+                                                    sub_qos("~/request_assembly_modes"),
+                                                    qos_overriding_options=QOS_OVERRIDING)
         # /diagnostics from a thread of its own, off the executor's (ReportLoop)
         self.reports.start()
 

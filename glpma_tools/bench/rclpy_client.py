@@ -26,7 +26,7 @@ from tf2_msgs.msg import TFMessage
 from glpma_ros.node.dds import cdr, endpoints
 from glpma_ros.node.dds import messages as dds_messages
 from glpma_ros.node.rcl_publish import RawPublisher
-from glpma_ros.node.rcl_take import InputThread, NotByExecutor, taken_by_input_thread
+from glpma_ros.node.rcl_take import subscribe_taken_by_thread
 from glpma_ros.node.ros_node import FkNode
 from glpma_tools.bench.transport import END_TO_END, answers, params_of
 from glpma_tools.sim.controller import Sent
@@ -109,9 +109,8 @@ class Echo(Node):
                     writer.publish(data)
 
         # taken as the node takes its input: by a thread waiting on the subscription alone (rcl_take)
-        self.input_sub = self.create_subscription(Float64MultiArray, "leg_lengths", taken_by_input_thread, depth,
-                                                  raw=True, callback_group=NotByExecutor())
-        self.input_thread = InputThread(self.input_sub, self.context, on_legs).start()
+        self.input_sub, self.input_thread = subscribe_taken_by_thread(
+            self.create_subscription, Float64MultiArray, "leg_lengths", depth, self.context, on_legs)
 
     def destroy_node(self):
         self.input_thread.stop()
