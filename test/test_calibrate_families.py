@@ -54,6 +54,14 @@ NOMINAL_OFF_MM = 0.3
 #: of the geometry's size is far above round-off and far below any standard error (a revolute offset, in radians,
 #: is far below it too: its standard errors are ~1e-5 rad)
 SAME_RTOL = 1e-9
+#: the campaign of a family whose default one (S.simulate's poses about home, 1 mm build errors, laser-tracker
+#: noise) does not fit it: the shipped 6-RUS is a desktop servo platform (16 mm horns, 95 mm rods nearly
+#: vertical).  Its origin height and rod length move a joint almost alike, and with 10 micrometres of noise their
+#: difference stays above the identification's limit (1e-3 of its 85 mm size) even over its whole workspace; and
+#: a 1 mm error on a 16 mm horn bends the horn's gauge orbit (GAUGE_CURVATURE_SHARE) some fifty times more than on
+#: a 150 mm crank.  So its campaign is the one such a robot gets: poses over its workspace (+-20 mm, +-0.5 rad),
+#: build errors of a desktop part (0.1 mm), measured by a coordinate measuring machine (2 micrometres)
+CAMPAIGN = {"rus_6": {"spread": (20.0, 0.5), "noise_m": 2e-6, "joint_error_m": 1e-4}}
 #: fresh poses the forward kinematics is checked at, and the evaluation cap of each solve
 FK_POSES = 3
 MAX_EVALS = 20_000
@@ -149,7 +157,8 @@ def fk_error_mm(model, readings, position, rotation) -> float:
 @pytest.mark.parametrize("family", list(FAMILIES))
 def test_family_parameters_return_to_the_truth_and_the_pose_error_shrinks(family, tmp_path, capsys):
     path, doc, model = load(FAMILIES[family])
-    sim = S.simulate(model, start_pose(model, doc), np.random.default_rng(0))
+    campaign = CAMPAIGN.get(family, {})
+    sim = S.simulate(model, start_pose(model, doc), np.random.default_rng(0), **campaign)
     data, new = tmp_path / "data.csv", tmp_path / "new.yaml"
     S.write_csv(data, sim.measured, sim.nominal.translation)
     config_digest = digest(path)
@@ -174,14 +183,14 @@ def test_family_parameters_return_to_the_truth_and_the_pose_error_shrinks(family
     beyond = {k: round(v, 2) for k, v in z.items() if abs(v) > 3.0}
     assert len(beyond) <= ALLOWED_BEYOND_3 and max(abs(v) for v in z.values()) <= Z_MAX, beyond
     # the leg residuals to the noise; the held-out pose error shrinks
-    noise = S.NOISE_M / model.metres_per_unit
+    noise = campaign.get("noise_m", S.NOISE_M) / model.metres_per_unit
     assert out["rms_after"] < 3 * noise < out["rms_before"]
     pose = out["holdout_pose"]
     assert pose["after"]["solved"] == pose["before"]["solved"] == out["held_out"]
     assert pose["after"]["position_rms"] * POSE_ERROR_SHRINK < pose["before"]["position_rms"]
     # NEW.yaml loads; its forward kinematics finds the true poses from the true geometry's readings
     new_model = load_manipulator(new)
-    fresh = S.simulate(model, start_pose(model, doc), np.random.default_rng(1), FK_POSES).true_poses
+    fresh = S.simulate(model, start_pose(model, doc), np.random.default_rng(1), FK_POSES, **campaign).true_poses
     readings = S.true_actuator_readings(sim.truth, fresh.position, fresh.rotation, model.actuator_limits)
     for q, position, rotation in zip(readings, fresh.position, fresh.rotation):
         assert fk_error_mm(new_model, q, position, rotation) <= FK_BOUND_MM

@@ -33,7 +33,7 @@ TRANSLATING = {"delta": ("delta_irb360", (WORK_RADIUS, WORK_Z)),
                "linear_delta": ("linear_delta_kossel_mini", (90.0, (0.0, 200.0)))}
 #: the full-pose families (config, (position, angle) spread of the random poses about the working mode, mm and
 #: rad, where the legs reach within their limits)
-FULL_POSE = {"rus_6": ("rus6_simulator", (80.0, 0.15)), "pus_6": ("pus6_rail_hexapod", (40.0, 0.1)),
+FULL_POSE = {"rus_6": ("rus6_simulator", (6.0, 0.1)), "pus_6": ("pus6_rail_hexapod", (40.0, 0.1)),
              "planar_3rrr": ("planar_3rrr_symmetric", (60.0, 0.3)),
              "planar_3prr": ("planar_3prr_triangle", (40.0, 0.3))}
 #: every shipped family's config
@@ -421,8 +421,8 @@ def test_full_pose_cold_estimates_converge_from_random_poses(family, solver):
 def test_rus_bad_readings_are_rejected(rus):
     with pytest.raises(InputError, match="expected 6 actuator positions for rus_6, got 3"):
         rus.check_legs([0.0, 0.0, 0.0])
-    with pytest.raises(InputError, match=r"actuator 4 at 1.5 rad is outside its limits \[-1.309, 1.309\] rad"):
-        rus.check_legs([0.0, 0.0, 0.0, 1.5, 0.0, 0.0])
+    with pytest.raises(InputError, match=r"actuator 4 at 1.6 rad is outside its limits \[-1.5708, 1.5708\] rad"):
+        rus.check_legs([0.0, 0.0, 0.0, 1.6, 0.0, 0.0])
 
 
 # -- planar 3-RRR: the 3-RPR's model with the crank tips as base joints ------------------------------------------

@@ -139,7 +139,7 @@ def test_kabsch_start_of_a_planar_platform_equals_the_rigid_fit():
         x = model.known_solutions[0] + rng.normal(0, 5.0, 9)
         a = local.local_solve(model, x, legs, max_iter=0)
         R, p = kabsch(model.frame, x.reshape(3, 3))
-        # round-off of a fit of points some 300 mm from the origin
+        # round-off of a fit of points some 100 mm from the origin
         np.testing.assert_allclose(a.x, (p + model.frame @ R.T).reshape(-1), atol=1e-11)
 
 
