@@ -52,7 +52,18 @@ class GLPMAState(EvolutionaryState):
         local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
         return n_generations * self.master.evals_per_generation() + local_share * self.local.evals_per_generation()
 
+    def best(self):
+        return self.master.best()
+
+    def inject(self, x, f):
+        self.master.inject(x, f)
+
     def advance(self, n_generations, max_evals, tolerance):
+        # both kernels read the clock inside their loops: a master generation stops between two children, a
+        # local search between two of its generations, at the driver's work deadline, and resume at the next
+        # chunk where they stopped
+        self.master.work_deadline = self.local.work_deadline = self.work_deadline
+        self.out_of_time = False
         gens = evals = 0
         local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
         while evals < max_evals:
@@ -63,6 +74,9 @@ class GLPMAState(EvolutionaryState):
                 evals += e
                 local_share -= g
                 self.local_left -= g
+                if self.local.out_of_time:
+                    self.out_of_time = True
+                    break               # the deadline: resumed at the next chunk (if any)
                 if g == 0 or self.local.fit.min() < tolerance:
                     self.local_left = 0
                 if self.local_left > 0:
@@ -77,6 +91,9 @@ class GLPMAState(EvolutionaryState):
             gens += g
             evals += e
             self.since_local_search += g
+            if self.master.out_of_time:
+                self.out_of_time = True
+                break                   # the deadline, inside a master generation: resumed at the next chunk
             if g == 0 or self.master.fit.min() < tolerance:
                 break
             if self.since_local_search >= self.ls_interval:
