@@ -14,6 +14,8 @@ search, section 3); ``polish=False`` is the paper's algorithm alone.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from . import g3pcx, rcga
@@ -61,12 +63,17 @@ class GLPMAState(EvolutionaryState):
     def advance(self, n_generations, max_evals, tolerance):
         # both kernels read the clock inside their loops: a master generation stops between two children, a
         # local search between two of its generations, at the driver's work deadline, and resume at the next
-        # chunk where they stopped
-        self.master.work_deadline = self.local.work_deadline = self.work_deadline
+        # chunk where they stopped; between two calls the clock is read here (a call costs some 20 µs before
+        # its work, and a chunk of the 3-RPR's short generations is dozens of calls)
+        deadline = self.work_deadline
+        self.master.work_deadline = self.local.work_deadline = deadline
         self.out_of_time = False
         gens = evals = 0
         local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
         while evals < max_evals:
+            if deadline is not None and time.perf_counter() >= deadline:
+                self.out_of_time = True
+                break
             if self.local_left > 0:
                 if local_share <= 0:
                     break               # the chunk's share is spent: resumed at the next chunk
