@@ -36,7 +36,11 @@ class GLPMAState(EvolutionaryState):
     runs at most ``ceil(n * ls_intensity / ls_interval)`` local generations (its share of the
     work), and a local search cut there resumes at the next chunk, before any further master
     generation -- the same sequence of generations as in one piece, but no chunk outlasts its
-    share (the 6-6 hexapod's 85 local generations would otherwise run past a deadline)."""
+    share (the 6-6 hexapod's 85 local generations would otherwise run past a deadline).  Under a
+    deadline both kernels also read the clock inside their loops (:mod:`glpma_ros.runtime.clock`): a
+    master generation (0.15 ms on the hexapod) stops between two children, a local search between
+    two G3-PCX generations, and the next chunk resumes them where they stopped -- again the same
+    sequence of generations."""
 
     name = "glpma"
 
