@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
-from ..runtime.clock import end_after, reached, time_left
+from ..runtime.clock import kernel_end, reached
 from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
@@ -116,13 +116,12 @@ def _draw_distinct(rng, N, out, start):
 
 
 @njit(cache=True, error_model="numpy")
-def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance, time_left,
+def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance, end,
                       mu, lam, r, sigma_zeta, sigma_eta, kind, data, legs, n_res):
     """Evolve ``pop``/``fit`` in place; returns (generations, evaluations, stopped by the clock).  The clock is
-    read before each generation (a few microseconds of work) and the call stops there once ``time_left``
-    seconds have passed (``inf``: never)."""
+    read before each generation (a few microseconds of work) and the call stops there once it reads ``end``
+    (the kernels' clock, :func:`~glpma_ros.runtime.clock.kernel_end`; ``inf``: never)."""
     N, n = pop.shape
-    end = end_after(time_left)
     timed_out = False
     idx = np.empty(mu, dtype=np.int64)
     parents = np.empty((mu, n))
@@ -180,7 +179,7 @@ class G3PCXPopulation(EvolutionaryState):
     def advance(self, n_generations, max_evals, tolerance):
         p = self.problem
         gens, evals, self.out_of_time = g3pcx_generations(self.pop, self.fit, self.rng, n_generations, max_evals,
-                                                          tolerance, time_left(self.work_deadline), self.mu,
+                                                          tolerance, kernel_end(self.work_deadline), self.mu,
                                                           self.lam, self.r, self.sigma_zeta, self.sigma_eta,
                                                           p.kind, p.data, p.legs, p.n_res)
         return gens, evals

@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import fitness_one
-from ..runtime.clock import end_after, reached, time_left
+from ..runtime.clock import kernel_end, reached
 from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
@@ -117,17 +117,17 @@ def make_child(pop, fit, cum, rng, i, t, crossover_rate, mutation_rate, mutation
 
 
 @njit(cache=True, error_model="numpy")
-def rcga_generations(pop, fit, new, new_f, cum, progress, r, rng, n_generations, max_evals, tolerance, time_left,
+def rcga_generations(pop, fit, new, new_f, cum, progress, r, rng, n_generations, max_evals, tolerance, end,
                      generation, last_generation, crossover_rate, mutation_rate, mutation_b, width, kind, data, legs):
     """Evolve ``pop``/``fit`` in place, child by child; returns (generations completed, evaluations).
 
     ``new``/``new_f`` hold the generation in progress and ``progress[0]`` its next child (0: none started;
     a generation starts only when its ``N - 1`` evaluations fit in ``max_evals``).  The clock is read every
-    :data:`CLOCK_STRIDE` children and the call stops there once ``time_left`` seconds have passed
-    (``inf``: never); the next call resumes the same generation with the same random stream, so the
-    generations are those of one long call.  ``r`` is scratch space for the residuals."""
+    :data:`CLOCK_STRIDE` children and the call stops there once it reads ``end`` (the kernels' clock,
+    :func:`~glpma_ros.runtime.clock.kernel_end`; ``inf``: never); the next call resumes the same generation
+    with the same random stream, so the generations are those of one long call.  ``r`` is scratch space for
+    the residuals."""
     N = pop.shape[0]
-    end = end_after(time_left)
     gens = 0
     evals = 0
     made = 0
@@ -196,7 +196,7 @@ class RCGAPopulation(EvolutionaryState):
         p = self.problem
         gens, evals = rcga_generations(self.pop, self.fit, self.new, self.new_f, self.cum, self.progress,
                                        self.residuals, self.rng, n_generations, max_evals, tolerance,
-                                       time_left(self.work_deadline), float(self.generation), self.last_generation,
+                                       kernel_end(self.work_deadline), float(self.generation), self.last_generation,
                                        self.crossover_rate, self.mutation_rate, self.mutation_b, self.width,
                                        p.kind, p.data, p.legs)
         self.generation += gens
