@@ -21,6 +21,7 @@ from conftest import CONFIG
 from glpma_ros import solvers
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.runtime import clock as kernel_clock
 from glpma_ros.runtime.collector import CollectorHold
 from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga
 from glpma_ros.solvers.common import Termination, initial_population
@@ -365,6 +366,17 @@ def test_glpma_stopped_inside_its_generations_resumes_them_exactly(hexapod):
     for a, b in ((cut.master.pop, whole.master.pop), (cut.master.fit, whole.master.fit),
                  (cut.local.pop, whole.local.pop), (cut.local.fit, whole.local.fit)):
         np.testing.assert_allclose(a, b, rtol=SAME_RTOL)
+
+
+def test_the_kernels_clock_is_the_one_python_reads():
+    """The kernels' end is computed by ``kernel_end`` from ``time.monotonic()``: the compiled clock must read
+    the same clock (ordered between two reads of it), and a deadline passes on both at once."""
+    for _ in range(3):
+        before = time.monotonic()
+        compiled = kernel_clock.monotonic_s()
+        assert before <= compiled <= time.monotonic()
+    assert kernel_clock.kernel_end(None) == math.inf
+    assert kernel_clock.kernel_end(time.perf_counter()) <= time.monotonic()
 
 
 def test_the_collector_hold_nests_and_restores():
