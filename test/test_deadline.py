@@ -11,6 +11,8 @@ its threshold lowered so that it would run at almost every allocation, each coll
 COLLECTION_TICK_S and none may start after the deadline.  No wall-clock figure is asserted (the real
 overruns are measured by ``glpma-fk bench``, deadline section)."""
 import gc
+import math
+import time
 
 import numpy as np
 import pytest
@@ -19,8 +21,10 @@ from conftest import CONFIG
 from glpma_ros import solvers
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.runtime import clock as kernel_clock
 from glpma_ros.runtime.collector import CollectorHold
-from glpma_ros.solvers import driver, gasa, lm, local
+from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga
+from glpma_ros.solvers.common import Termination, initial_population
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)
 READ_TICK_S = 2e-7
@@ -53,6 +57,19 @@ COLLECTION_BUDGETS_S = (1e-3, 3e-3)
 #: what building a solver's result (the Python after its last compiled call) costs on the fake clock: more
 #: than the return allowance of _returned_in_time, so a solve that leaves no room for it returns late
 RESULT_TICK_S = 5e-4
+#: GLPMA's settings on the 6-6 hexapod (the paper's): a master generation is 200 children, a local search
+#: 85 G3-PCX generations every 5 master generations -- a chunk of one master generation is 0.15-0.3 ms of work
+HEX_GLPMA = {"population": 200, "local_population": 200, "ls_interval": 5, "ls_intensity": 85}
+#: the solver variables' initial range on the hexapod (its default, mm)
+HEX_RANGE = (-1000.0, 1000.0)
+#: time each chunk of the resumed run is given (s): less than a hexapod master generation (about 0.15 ms),
+#: so most chunks stop inside one, wherever the clock lands
+SHORT_CHUNK_S = 1e-4
+#: master generations both runs of the resume test make: three local searches (one every 5)
+RESUMED_GENERATIONS = 15
+#: the same children from the same random stream, evaluated in the same order: the same floats (up to
+#: the last bits, which the tests never compare)
+SAME_RTOL = 1e-12
 
 
 class FakeClock:
@@ -111,6 +128,11 @@ def clock(monkeypatch):
     # GA-SA's chunk is compiled calls of a few Markov chains with the clock read between them: each call counts
     monkeypatch.setattr(gasa.GASAPopulation, "step", step, raising=False)
     monkeypatch.setattr(gasa, "gasa_generations", c.work(gasa.gasa_generations))
+    # the fake clock charges a chunk its generations before it runs; the kernels' own clock reads the real one,
+    # which the fake clock does not move: here they run the generations they are asked for (their stop inside
+    # a generation is counted by the tests below, on the real clock)
+    for module in (rcga, g3pcx):
+        monkeypatch.setattr(module, "kernel_end", lambda deadline: math.inf)
     return c
 
 
@@ -286,6 +308,75 @@ def test_a_solver_leaves_room_for_building_its_result(kind, clock, monkeypatch, 
             deadline = start + budget
             assert not _late(clock, deadline), (name, budget, "µs late", _late(clock, deadline))
             assert _returned_in_time(clock.now, deadline), (name, budget, clock.now - deadline)
+
+
+def _glpma_hexapod(model, seed):
+    """GLPMA's state with its hexapod settings on legs no pose reaches (so nothing converges), and its
+    termination without a cap."""
+    rng = np.random.default_rng(seed)
+    term = Termination(max_evals=10**9)
+    problem = driver.Problem(model, np.array(HEX_CASES[0]))
+    n = model.n_vars
+    mp = initial_population(rng, HEX_GLPMA["population"], n, HEX_RANGE, None, None)
+    master = rcga.RCGAPopulation(problem, mp, problem.evaluate(mp, term), rng,
+                                 width=rcga.mutation_width(HEX_RANGE, None, n), max_evals=10**9)
+    lp = initial_population(rng, HEX_GLPMA["local_population"], n, HEX_RANGE, None, None)
+    local_pop = g3pcx.G3PCXPopulation(problem, lp, problem.evaluate(lp, term), rng)
+    return glpma.GLPMAState(master, local_pop, HEX_GLPMA["ls_interval"], HEX_GLPMA["ls_intensity"]), term
+
+
+@pytest.mark.parametrize("into_local_search", [False, True])
+def test_a_glpma_chunk_does_no_work_after_its_work_deadline(hexapod, into_local_search):
+    """Counted evaluations: a chunk of GLPMA whose work deadline has passed makes none -- its kernels read
+    the clock inside a master generation (between two children) and inside a local search (between two
+    G3-PCX generations), not only between chunks, where a whole master generation and its share of the
+    local search (0.15-0.3 ms on the hexapod) would run past the deadline."""
+    state, term = _glpma_hexapod(hexapod, seed=0)
+    if into_local_search:       # into a local search cut at its chunk's share: the next chunk resumes it first
+        state.step(HEX_GLPMA["ls_interval"] - 1, term)
+        state.step(1, term)
+        assert 0 < state.local_left < HEX_GLPMA["ls_intensity"]
+    before = term.nfev
+    state.work_deadline = time.perf_counter()
+    gens = state.step(1, term)
+    assert (gens, term.nfev - before) == (0, 0) and state.out_of_time
+    state.work_deadline = None  # no deadline: the same chunk runs
+    assert state.step(1, term) >= 0 and term.nfev > before and not state.out_of_time
+
+
+def test_glpma_stopped_inside_its_generations_resumes_them_exactly(hexapod):
+    """Chunks cut short by the clock (inside master generations and local searches, wherever it lands) make
+    the same generations as chunks without a deadline: the same populations and the same evaluations."""
+    def run(chunk_s):
+        """Chunks of one master generation until RESUMED_GENERATIONS are done and no generation or local
+        search is under way; each chunk given ``chunk_s`` (None: no deadline).  The state, its termination
+        and the chunks the clock cut."""
+        state, term = _glpma_hexapod(hexapod, seed=1)
+        cut = 0
+        while state.master.generation < RESUMED_GENERATIONS or state.local_left or state.master.progress[0]:
+            state.work_deadline = None if chunk_s is None else time.perf_counter() + chunk_s
+            state.step(1, term)
+            cut += state.out_of_time
+        return state, term, cut
+
+    whole, whole_term, _ = run(None)
+    cut, cut_term, stops = run(SHORT_CHUNK_S)
+    assert stops > 0            # the clock did cut chunks
+    assert cut.master.generation == whole.master.generation and cut_term.nfev == whole_term.nfev
+    for a, b in ((cut.master.pop, whole.master.pop), (cut.master.fit, whole.master.fit),
+                 (cut.local.pop, whole.local.pop), (cut.local.fit, whole.local.fit)):
+        np.testing.assert_allclose(a, b, rtol=SAME_RTOL)
+
+
+def test_the_kernels_clock_is_the_one_python_reads():
+    """The kernels' end is computed by ``kernel_end`` from ``time.monotonic()``: the compiled clock must read
+    the same clock (ordered between two reads of it), and a deadline passes on both at once."""
+    for _ in range(3):
+        before = time.monotonic()
+        compiled = kernel_clock.monotonic_s()
+        assert before <= compiled <= time.monotonic()
+    assert kernel_clock.kernel_end(None) == math.inf
+    assert kernel_clock.kernel_end(time.perf_counter()) <= time.monotonic()
 
 
 def test_the_collector_hold_nests_and_restores():

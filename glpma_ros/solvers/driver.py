@@ -58,6 +58,8 @@ class EvolutionaryState:
         #: the ``time.perf_counter()`` value by which the compiled calls of a chunk must end (the deadline less
         #: the Python that follows the last one), set by the driver before each chunk; None: no deadline
         self.work_deadline = None
+        #: the last compiled call stopped at ``work_deadline`` (kernels that read the clock themselves set it)
+        self.out_of_time = False
 
     def best(self):
         i = int(np.argmin(self.fit))
@@ -167,7 +169,8 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         if term.deadline is None:
             chunk = CHUNK_GENERATIONS
         else:
-            chunk = costs.generations(state)
+            # a compiled call that stopped at the work deadline: nothing more fits either
+            chunk = 0 if state.out_of_time else costs.generations(state)
             if chunk == 0:                      # not even one generation fits: stop at the deadline
                 stop = BUDGET_EXHAUSTED
                 break
@@ -179,7 +182,7 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         costs.note_evals(last_work - c0, term.nfev - nfev)
         costs.on_chunks = costs.on_chunks or term.nfev > nfev
         nit += gens
-        if term.nfev == nfev and term.status(state.best()[1]) is None:
+        if term.nfev == nfev and not state.out_of_time and term.status(state.best()[1]) is None:
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
     x, f = state.best()

@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
+from ..runtime.clock import kernel_end, reached
 from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
@@ -115,10 +116,13 @@ def _draw_distinct(rng, N, out, start):
 
 
 @njit(cache=True, error_model="numpy")
-def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
+def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance, end,
                       mu, lam, r, sigma_zeta, sigma_eta, kind, data, legs, n_res):
-    """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
+    """Evolve ``pop``/``fit`` in place; returns (generations, evaluations, stopped by the clock).  The clock is
+    read before each generation (a few microseconds of work) and the call stops there once it reads ``end``
+    (the kernels' clock, :func:`~glpma_ros.runtime.clock.kernel_end`; ``inf``: never)."""
     N, n = pop.shape
+    timed_out = False
     idx = np.empty(mu, dtype=np.int64)
     parents = np.empty((mu, n))
     pool = np.empty((r + lam, n))
@@ -128,6 +132,9 @@ def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
     gens = 0
     evals = 0
     while gens < n_generations and evals + lam <= max_evals and fit[best] >= tolerance:
+        if reached(end):
+            timed_out = True
+            break
         idx[0] = best
         _draw_distinct(rng, N, idx, 1)
         for k in range(mu):
@@ -149,7 +156,7 @@ def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance,
             fit[slots[k]] = pool_f[order[k]]
         best = _argmin(fit)
         gens += 1
-    return gens, evals
+    return gens, evals, timed_out
 
 
 class G3PCXPopulation(EvolutionaryState):
@@ -171,9 +178,11 @@ class G3PCXPopulation(EvolutionaryState):
 
     def advance(self, n_generations, max_evals, tolerance):
         p = self.problem
-        return g3pcx_generations(self.pop, self.fit, self.rng, n_generations, max_evals, tolerance,
-                                 self.mu, self.lam, self.r, self.sigma_zeta, self.sigma_eta,
-                                 p.kind, p.data, p.legs, p.n_res)
+        gens, evals, self.out_of_time = g3pcx_generations(self.pop, self.fit, self.rng, n_generations, max_evals,
+                                                          tolerance, kernel_end(self.work_deadline), self.mu,
+                                                          self.lam, self.r, self.sigma_zeta, self.sigma_eta,
+                                                          p.kind, p.data, p.legs, p.n_res)
+        return gens, evals
 
 
 def solve(model, legs, *, population=100, rng=None, init_range=(-50.0, 50.0), center=None, spread=None,

@@ -14,6 +14,8 @@ search, section 3); ``polish=False`` is the paper's algorithm alone.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from . import g3pcx, rcga
@@ -34,7 +36,11 @@ class GLPMAState(EvolutionaryState):
     runs at most ``ceil(n * ls_intensity / ls_interval)`` local generations (its share of the
     work), and a local search cut there resumes at the next chunk, before any further master
     generation -- the same sequence of generations as in one piece, but no chunk outlasts its
-    share (the 6-6 hexapod's 85 local generations would otherwise run past a deadline)."""
+    share (the 6-6 hexapod's 85 local generations would otherwise run past a deadline).  Under a
+    deadline both kernels also read the clock inside their loops (:mod:`glpma_ros.runtime.clock`): a
+    master generation (0.15 ms on the hexapod) stops between two children, a local search between
+    two G3-PCX generations, and the next chunk resumes them where they stopped -- again the same
+    sequence of generations."""
 
     name = "glpma"
 
@@ -52,10 +58,26 @@ class GLPMAState(EvolutionaryState):
         local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
         return n_generations * self.master.evals_per_generation() + local_share * self.local.evals_per_generation()
 
+    def best(self):
+        return self.master.best()
+
+    def inject(self, x, f):
+        self.master.inject(x, f)
+
     def advance(self, n_generations, max_evals, tolerance):
+        # both kernels read the clock inside their loops: a master generation stops between two children, a
+        # local search between two of its generations, at the driver's work deadline, and resume at the next
+        # chunk where they stopped; between two calls the clock is read here (a call costs some 20 µs before
+        # its work, and a chunk of the 3-RPR's short generations is dozens of calls)
+        deadline = self.work_deadline
+        self.master.work_deadline = self.local.work_deadline = deadline
+        self.out_of_time = False
         gens = evals = 0
         local_share = -(-n_generations * self.ls_intensity // self.ls_interval)     # ceil
         while evals < max_evals:
+            if deadline is not None and time.perf_counter() >= deadline:
+                self.out_of_time = True
+                break
             if self.local_left > 0:
                 if local_share <= 0:
                     break               # the chunk's share is spent: resumed at the next chunk
@@ -63,6 +85,9 @@ class GLPMAState(EvolutionaryState):
                 evals += e
                 local_share -= g
                 self.local_left -= g
+                if self.local.out_of_time:
+                    self.out_of_time = True
+                    break               # the deadline: resumed at the next chunk (if any)
                 if g == 0 or self.local.fit.min() < tolerance:
                     self.local_left = 0
                 if self.local_left > 0:
@@ -77,6 +102,9 @@ class GLPMAState(EvolutionaryState):
             gens += g
             evals += e
             self.since_local_search += g
+            if self.master.out_of_time:
+                self.out_of_time = True
+                break                   # the deadline, inside a master generation: resumed at the next chunk
             if g == 0 or self.master.fit.min() < tolerance:
                 break
             if self.since_local_search >= self.ls_interval:

@@ -19,14 +19,18 @@ Generational.  Each generation:
   generation the evaluation cap allows (004's "pivot" mutation is not
   specified, so this documented standard operator stands in for it).
 
-Children identical to their parent are not re-evaluated and not counted.
+Children identical to their parent are not re-evaluated and not counted.  Each child is
+evaluated as soon as it is made (the evaluation draws no random number: the same
+generation as evaluating them all at its end), so that under a deadline a generation
+can stop between two children and resume there.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from ..models.kernels import population_fitness
+from ..models.kernels import fitness_one
+from ..runtime.clock import kernel_end, reached
 from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
@@ -37,6 +41,9 @@ MUTATION_RATE = 0.1
 MIN_FITNESS = 1e-300
 #: non-uniform mutation's shape parameter (Michalewicz 1992)
 MUTATION_B = 5.0
+#: children between two reads of the clock under a deadline: a few microseconds of work (a child's evaluation
+#: is 0.3-1 µs on the 3-RPR and the hexapod), while a read costs about 0.1 µs
+CLOCK_STRIDE = 8
 
 
 @njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
@@ -86,59 +93,72 @@ def wright_crossover(pop, fit, a, b, rng, out):
     out[:] = pop[better] + u * (pop[better] - pop[worse])
 
 
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
+def make_child(pop, fit, cum, rng, i, t, crossover_rate, mutation_rate, mutation_b, width, new, new_f):
+    """Child ``i`` of the generation in progress into ``new[i]``: two roulette parents, Wright's crossover
+    (else a copy of the first parent, with its fitness in ``new_f[i]``), then the non-uniform mutation at
+    generation share ``t``.  True when the child differs from its parent (it needs an evaluation)."""
+    n = pop.shape[1]
+    a = roulette(cum, rng)
+    b = roulette(cum, rng)
+    changed = False
+    if rng.random() < crossover_rate and a != b:
+        wright_crossover(pop, fit, a, b, rng, new[i])
+        changed = True
+    else:
+        new[i] = pop[a]
+        new_f[i] = fit[a]
+    if rng.random() < mutation_rate:
+        k = rng.integers(0, n)
+        step = width[k] * (1.0 - rng.random() ** ((1.0 - t) ** mutation_b))
+        new[i, k] += step if rng.random() < 0.5 else -step
+        changed = True
+    return changed
+
+
 @njit(cache=True, error_model="numpy")
-def rcga_generations(pop, fit, rng, n_generations, max_evals, tolerance, generation, last_generation,
-                     crossover_rate, mutation_rate, mutation_b, width, kind, data, legs, n_res):
-    """Evolve ``pop``/``fit`` in place; returns (generations, evaluations)."""
-    N, n = pop.shape
-    new = np.empty_like(pop)
-    new_f = np.empty(N)
-    changed = np.zeros(N, dtype=np.bool_)
-    cum = np.empty(N)
+def rcga_generations(pop, fit, new, new_f, cum, progress, r, rng, n_generations, max_evals, tolerance, end,
+                     generation, last_generation, crossover_rate, mutation_rate, mutation_b, width, kind, data, legs):
+    """Evolve ``pop``/``fit`` in place, child by child; returns (generations completed, evaluations).
+
+    ``new``/``new_f`` hold the generation in progress and ``progress[0]`` its next child (0: none started;
+    a generation starts only when its ``N - 1`` evaluations fit in ``max_evals``).  The clock is read every
+    :data:`CLOCK_STRIDE` children and the call stops there once it reads ``end`` (the kernels' clock,
+    :func:`~glpma_ros.runtime.clock.kernel_end`; ``inf``: never); the next call resumes the same generation
+    with the same random stream, so the generations are those of one long call.  ``r`` is scratch space for
+    the residuals."""
+    N = pop.shape[0]
     gens = 0
     evals = 0
-    while gens < n_generations and evals + N - 1 <= max_evals:
-        if not start_generation(pop, fit, cum, new, new_f, tolerance):
+    made = 0
+    while True:
+        if progress[0] == 0:
+            if gens >= n_generations or evals + N - 1 > max_evals:
+                break
+            if not start_generation(pop, fit, cum, new, new_f, tolerance):
+                break
+            progress[0] = 1
+        if made % CLOCK_STRIDE == 0 and reached(end):
             break
-        changed[0] = False
+        i = progress[0]
         t = min((generation + gens) / max(last_generation, 1.0), 1.0)
-        for i in range(1, N):
-            a = roulette(cum, rng)
-            b = roulette(cum, rng)
-            changed[i] = False
-            if rng.random() < crossover_rate and a != b:
-                wright_crossover(pop, fit, a, b, rng, new[i])
-                changed[i] = True
-            else:
-                new[i] = pop[a]
-                new_f[i] = fit[a]
-            if rng.random() < mutation_rate:
-                k = rng.integers(0, n)
-                step = width[k] * (1.0 - rng.random() ** ((1.0 - t) ** mutation_b))
-                new[i, k] += step if rng.random() < 0.5 else -step
-                changed[i] = True
-        m = 0
-        for i in range(N):
-            if changed[i]:
-                m += 1
-        if m > 0:
-            idx = np.empty(m, dtype=np.int64)
-            m = 0
-            for i in range(N):
-                if changed[i]:
-                    idx[m] = i
-                    m += 1
-            f_new = population_fitness(new[idx], kind, data, legs, n_res)
-            for q in range(m):
-                new_f[idx[q]] = f_new[q]
-            evals += m
-        pop[:] = new
-        fit[:] = new_f
-        gens += 1
+        if make_child(pop, fit, cum, rng, i, t, crossover_rate, mutation_rate, mutation_b, width, new, new_f):
+            new_f[i] = fitness_one(new[i], kind, data, legs, r)
+            evals += 1
+        made += 1
+        progress[0] = i + 1
+        if progress[0] == N:
+            pop[:] = new
+            fit[:] = new_f
+            progress[0] = 0
+            gens += 1
     return gens, evals
 
 
 class RCGAPopulation(EvolutionaryState):
+    """The population, with the generation in progress alongside it (a compiled call may stop inside a
+    generation at the deadline; the next resumes it)."""
+
     name = "rcga"
 
     def __init__(self, problem, pop, fit, rng, *, width, max_evals, crossover_rate=CROSSOVER_RATE,
@@ -149,14 +169,39 @@ class RCGAPopulation(EvolutionaryState):
         self.mutation_b = float(mutation_b)
         self.generation = 0
         self.last_generation = max(float(max_evals) / len(pop), 1.0)
+        self.new = np.empty_like(self.pop)
+        self.new_f = np.empty_like(self.fit)
+        self.cum = np.empty_like(self.fit)
+        self.progress = np.zeros(1, dtype=np.int64)      # next child of the generation in progress (0: none)
+        self.residuals = np.empty(problem.n_res)
+
+    def best(self):
+        """Best of the population and of the children of the generation in progress."""
+        x, f = super().best()
+        k = int(self.progress[0])
+        if k:
+            i = int(np.argmin(self.new_f[:k]))
+            if self.new_f[i] < f:
+                return self.new[i].copy(), float(self.new_f[i])
+        return x, f
+
+    def inject(self, x, f):
+        """Into the population's worst slot, and as the elite of the generation in progress."""
+        super().inject(x, f)
+        if self.progress[0] and f < self.new_f[0]:
+            self.new[0] = x
+            self.new_f[0] = f
 
     def advance(self, n_generations, max_evals, tolerance):
         p = self.problem
-        gens, evals = rcga_generations(self.pop, self.fit, self.rng, n_generations, max_evals, tolerance,
-                                       float(self.generation), self.last_generation, self.crossover_rate,
-                                       self.mutation_rate, self.mutation_b, self.width,
-                                       p.kind, p.data, p.legs, p.n_res)
+        gens, evals = rcga_generations(self.pop, self.fit, self.new, self.new_f, self.cum, self.progress,
+                                       self.residuals, self.rng, n_generations, max_evals, tolerance,
+                                       kernel_end(self.work_deadline), float(self.generation), self.last_generation,
+                                       self.crossover_rate, self.mutation_rate, self.mutation_b, self.width,
+                                       p.kind, p.data, p.legs)
         self.generation += gens
+        # stopped inside a generation: only the clock does that
+        self.out_of_time = bool(self.progress[0])
         return gens, evals
 
 
