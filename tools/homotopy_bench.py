@@ -2,17 +2,19 @@
 """Time the parameter homotopy beside the multistart and msolve in one run (BENCHMARKS.md, "Every assembly
 mode: the homotopy"): Dietmaier's 6-6, random 6-6s and random 3-RPRs (glpma_ros.models.random_geometry).
 
-Per case: the homotopy's paths alone (``track_paths``, every path of one round, in-process), the whole
-``solve_all(method="homotopy")`` (certificate, real endpoints, LM polish), ``solve_all(method="multistart")``
-and, with ``--exact N``, msolve on the first N cases of each kind; the medians, wall clock and process CPU
-time, and the modes each found.
+Per case: the homotopy's paths alone (``track``, every path of one round, in-process), the whole
+``solve_all(method="homotopy")`` (certificate, real endpoints, LM polish), both on each thread count of
+``--threads``, ``solve_all(method="multistart")`` and, with ``--exact N``, msolve on the first N cases of each
+kind; the medians over the cases (``_t<N>``: on N threads) of the wall clock and the process CPU time (every
+thread's), the modes each found, and the load average before and after each kind.
 
-    PYTHONPATH=. python tools/homotopy_bench.py [--cases 20] [--exact 3] [--repeats 5]
+    PYTHONPATH=. python tools/homotopy_bench.py [--cases 20] [--exact 3] [--repeats 5] [--threads 1 2]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import time
@@ -47,12 +49,16 @@ def timed(fn, repeats):
     return statistics.median(wall), statistics.median(cpu), out
 
 
-def paths_only(model, legs, seed):
+def paths_only(model, legs, seed, threads):
     start = monodromy.load_start_system(model.kind)
     family = start.family
     path = family.parameter_path(start.params, family.target(model, legs).params)
     gammas = np.full(len(start.solutions), path_tracker.random_gammas(np.random.default_rng(seed), 1)[0])
-    return lambda: path_tracker.track(path, start.solutions, gammas)
+    return lambda: path_tracker.track(path, start.solutions, gammas, threads=threads)
+
+
+def load_average() -> float:
+    return round(os.getloadavg()[0], 2)
 
 
 def main(argv=None) -> int:
@@ -60,7 +66,11 @@ def main(argv=None) -> int:
     p.add_argument("--cases", type=int, default=20, help="random cases of each kind")
     p.add_argument("--exact", type=int, default=3, help="cases of each kind also solved by msolve")
     p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--threads", type=int, nargs="+", default=None, metavar="N",
+                   help="thread counts of the homotopy's paths to time (default 1 and the default, the cores this "
+                        "process may run on)")
     args = p.parse_args(argv)
+    thread_counts = args.threads or sorted({1, path_tracker.available_cores()})
     rng = np.random.default_rng(2026)
     groups = {"dietmaier": [(model_from_dict(DIETMAIER), DIETMAIER_LEGS)],
               "hexapod_66": [GENERATORS["hexapod_66"](rng)[:2] for _ in range(args.cases)],
@@ -71,12 +81,19 @@ def main(argv=None) -> int:
     report = {}
     for name, cases in groups.items():
         rows = []
+        load_before = load_average()
         for k, (model, legs) in enumerate(cases):
             row = {}
-            row["paths_wall"], row["paths_cpu"], _ = timed(paths_only(model, legs, k), args.repeats)
-            row["homotopy_wall"], row["homotopy_cpu"], res = timed(
-                lambda m=model, lg=legs, k=k: solve_all(m, lg, method="homotopy", seed=k), args.repeats)
-            row["homotopy_modes"], row["complete"] = res.real_solutions, res.complete
+            for n in thread_counts:
+                row[f"paths_wall_t{n}"], row[f"paths_cpu_t{n}"], _ = timed(paths_only(model, legs, k, n), args.repeats)
+            counts = set()
+            for n in thread_counts:
+                row[f"homotopy_wall_t{n}"], row[f"homotopy_cpu_t{n}"], res = timed(
+                    lambda m=model, lg=legs, k=k, n=n: solve_all(m, lg, method="homotopy", seed=k, threads=n),
+                    args.repeats)
+                row["homotopy_modes"], row["complete"] = res.real_solutions, res.complete
+                counts.add((res.real_solutions, res.complete, res.steps))
+            row["threads_agree"] = len(counts) == 1
             row["multistart_wall"], row["multistart_cpu"], ms = timed(
                 lambda m=model, lg=legs, k=k: solve_all(m, lg, method="multistart", seed=k), max(1, args.repeats // 2))
             row["multistart_modes"] = len(ms.solutions)
@@ -89,7 +106,9 @@ def main(argv=None) -> int:
                   flush=True)
         med = {key: statistics.median(r[key] for r in rows if key in r)
                for key in rows[0] if key.endswith(("_wall", "_cpu"))}
-        med.update(complete=sum(r["complete"] for r in rows), cases=len(rows),
+        med.update(complete=sum(r["complete"] for r in rows), cases=len(rows), load_before=load_before,
+                   threads_agree=sum(r["threads_agree"] for r in rows),
+                   load_after=load_average(),
                    multistart_missed=sum(r["multistart_modes"] < r["homotopy_modes"] for r in rows),
                    msolve_agrees=sum(r.get("msolve_modes") == r["homotopy_modes"] for r in rows if "msolve_modes" in r))
         report[name] = med
