@@ -78,10 +78,11 @@ def test_python_threads_tracking_at_once_get_their_own_answers():
         _assert_same_tracking(a, b)
 
 
-def test_default_threads_are_the_cores_at_most_the_paths():
+def test_default_threads_are_the_cores_for_enough_paths():
     cores = pt.available_cores()
     assert cores >= 1
-    assert pt.default_threads(40) == min(cores, 40) and pt.default_threads(1) == 1
+    assert pt.default_threads(40) == min(cores, 40 // pt.MIN_PATHS_PER_THREAD)
+    assert pt.default_threads(6) == pt.default_threads(1) == 1       # the 3-RPR's paths: one thread
     assert modes_threads() == max(1, cores - 1)
 
 

@@ -45,7 +45,7 @@ def build_parser() -> OneLineParser:
                         "1e-5 m, the node's leg_noise_std)")
     a.add_argument("--threads", type=count_type, default=None, metavar="N",
                    help="homotopy: threads tracking its paths, which are independent (default: the cores this "
-                   "process may run on, at most the paths; the modes do not depend on it)")
+                   "process may run on, one per 8 paths at most; the modes do not depend on it)")
     a.add_argument("--seed", type=seed_type, default=0,
                    help="random seed, a non-negative integer (homotopy gamma, multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")

@@ -172,8 +172,8 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS, threads=None) -
     docstring).  Every regular endpoint of every round is a solution of the target, so the distinct ones
     are gathered over the rounds; a retrack round draws a new gamma and (6-6) a new random affine patch
     (a path that crosses the patch's hyperplane at infinity in one patch does not in another).  ``threads``: how many
-    threads track a round's paths (:func:`.path_tracker.track`; default the cores this process may run on, at most
-    the paths); the answer does not depend on it."""
+    threads track a round's paths (:func:`.path_tracker.track`; default the cores this process may run on, one per
+    8 paths at most); the answer does not depend on it."""
     t0 = time.perf_counter()
     name = family_of(model)
     if name is None:

@@ -84,7 +84,7 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
     ``budget_s`` (seconds, default none): limits of the multistart, ``polish=False``: its modes as
     found (counting only); ``seed``: the random stream; ``leg_noise_std`` (config unit, default the
     node's default): redundant legs, the noise of the consistency test of a mode; ``threads``: the homotopy's
-    path-tracking threads (default the cores this process may run on, at most the paths; the modes do not
+    path-tracking threads (default the cores this process may run on, one per 8 paths at most; the modes do not
     depend on it)."""
     legs = model.check_legs(legs)
     if leg_noise_std is not None:

@@ -105,6 +105,10 @@ OUTCOMES = ("regular", "at_infinity", "step_failed", "max_steps", "singular", "s
 #: in their steps: a 6-6 path takes 15 to 60), so a thread that drew short paths takes more; a chunk costs one
 #: call of the compiled kernel (a few microseconds against about 0.2 ms per 6-6 path)
 CHUNKS_PER_THREAD = 4
+#: by default a thread per this many paths at most: a thread hand-over costs tens of microseconds (more on a busy
+#: machine), about what a few 3-RPR paths take (50 us each): its 6 paths took 0.29 ms on one thread, 0.37 ms on two
+#: (load 3 on 2 cores), so they stay on one; the 6-6's 40 (about 0.25 ms each) and the 16 of a 6-3 are split
+MIN_PATHS_PER_THREAD = 8
 
 #: two endpoints closer than this share of 1 + |z| are one (polished regular endpoints are accurate to
 #: about round-off / rcond, i.e. 1e-6 at the worst regular conditioning)
@@ -608,8 +612,9 @@ def available_cores() -> int:
 
 
 def default_threads(paths: int) -> int:
-    """:func:`track`'s default thread count: the cores this process may run on, at most one per path."""
-    return max(1, min(available_cores(), int(paths)))
+    """:func:`track`'s default thread count: the cores this process may run on, at most one per
+    ``MIN_PATHS_PER_THREAD`` paths (at least one)."""
+    return max(1, min(available_cores(), int(paths) // MIN_PATHS_PER_THREAD))
 
 
 class _Pool:
@@ -637,9 +642,9 @@ _POOL = _Pool()
 
 def track(path: ParameterPath, starts, gammas, settings=SETTINGS, threads=None):
     """Every row of ``starts`` tracked along ``path`` (:func:`track_paths`): (endpoints, ``F_z`` there, outcomes,
-    steps, t reached).  ``threads``: how many threads track the paths (default :func:`default_threads`); the
-    calling thread is one of them, the others come from a pool shared by every call.  Each path is tracked by
-    the same compiled code whichever thread takes it, so the results do not depend on ``threads``."""
+    steps, t reached).  ``threads``: how many threads track the paths (default :func:`default_threads`; at most one
+    per path); the calling thread is one of them, the others come from a pool shared by every call.  Each path is
+    tracked by the same compiled code whichever thread takes it, so the results do not depend on ``threads``."""
     count, n = starts.shape
     threads = default_threads(count) if threads is None else int(threads)
     if threads < 1:
