@@ -101,10 +101,12 @@ CAREFUL_SETTINGS[9] *= CAREFUL
 REGULAR, AT_INFINITY_REACHED, STEP_FAILED, STEPS_EXHAUSTED, ENDGAME_SINGULAR, SINGULAR = range(6)
 OUTCOMES = ("regular", "at_infinity", "step_failed", "max_steps", "singular", "singular")
 
-#: chunks of paths per thread of :func:`track`: the threads take the next chunk as they finish one (paths differ
-#: in their steps: a 6-6 path takes 15 to 60), so a thread that drew short paths takes more; a chunk costs one
-#: call of the compiled kernel (a few microseconds against about 0.2 ms per 6-6 path)
-CHUNKS_PER_THREAD = 4
+#: the chunks of paths of :func:`track` shrink as the paths are taken ("guided" scheduling): each is this share of
+#: the paths left over the threads' count (a 6-6's 40 on two threads: 10, 8, 6, 4, 3, 3, 2, 1, 1, 1, 1).  The threads
+#: take the next chunk as they finish one, and paths differ in their steps (a 6-6 path takes 15 to 60): the large
+#: first chunks keep the kernel calls few (each costs a few microseconds against about 0.2 ms per 6-6 path), the
+#: single paths at the end leave a thread idle for one path at most while the other finishes
+GUIDED_SHARE = 0.5
 #: by default a thread per this many paths at most: a thread hand-over costs tens of microseconds (more on a busy
 #: machine), about what a few 3-RPR paths take (50 us each): its 6 paths took 0.29 ms on one thread, 0.37 ms on two
 #: (load 3 on 2 cores), so they stay on one; the 6-6's 40 (about 0.25 ms each) and the 16 of a 6-3 are split
@@ -660,8 +662,11 @@ def track(path: ParameterPath, starts, gammas, settings=SETTINGS, threads=None):
     if threads == 1:
         track_paths(path.kind, path.K, path.P, starts, gammas, settings, ends, jac, outcome, steps, t_end)
         return ends, jac, outcome, steps, t_end
-    size = -(-count // (threads * CHUNKS_PER_THREAD))
-    bounds = [(lo, min(lo + size, count)) for lo in range(0, count, size)]
+    bounds, lo = [], 0
+    while lo < count:
+        size = max(1, math.ceil(GUIDED_SHARE * (count - lo) / threads))
+        bounds.append((lo, lo + size))
+        lo += size
     taken = itertools.count()                # next(...) is atomic under the GIL: each chunk is taken once
 
     def worker():
