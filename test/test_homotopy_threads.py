@@ -132,3 +132,22 @@ def test_cli_threads_bad_values_exit_2():
         p = _run("solve-all", config, "--legs", *[1250] * 6, *extra)
         assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
         assert len(p.stderr.strip().splitlines()) == 1 and "threads" in p.stderr
+
+
+def test_homotopy_bench_times_each_thread_count():
+    """tools/homotopy_bench.py (BENCHMARKS.md): the medians on each thread count, the same modes on both; its
+    --when-idle samples (here begun whatever the other processes do: a test must not wait for a free machine)."""
+    bench = str(ROOT / "tools" / "homotopy_bench.py")
+    p = subprocess.run([sys.executable, bench, "--cases", "1", "--exact", "0", "--repeats", "1", "--threads", "1", "2"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=1200)
+    assert p.returncode == 0, p.stderr
+    medians = {line.split()[0]: json.loads(line.split(" MEDIANS ", 1)[1])
+               for line in p.stdout.splitlines() if " MEDIANS " in line}
+    assert set(medians) == {"dietmaier", "hexapod_66", "planar_3rpr"}
+    for m in medians.values():
+        assert m["threads_agree"] == m["cases"] == m["complete"]
+        assert {"paths_wall_t1", "paths_wall_t2", "homotopy_cpu_t2", "others"} <= set(m)
+    p = subprocess.run([sys.executable, bench, "--when-idle", "1", "--cases", "1", "--repeats", "1",
+                        "--idle-others", "1000"], capture_output=True, text=True, cwd=ROOT, timeout=1200)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.count("SAMPLE ") == 1 and "WHEN_IDLE" in p.stdout

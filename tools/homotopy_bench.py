@@ -85,6 +85,7 @@ class Others:
 
 
 #: --when-idle: a sample begins when the other processes used less than this many cores over IDLE_PROBE_S
+#: (--idle-others)
 IDLE_OTHERS = 0.05
 IDLE_PROBE_S = 0.5
 #: ... probing again after this pause while the machine is busy
@@ -93,8 +94,9 @@ IDLE_WAIT_S = 5.0
 FREE_OTHERS = 0.1
 
 
-def when_idle(cases, thread_counts, samples, repeats):
-    """``samples`` timings of ``cases`` (random 6-6s) on each thread count, each begun on an idle machine."""
+def when_idle(cases, thread_counts, samples, repeats, idle_others=IDLE_OTHERS):
+    """``samples`` timings of ``cases`` (random 6-6s) on each thread count, each begun when the other processes
+    use less than ``idle_others`` cores."""
     calls = [(paths_only(m, lg, k, n), lambda m=m, lg=lg, k=k, n=n: solve_all(m, lg, method="homotopy", seed=k,
                                                                              threads=n), n)
              for n in thread_counts for k, (m, lg) in enumerate(cases)]
@@ -105,7 +107,7 @@ def when_idle(cases, thread_counts, samples, repeats):
     while len(out) < samples:
         probe = Others()
         time.sleep(IDLE_PROBE_S)
-        if probe.cores() >= IDLE_OTHERS:
+        if probe.cores() >= idle_others:
             time.sleep(IDLE_WAIT_S)
             continue
         sample = {"utc": time.strftime("%H:%M:%S", time.gmtime()), "load": load_average()}
@@ -139,12 +141,15 @@ def main(argv=None) -> int:
                         "process may run on)")
     p.add_argument("--when-idle", type=int, default=0, metavar="N",
                    help="instead: N samples of the random 6-6s' paths and homotopy, each begun on an idle machine")
+    p.add_argument("--idle-others", type=float, default=IDLE_OTHERS, metavar="CORES",
+                   help=f"--when-idle: a sample begins when the other processes use less than this many cores "
+                        f"(default {IDLE_OTHERS})")
     args = p.parse_args(argv)
     thread_counts = args.threads or sorted({1, path_tracker.available_cores()})
     rng = np.random.default_rng(2026)
     if args.when_idle:
         when_idle([GENERATORS["hexapod_66"](rng)[:2] for _ in range(args.cases)], thread_counts, args.when_idle,
-                  args.repeats)
+                  args.repeats, args.idle_others)
         return 0
     groups = {"dietmaier": [(model_from_dict(DIETMAIER), DIETMAIER_LEGS)],
               "hexapod_66": [GENERATORS["hexapod_66"](rng)[:2] for _ in range(args.cases)],
