@@ -109,7 +109,7 @@ OUTCOMES = ("regular", "at_infinity", "step_failed", "max_steps", "singular", "s
 GUIDED_SHARE = 0.5
 #: by default a thread per this many paths at most: a thread hand-over costs tens of microseconds (more on a busy
 #: machine), about what a few 3-RPR paths take (50 us each): its 6 paths took 0.29 ms on one thread, 0.37 ms on two
-#: (load 3 on 2 cores), so they stay on one; the 6-6's 40 (about 0.25 ms each) and the 16 of a 6-3 are split
+#: (load 3 on 2 cores), so they stay on one; the hexapods' 40 (about 0.25 ms each) are split
 MIN_PATHS_PER_THREAD = 8
 
 #: two endpoints closer than this share of 1 + |z| are one (polished regular endpoints are accurate to
