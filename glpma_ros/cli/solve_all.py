@@ -43,6 +43,9 @@ def build_parser() -> OneLineParser:
                    help="redundant legs: standard deviation of the leg measurements in the config's unit; a mode "
                         "is a least-squares pose whose residuals pass the chi-square test against it (default: "
                         "1e-5 m, the node's leg_noise_std)")
+    a.add_argument("--threads", type=count_type, default=None, metavar="N",
+                   help="homotopy: threads tracking its paths, which are independent (default: the cores this "
+                   "process may run on, one per 8 paths at most; the modes do not depend on it)")
     a.add_argument("--seed", type=seed_type, default=0,
                    help="random seed, a non-negative integer (homotopy gamma, multistart starts, G3-PCX runs)")
     a.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -72,6 +75,8 @@ def run(args) -> int:
         raise GlpmaError(f"--runs counts G3-PCX searches (--method g3pcx); {method} does not take it")
     if (args.max_starts is not None or args.budget_s is not None) and method != "multistart":
         raise GlpmaError("--max-starts and --budget-s limit --method multistart")
+    if args.threads is not None and method != "homotopy":
+        raise GlpmaError(f"--threads counts the homotopy's path-tracking threads; {method} does not take it")
     for name, value, ok in (("--runs", args.runs, lambda v: v >= 1), ("--max-starts", args.max_starts,
                             lambda v: v >= 1), ("--budget-s", args.budget_s, lambda v: v > 0)):
         if value is not None and not ok(value):
@@ -79,7 +84,7 @@ def run(args) -> int:
     # the compiled code of the method that runs (msolve is a separate program: nothing to load)
     load_s = 0.0 if method in ("exact", "closed_form") else precompile.exercise_solve_all(model, methods=(method,))
     res = solve_all(model, legs, method=method, runs=args.runs, seed=args.seed, max_starts=args.max_starts,
-                    budget_s=args.budget_s, leg_noise_std=args.leg_noise_std)
+                    budget_s=args.budget_s, leg_noise_std=args.leg_noise_std, threads=args.threads)
     extra = {"method": res.method, "evaluations": res.evaluations, "load_s": load_s}
     if res.method == "multistart":
         extra.update(starts=res.starts, stop_reason=res.stop_reason, miss_probability=res.miss_probability,

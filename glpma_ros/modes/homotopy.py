@@ -38,12 +38,12 @@ Morgan & Sommese 1989, "Coefficient-parameter polynomial continuation", Appl. Ma
   1``).  The tracker is an adaptive predictor-corrector (classical Runge-Kutta of order 4 on
   ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed correction; after a success the
   next step is chosen from the size of the first corrector update, the predictor's error, of order h^5, aiming
-  at ``STEP_TARGET``), every path in one compiled call (:func:`.path_tracker.track_paths`; complex LU with
-  partial pivoting).  At ``t = 1`` Newton's method polishes the endpoint.  The system along the path is
-  evaluated by the family's own evaluator from the parameters interpolated at ``tau`` (residual, Jacobian and
-  ``dF/dtau`` written out); a family without one by its quadrics, whose coefficients along the path are a
-  quadratic polynomial in ``tau`` (they are of degree two in ``p``), interpolated exactly from three
-  evaluations.
+  at ``STEP_TARGET``), compiled (:func:`.path_tracker.track_paths`; complex LU with partial pivoting); the paths
+  are independent and split over threads (:func:`.path_tracker.track`).  At ``t = 1`` Newton's method
+  polishes the endpoint.  The system along the path is evaluated by the family's own evaluator from the
+  parameters interpolated at ``tau`` (residual, Jacobian and ``dF/dtau`` written out); a family without one by
+  its quadrics, whose coefficients along the path are a quadratic polynomial in ``tau`` (they are of degree two
+  in ``p``), interpolated exactly from three evaluations.
 
 * **Certificate.**  The endpoints are classified: *regular* (finite, Newton converged, reciprocal
   condition number of ``F_z`` above ``REGULAR_RCOND``), *singular* (the tracker reached ``t = 1`` but ``F_z``
@@ -167,11 +167,13 @@ def _three_and_three(model) -> bool:
     return all(s in (3, 6) for s in sizes) and sizes != [6, 6]
 
 
-def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResult:
+def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS, threads=None) -> HomotopyResult:
     """Every solution of ``model`` at ``legs`` (checked, config unit) by the parameter homotopy (module
     docstring).  Every regular endpoint of every round is a solution of the target, so the distinct ones
     are gathered over the rounds; a retrack round draws a new gamma and (6-6) a new random affine patch
-    (a path that crosses the patch's hyperplane at infinity in one patch does not in another)."""
+    (a path that crosses the patch's hyperplane at infinity in one patch does not in another).  ``threads``: how many
+    threads track a round's paths (:func:`.path_tracker.track`; default the cores this process may run on, one per
+    8 paths at most); the answer does not depend on it."""
     t0 = time.perf_counter()
     name = family_of(model)
     if name is None:
@@ -200,7 +202,8 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
             pending = np.arange(n_paths)
         retracked += pending.size if round_ else 0
         path = family.parameter_path(start.params, target.params)
-        ends, jac, outcome, steps, t_end = track(path, starts[pending], np.full(pending.size, gamma), settings)
+        ends, jac, outcome, steps, t_end = track(path, starts[pending], np.full(pending.size, gamma), settings,
+                                                threads)
         total_steps += int(steps.sum())
         good = _regular(jac, outcome)
         outcome_of[pending] = outcome
@@ -228,13 +231,13 @@ def solve(model, legs, *, seed=0, retrack_rounds=RETRACK_ROUNDS) -> HomotopyResu
             family = base_family.another_patch(rng)
             path = family.parameter_path(start.params, target.params)
             starts, gammas = base_family.convert(start.solutions, family), np.full(n_paths, random_gammas(rng, 1)[0])
-            ends, jac, outcome, steps, t_end = track(path, starts, gammas, SETTINGS)
+            ends, jac, outcome, steps, t_end = track(path, starts, gammas, SETTINGS, threads)
             total_steps += int(steps.sum())
             retracked += n_paths
             again = np.flatnonzero((outcome == STEP_FAILED) | (outcome == STEPS_EXHAUSTED))
             if again.size:              # the same paths, tracked carefully (as the second round above)
                 ends[again], jac[again], outcome[again], steps, t_end[again] = track(
-                    path, starts[again], gammas[again], CAREFUL_SETTINGS)
+                    path, starts[again], gammas[again], CAREFUL_SETTINGS, threads)
                 total_steps += int(steps.sum())
                 retracked += again.size
             good = _regular(jac, outcome)

@@ -75,7 +75,7 @@ def wide_range(model, legs) -> tuple[float, float]:
 
 
 def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", max_evals=None,
-              max_starts=None, budget_s=None, polish=True, leg_noise_std=None) -> AllSolutions:
+              max_starts=None, budget_s=None, polish=True, leg_noise_std=None, threads=None) -> AllSolutions:
     """Every distinct real assembly mode of ``model`` at ``legs`` (config unit) by ``method``
     (module docstring; default ``"homotopy"`` where the model's family has a start system, else
     ``"multistart"``; ``"g3pcx"`` when ``runs`` is given, and the
@@ -83,7 +83,9 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
     ``solver``, ``max_evals``: of those runs; ``max_starts`` (default ``MAX_STARTS``) and
     ``budget_s`` (seconds, default none): limits of the multistart, ``polish=False``: its modes as
     found (counting only); ``seed``: the random stream; ``leg_noise_std`` (config unit, default the
-    node's default): redundant legs, the noise of the consistency test of a mode."""
+    node's default): redundant legs, the noise of the consistency test of a mode; ``threads``: the homotopy's
+    path-tracking threads (default the cores this process may run on, one per 8 paths at most; the modes do not
+    depend on it)."""
     legs = model.check_legs(legs)
     if leg_noise_std is not None:
         leg_noise(model, leg_noise_std)         # checked up front, for every model
@@ -98,6 +100,11 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
         raise GlpmaError(f"runs counts G3-PCX searches (method g3pcx); {method} does not take it")
     if (max_starts is not None or budget_s is not None or not polish) and method != "multistart":
         raise GlpmaError(f"max_starts, budget_s and polish=False are the multistart's; {method} does not take them")
+    if threads is not None:
+        if method != "homotopy":
+            raise GlpmaError(f"threads counts the homotopy's path-tracking threads; {method} does not take it")
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise GlpmaError(f"threads must be a positive integer, not {threads!r}")
     if method == "multistart":
         return multistart(model, legs, seed=seed, max_starts=MAX_STARTS if max_starts is None else max_starts,
                           budget_s=budget_s, polish=polish, leg_noise_std=leg_noise_std)
@@ -109,7 +116,7 @@ def solve_all(model, legs, *, method=None, runs=None, seed=0, solver="g3pcx", ma
     if method == "closed_form":
         return closed_form_modes(model, legs, seed=seed)
     if method == "homotopy":
-        return homotopy_modes(model, legs, seed=seed, leg_noise_std=leg_noise_std)
+        return homotopy_modes(model, legs, seed=seed, leg_noise_std=leg_noise_std, threads=threads)
     raise GlpmaError(f"unknown solve_all method {method!r}; choose one of {', '.join(METHODS)}")
 
 
@@ -180,13 +187,14 @@ def closed_form_modes(model, legs, *, seed=0) -> AllSolutions:
 
 
 # -- homotopy -------------------------------------------------------------------------------------
-def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None, fallback=True) -> AllSolutions:
+def homotopy_modes(model, legs, *, seed=0, leg_noise_std=None, fallback=True, threads=None) -> AllSolutions:
     """Every real mode by the parameter homotopy (:mod:`glpma_ros.modes.homotopy`), each polished with every
     leg; redundant legs: those the polish leaves consistent (:func:`consistent_fitness`).  Incomplete: the real
     double roots the paths met as well (polished; ``conditioning`` says they are double) and, with ``fallback``
-    and msolve installed (not with redundant legs), msolve's modes instead, ``fallback = "exact"``."""
+    and msolve installed (not with redundant legs), msolve's modes instead, ``fallback = "exact"``.  ``threads``:
+    the path-tracking threads (:func:`glpma_ros.modes.homotopy.solve`)."""
     t0 = time.perf_counter()
-    res = homotopy.solve(model, legs, seed=seed)
+    res = homotopy.solve(model, legs, seed=seed, threads=threads)
     rng = np.random.default_rng(seed)
     limit = max((LOCAL_RESIDUAL_RELATIVE * model.scale) ** 2, consistent_fitness(model, leg_noise_std))
     found, evaluations = [], 0

@@ -6,9 +6,11 @@ random unit complex ``gamma`` (the gamma trick; Sommese & Wampler, *The Numerica
 Polynomials Arising in Engineering and Science*, World Scientific 2005, ch. 2.2 and 7).  The tracker is an
 adaptive predictor-corrector: classical Runge-Kutta of order 4 on ``dz/dt = -F_z^{-1} F_t``, Newton corrector,
 the step halved on a failed correction; after a success the next step is chosen from the size of the first
-corrector update (the predictor's error, of order h^5), aiming at ``STEP_TARGET``.  Every path is tracked in
-one compiled call (:func:`track_paths`; complex LU with partial pivoting); at ``t = 1`` Newton's method
-polishes the endpoint.  The system along the path is evaluated by the family's own evaluator from its parameters
+corrector update (the predictor's error, of order h^5), aiming at ``STEP_TARGET``.  A compiled call
+(:func:`track_paths`; complex LU with partial pivoting) tracks a batch of paths; at ``t = 1`` Newton's method
+polishes the endpoint.  The paths are independent: :func:`track` splits them over threads, each running the
+compiled kernel (which releases the GIL) on a chunk of paths; the endpoints do not depend on the thread count.
+The system along the path is evaluated by the family's own evaluator from its parameters
 interpolated at ``tau`` (3-RPR, 6-6: residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities
 prepared once per distinct ``tau``), or for any family of quadrics from their coefficients, a quadratic
 polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each path ends with an outcome
@@ -16,7 +18,11 @@ polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`
 """
 from __future__ import annotations
 
+import itertools
 import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
@@ -94,6 +100,17 @@ CAREFUL_SETTINGS[9] *= CAREFUL
 #: path outcomes (track_paths' status)
 REGULAR, AT_INFINITY_REACHED, STEP_FAILED, STEPS_EXHAUSTED, ENDGAME_SINGULAR, SINGULAR = range(6)
 OUTCOMES = ("regular", "at_infinity", "step_failed", "max_steps", "singular", "singular")
+
+#: the chunks of paths of :func:`track` shrink as the paths are taken ("guided" scheduling): each is this share of
+#: the paths left over the threads' count (a 6-6's 40 on two threads: 10, 8, 6, 4, 3, 3, 2, 1, 1, 1, 1).  The threads
+#: take the next chunk as they finish one, and paths differ in their steps (a 6-6 path takes 15 to 60): the large
+#: first chunks keep the kernel calls few (each costs a few microseconds against about 0.2 ms per 6-6 path), the
+#: single paths at the end leave a thread idle for one path at most while the other finishes
+GUIDED_SHARE = 0.5
+#: by default a thread per this many paths at most: a thread hand-over costs tens of microseconds (more on a busy
+#: machine), about what a few 3-RPR paths take (50 us each): its 6 paths took 0.29 ms on one thread, 0.37 ms on two
+#: (load 3 on 2 cores), so they stay on one; the hexapods' 40 (about 0.25 ms each) are split
+MIN_PATHS_PER_THREAD = 8
 
 #: two endpoints closer than this share of 1 + |z| are one (polished regular endpoints are accurate to
 #: about round-off / rcond, i.e. 1e-6 at the worst regular conditioning)
@@ -588,17 +605,82 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
                 jacobians[p, k, j] = J[k, j]
 
 
-def track(path: ParameterPath, starts, gammas, settings=SETTINGS):
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity; the machine's count where that is unknown)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:              # not Linux
+        return os.cpu_count() or 1
+
+
+def default_threads(paths: int) -> int:
+    """:func:`track`'s default thread count: the cores this process may run on, at most one per
+    ``MIN_PATHS_PER_THREAD`` paths (at least one)."""
+    return max(1, min(available_cores(), int(paths) // MIN_PATHS_PER_THREAD))
+
+
+class _Pool:
+    """One thread pool for every :func:`track` of the process, grown on demand; a forked child (the map's
+    worker processes) gets its own, the parent's threads do not exist there."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._executor = None
+        self._size = 0
+        self._pid = 0
+
+    def executor(self, workers: int) -> ThreadPoolExecutor:
+        with self._lock:
+            if self._executor is None or self._pid != os.getpid() or self._size < workers:
+                if self._executor is not None and self._pid == os.getpid():
+                    self._executor.shutdown(wait=False)
+                self._executor = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="glpma-paths")
+                self._size, self._pid = workers, os.getpid()
+            return self._executor
+
+
+_POOL = _Pool()
+
+
+def track(path: ParameterPath, starts, gammas, settings=SETTINGS, threads=None):
     """Every row of ``starts`` tracked along ``path`` (:func:`track_paths`): (endpoints, ``F_z`` there, outcomes,
-    steps, t reached)."""
+    steps, t reached).  ``threads``: how many threads track the paths (default :func:`default_threads`; at most one
+    per path); the calling thread is one of them, the others come from a pool shared by every call.  Each path is
+    tracked by the same compiled code whichever thread takes it, so the results do not depend on ``threads``."""
     count, n = starts.shape
+    threads = default_threads(count) if threads is None else int(threads)
+    if threads < 1:
+        raise ValueError(f"threads must be at least 1, not {threads}")
     ends = np.empty((count, n), complex)
     jac = np.empty((count, n, n), complex)
     outcome = np.empty(count, np.int64)
     steps = np.empty(count, np.int64)
     t_end = np.empty(count)
-    track_paths(path.kind, path.K, path.P, np.ascontiguousarray(starts, dtype=complex),
-                np.ascontiguousarray(gammas, dtype=complex), settings, ends, jac, outcome, steps, t_end)
+    starts = np.ascontiguousarray(starts, dtype=complex)
+    gammas = np.ascontiguousarray(gammas, dtype=complex)
+    threads = min(threads, max(count, 1))
+    if threads == 1:
+        track_paths(path.kind, path.K, path.P, starts, gammas, settings, ends, jac, outcome, steps, t_end)
+        return ends, jac, outcome, steps, t_end
+    bounds, lo = [], 0
+    while lo < count:
+        size = max(1, math.ceil(GUIDED_SHARE * (count - lo) / threads))
+        bounds.append((lo, lo + size))
+        lo += size
+    taken = itertools.count()                # next(...) is atomic under the GIL: each chunk is taken once
+
+    def worker():
+        for k in iter(taken.__next__, None):
+            if k >= len(bounds):
+                return
+            lo, hi = bounds[k]
+            track_paths(path.kind, path.K, path.P, starts[lo:hi], gammas[lo:hi], settings, ends[lo:hi],
+                        jac[lo:hi], outcome[lo:hi], steps[lo:hi], t_end[lo:hi])
+
+    helpers = [_POOL.executor(threads - 1).submit(worker) for _ in range(threads - 1)]
+    worker()
+    for f in helpers:
+        f.result()
     return ends, jac, outcome, steps, t_end
 
 

@@ -29,11 +29,19 @@ import numpy as np
 from ..config import load_manipulator
 from ..errors import InputError
 from ..modes.multistart import default_method, solve_all
+from ..modes.path_tracker import available_cores
 
 #: scheduling priority of the child relative to the node (higher = yields more)
 NICE = 5
 #: starts of the warm-up solve_all in the child
 WARM_UP_STARTS = 2
+
+
+def modes_threads() -> int:
+    """The homotopy's path-tracking threads for a request: every core the process may run on but one, at least
+    one (on the 2-core machine: one), so that the real-time solve loop keeps a core of its own while the modes are
+    tracked; a request takes a few times longer than with every core (BENCHMARKS.md, "Every assembly mode")."""
+    return max(1, available_cores() - 1)
 
 
 class Modes(list):
@@ -59,14 +67,16 @@ def modes_of(result) -> Modes:
 
 def find_modes(model, legs, runs: int, seed: int, leg_noise_std=None) -> Modes:
     """What a request computes: the closed form where the model has one (the Delta), the parameter homotopy
-    where the model's family has a start system (``runs`` unused for both), else the multistart, at most
+    where the model's family has a start system (``runs`` unused for both; its paths on :func:`modes_threads`
+    threads), else the multistart, at most
     ``runs`` starts; ``leg_noise_std`` (config unit): redundant legs, the noise a mode's leg residuals are
     tested against (the node's parameter)."""
     method = default_method(model)
     if method == "closed_form":
         return modes_of(solve_all(model, legs, method="closed_form", seed=int(seed)))
     if method == "homotopy":
-        return modes_of(solve_all(model, legs, method="homotopy", seed=int(seed), leg_noise_std=leg_noise_std))
+        return modes_of(solve_all(model, legs, method="homotopy", seed=int(seed), leg_noise_std=leg_noise_std,
+                                  threads=modes_threads()))
     return modes_of(solve_all(model, legs, method="multistart", max_starts=int(runs), seed=int(seed),
                               leg_noise_std=leg_noise_std))
 

@@ -36,6 +36,9 @@ ANGLES = ("theta", "roll", "pitch", "yaw")
 #: model's closed form
 METHODS = ("homotopy", "multistart", "g3pcx", "closed_form")
 DEFAULT_METHOD = "homotopy"
+#: the homotopy's path-tracking threads per point: one, since a map runs its points in parallel instead (``--workers``
+#: processes, default every core), without a thread hand-over per point
+POINT_THREADS = 1
 #: a model with a closed-form forward kinematics (the three-leg Delta) is counted by it unless told otherwise
 CLOSED_FORM = "closed_form"
 #: independent G3-PCX searches per grid point with method g3pcx (the papers' method)
@@ -166,7 +169,7 @@ def solve_point(model, spec: MapSpec, index: int) -> tuple[int, float, int, int,
     elif spec.method == "g3pcx":
         modes = solve_all(model, legs, method="g3pcx", runs=spec.runs, seed=seed)
     elif spec.method == "homotopy":
-        modes = homotopy_modes(model, legs, seed=seed, fallback=False)
+        modes = homotopy_modes(model, legs, seed=seed, fallback=False, threads=POINT_THREADS)
         certified = int(bool(modes.complete))
     else:
         modes = solve_all(model, legs, method="multistart", seed=seed, max_starts=spec.runs or None, polish=False)
