@@ -20,12 +20,12 @@ the input: rclpy's executors rebuild their wait set from every entity of the nod
 hundred microseconds of Python per input on a small machine. Solving in the thread that takes the input saves
 the thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
 path", measures the set-ups). Messages: the input is taken as bytes (``raw=True``) and read with ``struct``,
-the pose and its extra outputs are written as bytes (through ``rcl``: :mod:`~glpma_ros.node.rcl_publish`) from
-the DDS twin's :class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per input
-(test_rclpy_node checks that rclpy reads those bytes as the same messages); diagnostics and assembly modes are
-rclpy messages. Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM
-stop the node, which logs its summary while the context is still valid and then shuts down -- no "publisher's
-context is invalid" at Ctrl-C.
+the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from the DDS twin's
+:class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per input (test_rclpy_node checks
+that rclpy reads those bytes as the same messages); diagnostics and assembly modes are rclpy messages.
+Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node,
+which logs its summary while the context is still valid and then shuts down -- no "publisher's context is
+invalid" at Ctrl-C.
 """
 from __future__ import annotations
 
@@ -168,7 +168,7 @@ class FkEndpoints:
             return qos_profile(profiles[(topic, qos.SUBSCRIPTION)])
 
         # every output has its publisher from the start: the publish_* parameters switch them at runtime;
-        # the pose and the extra outputs go out as bytes from cdr.Encoder (rcl_publish.RawPublisher)
+        # the pose and the extra outputs go out as bytes from cdr.Encoder (Publisher.publish(bytes))
         self._encode = cdr.Encoder()
         self.pose_pub = pub(PoseStamped, "pose_estimate")
         self.tf_pub = pub(TFMessage, "/tf")
@@ -185,8 +185,6 @@ class FkEndpoints:
                             "markers": self.markers_pub, "joint_states": self.joint_states_pub}
         # the extra outputs are written with the interpreter lock released (rcl_publish.RawPublisher)
         self.extra_writers = {name: RawPublisher(p) for name, p in self._extra_pubs.items()}
-        # ... and the pose too: the node's other threads run while it is written
-        self.pose_writer = RawPublisher(self.pose_pub)
         self._subscribed_cache, self._subscribed_at = set(), -math.inf
         self.loop, self.modes, self.reports = node_loops(
             service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
@@ -217,8 +215,7 @@ class FkEndpoints:
             self.node.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
             self._destroy_publisher(publisher)
-        self._publishers_opened, self._extra_pubs, self.extra_writers, self.pose_writer = [], {}, {}, None
-        self.service = None
+        self._publishers_opened, self._extra_pubs, self.extra_writers, self.service = [], {}, {}, None
 
     def _taking(self, passed_over: int) -> bool:
         """True when inputs are solved (the ``passed_over`` older ones taken with it count as dropped);
@@ -274,8 +271,8 @@ class FkEndpoints:
         self.modes_pub.publish(msg)
 
     def _publish_pose(self, pose) -> None:
-        self.pose_writer.publish(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
-                                                           pose.orientation))
+        self.pose_pub.publish(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
+                                                        pose.orientation))
 
     def _subscribed(self) -> set:
         """The extra outputs some subscription is matched with (the others are not built), counted
