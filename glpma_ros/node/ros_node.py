@@ -189,7 +189,10 @@ class FkEndpoints:
         self.loop, self.modes, self.reports = node_loops(
             service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
             subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_diagnostics,
-            extras_thread=False)    # built and written by the thread taking the input, after the pose
+            # built and written after the pose by the thread that took the input; a real-time node (thread_priority)
+            # keeps a thread of their own, real-time too: the writes release the interpreter lock, which a thread
+            # of normal priority may take and, preempted, hold from the real-time one (BENCHMARKS.md, part 4)
+            extras_thread=values["thread_priority"] > 0)
         self.modes.start()
         # the input is taken as bytes and read with struct (cdr): no message object per input; by a thread of
         # its own waiting on it alone (rcl_take.InputThread), not by the executor
