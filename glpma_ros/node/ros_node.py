@@ -168,7 +168,7 @@ class FkEndpoints:
             return qos_profile(profiles[(topic, qos.SUBSCRIPTION)])
 
         # every output has its publisher from the start: the publish_* parameters switch them at runtime;
-        # the pose and the extra outputs go out as bytes from cdr.Encoder (Publisher.publish(bytes))
+        # the pose and the extra outputs go out as bytes from cdr.Encoder (rcl_publish.RawPublisher)
         self._encode = cdr.Encoder()
         self.pose_pub = pub(PoseStamped, "pose_estimate")
         self.tf_pub = pub(TFMessage, "/tf")
@@ -185,11 +185,17 @@ class FkEndpoints:
                             "markers": self.markers_pub, "joint_states": self.joint_states_pub}
         # the extra outputs are written with the interpreter lock released (rcl_publish.RawPublisher)
         self.extra_writers = {name: RawPublisher(p) for name, p in self._extra_pubs.items()}
+        # ... and the pose too, unless the input thread is real-time (thread_priority): a thread of normal
+        # priority taking the lock meanwhile could hold it, preempted, from the real-time one (BENCHMARKS.md, part 4)
+        realtime = values["thread_priority"] > 0
+        self.pose_writer = self.pose_pub if realtime else RawPublisher(self.pose_pub)
         self._subscribed_cache, self._subscribed_at = set(), -math.inf
         self.loop, self.modes, self.reports = node_loops(
             service, publish_pose=self._publish_pose, publish_extras=self._publish_extras,
             subscribed=self._subscribed, publish_modes=self._publish_modes, publish_report=self._publish_diagnostics,
-            extras_thread=False)    # built and written by the thread taking the input, after the pose
+            # built and written after the pose by the thread that took the input; a real-time node keeps a thread
+            # of their own, real-time too: their writes release the interpreter lock (as above)
+            extras_thread=realtime)
         self.modes.start()
         # the input is taken as bytes and read with struct (cdr): no message object per input; by a thread of
         # its own waiting on it alone (rcl_take.InputThread), not by the executor
@@ -215,7 +221,8 @@ class FkEndpoints:
             self.node.destroy_subscription(subscription)
         for publisher in self._publishers_opened:
             self._destroy_publisher(publisher)
-        self._publishers_opened, self._extra_pubs, self.extra_writers, self.service = [], {}, {}, None
+        self._publishers_opened, self._extra_pubs, self.extra_writers, self.pose_writer = [], {}, {}, None
+        self.service = None
 
     def _taking(self, passed_over: int) -> bool:
         """True when inputs are solved (the ``passed_over`` older ones taken with it count as dropped);
@@ -271,8 +278,8 @@ class FkEndpoints:
         self.modes_pub.publish(msg)
 
     def _publish_pose(self, pose) -> None:
-        self.pose_pub.publish(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
-                                                        pose.orientation))
+        self.pose_writer.publish(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
+                                                           pose.orientation))
 
     def _subscribed(self) -> set:
         """The extra outputs some subscription is matched with (the others are not built), counted
