@@ -1,9 +1,11 @@
 """The rclpy transport (``ros2 run glpma_ros fk_node``): runs only where ROS 2 Jazzy is sourced."""
+import contextlib
 import math
 import signal
 import subprocess
 import sys
 import time
+import types
 
 import pytest
 
@@ -44,6 +46,26 @@ def fk_node(ros):
         node.destroy_node()
 
 
+@contextlib.contextmanager
+def _client(name, *spun, topic="leg_lengths", depth=10):
+    """A client node writing Float64MultiArray on ``topic`` (``c.publish(data)``) and keeping every
+    ``pose_estimate`` (``c.poses``), spun with the nodes ``spun`` by ``c.executor``; destroyed on exit (the nodes
+    ``spun`` are not)."""
+    node = rclpy.create_node(name)
+    poses = []
+    pub = node.create_publisher(Float64MultiArray, topic, 10)
+    node.create_subscription(PoseStamped, "pose_estimate", poses.append, depth)
+    executor = SingleThreadedExecutor()
+    for spun_node in (*spun, node):
+        executor.add_node(spun_node)
+    try:
+        yield types.SimpleNamespace(node=node, poses=poses, executor=executor,
+                                    publish=lambda data: pub.publish(Float64MultiArray(data=list(data))))
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
 def test_parameters_are_declared_with_descriptions_and_ranges(fk_node):
     d = fk_node.describe_parameter("time_budget_ms")
     assert d.description and d.floating_point_range[0].to_value == 60000.0
@@ -62,27 +84,14 @@ def test_parameter_changes_go_through_the_service(fk_node):
 
 
 def test_leg_lengths_in_pose_out(fk_node):
-    client = rclpy.create_node("glpma_fk_test_client")
-    poses = []
-    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
-    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(fk_node)
-    executor.add_node(client)
-    try:
-        deadline = time.monotonic() + 120        # a bound for a hang, not a timing figure
-        while not poses and time.monotonic() < deadline:
-            pub.publish(Float64MultiArray(data=[0.100, 0.120, 0.150]))
-            executor.spin_once(timeout_sec=0.1)
-        assert poses, "no pose_estimate received"
-        msg = poses[0]
+    with _client("glpma_fk_test_client", fk_node) as c:
+        assert _spin_until(c.executor, lambda: bool(c.poses), timeout_s=120.0,   # a bound for a hang
+                           publish=lambda: c.publish([0.100, 0.120, 0.150])), "no pose_estimate received"
+        msg = c.poses[0]
         assert msg.header.frame_id == "robot_base"
         assert msg.pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)
         assert msg.pose.position.y == pytest.approx(SEED_X[1] / 1000, abs=1e-9)
         assert msg.pose.orientation.z == pytest.approx(math.sin(SEED_X[2] / 2), abs=1e-9)
-    finally:
-        executor.shutdown()
-        client.destroy_node()
 
 
 def test_the_input_is_taken_by_its_own_thread_not_the_executor(fk_node):
@@ -90,25 +99,16 @@ def test_the_input_is_taken_by_its_own_thread_not_the_executor(fk_node):
     node, legs published still get their pose, and the subscription is in the graph as any other (remapping,
     ``ros2 node info``); the executor never waits on it."""
     from glpma_ros.node.rcl_take import NotByExecutor
-    client = rclpy.create_node("glpma_fk_test_input_thread")
-    poses = []
-    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
-    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(client)                 # the client only: nothing spins fk_node
-    try:
+    with _client("glpma_fk_test_input_thread") as c:      # the client only: nothing spins fk_node
         assert isinstance(fk_node.endpoints.input_sub.callback_group, NotByExecutor)
-        assert not executor.can_execute(fk_node.endpoints.input_sub)
-        assert _spin_until(executor, lambda: bool(poses), timeout_s=120.0,   # a bound for a hang
-                           publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, 0.150])))
-        assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)   # metres, to round-off
+        assert not c.executor.can_execute(fk_node.endpoints.input_sub)
+        assert _spin_until(c.executor, lambda: bool(c.poses), timeout_s=120.0,   # a bound for a hang
+                           publish=lambda: c.publish([0.100, 0.120, 0.150]))
+        assert c.poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)   # metres, to round-off
         names = fk_node.get_subscriber_names_and_types_by_node("glpma_fk", "/")
         assert ("/leg_lengths", ["std_msgs/msg/Float64MultiArray"]) in names
         fk_node.endpoints.input_thread.stop()
         assert not fk_node.endpoints.input_thread.running
-    finally:
-        executor.shutdown()
-        client.destroy_node()
 
 
 @pytest.mark.parametrize("config", ["delta_irb360", "linear_delta_kossel_mini"])
@@ -122,24 +122,16 @@ def test_actuator_positions_in_pose_out(ros, config):
     model = load_manipulator(path)
     node = FkNode(parameter_overrides=[Parameter("manipulator_config", value=str(path)),
                                        Parameter("time_budget_ms", value=GENEROUS_BUDGET_MS)])
-    client = rclpy.create_node("glpma_fk_actuated_client")
-    poses = []
-    pub = client.create_publisher(Float64MultiArray, "actuator_positions", 10)
-    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    executor.add_node(client)
     reading = [float(v) for v in model.readings_to_si(model.example_actuator_positions)]
     try:
-        assert _spin_until(executor, lambda: bool(poses), timeout_s=120.0,   # a bound for a hang
-                           publish=lambda: pub.publish(Float64MultiArray(data=reading)))
-        p = poses[0].pose.position
-        expected = model.known_solutions[0] * model.metres_per_unit
-        # metres; the known solution is written to 1e-9 mm
-        assert [p.x, p.y, p.z] == pytest.approx(list(expected), abs=1e-9)
+        with _client("glpma_fk_actuated_client", node, topic="actuator_positions") as c:
+            assert _spin_until(c.executor, lambda: bool(c.poses), timeout_s=120.0,   # a bound for a hang
+                               publish=lambda: c.publish(reading))
+            p = c.poses[0].pose.position
+            expected = model.known_solutions[0] * model.metres_per_unit
+            # metres; the known solution is written to 1e-9 mm
+            assert [p.x, p.y, p.z] == pytest.approx(list(expected), abs=1e-9)
     finally:
-        executor.shutdown()
-        client.destroy_node()
         node.destroy_node()
 
 
@@ -167,50 +159,44 @@ def test_tf_covariance_twist_and_markers(ros):
                                        Parameter("markers_period_s", value=0.0)])
     # the extra outputs go through rcl's C call with the interpreter lock released (rcl_publish), here too
     assert all(w.direct for w in node.endpoints.extra_writers.values())
-    client = rclpy.create_node("glpma_fk_outputs_client")
-    got = {"pose": [], "tf": [], "cov": [], "twist": [], "markers": []}
-    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
-    for key, msg_type, topic in (("pose", PoseStamped, "pose_estimate"), ("tf", TFMessage, "/tf"),
-                                 ("cov", PoseWithCovarianceStamped, "pose_estimate_cov"),
-                                 ("twist", TwistStamped, "twist_estimate"),
-                                 ("markers", MarkerArray, "/glpma_fk/markers")):
-        client.create_subscription(msg_type, topic, got[key].append, 100)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    executor.add_node(client)
     try:
-        third = iter(0.150 + 1e-5 * k for k in range(10**6))
-        assert _spin_until(executor, lambda: len(got["twist"]) >= 2 and len(got["markers"]) >= 2,
-                           publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, next(third)])))
-        # the extra outputs follow each pose, written after it by the thread taking the input: wait for those of the
-        # first poses (a pose without its TF and covariance fails below)
-        poses = list(got["pose"][:5])       # more may arrive while waiting (inputs still in flight)
-        first = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in poses}
+        with _client("glpma_fk_outputs_client", node, depth=100) as c:
+            got = {"pose": c.poses, "tf": [], "cov": [], "twist": [], "markers": []}
+            for key, msg_type, topic in (("tf", TFMessage, "/tf"),
+                                         ("cov", PoseWithCovarianceStamped, "pose_estimate_cov"),
+                                         ("twist", TwistStamped, "twist_estimate"),
+                                         ("markers", MarkerArray, "/glpma_fk/markers")):
+                c.node.create_subscription(msg_type, topic, got[key].append, 100)
+            third = iter(0.150 + 1e-5 * k for k in range(10**6))
+            assert _spin_until(c.executor, lambda: len(got["twist"]) >= 2 and len(got["markers"]) >= 2,
+                               publish=lambda: c.publish([0.100, 0.120, next(third)]))
+            # the extra outputs follow each pose, written after it by the thread taking the input: wait for those of the
+            # first poses (a pose without its TF and covariance fails below)
+            poses = list(got["pose"][:5])       # more may arrive while waiting (inputs still in flight)
+            first = {(p.header.stamp.sec, p.header.stamp.nanosec) for p in poses}
 
-        def stamps(key):
-            msgs = [t for m in got[key] for t in m.transforms] if key == "tf" else got[key]
-            return {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in msgs}
-        _spin_until(executor, lambda: first <= set(stamps("tf")) and first <= set(stamps("cov")), timeout_s=10.0)
-        tf_by_stamp, cov_by_stamp = stamps("tf"), stamps("cov")
-        for pose in poses:
-            key = (pose.header.stamp.sec, pose.header.stamp.nanosec)
-            t = tf_by_stamp[key]
-            assert (t.header.frame_id, t.child_frame_id) == ("base", "platform")
-            p, q = pose.pose.position, pose.pose.orientation
-            tr, rot = t.transform.translation, t.transform.rotation
-            assert max(abs(a - b) for a, b in zip((tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w),
-                                                  (p.x, p.y, p.z, q.x, q.y, q.z, q.w))) <= 1e-12
-            cov = cov_by_stamp[key]
-            assert cov.pose.pose == pose.pose
-            c = list(cov.pose.covariance)
-            assert c[14] == c[21] == c[28] == 1e6 and all(math.isfinite(v) for v in c)
-            assert all(c[6 * i + j] == c[6 * j + i] for i in range(6) for j in range(6))
-        assert got["twist"][0].header.frame_id == "base"
-        legs = next(m for m in got["markers"][0].markers if m.ns == "legs")
-        assert len(legs.points) == 6
+            def stamps(key):
+                msgs = [t for m in got[key] for t in m.transforms] if key == "tf" else got[key]
+                return {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in msgs}
+            _spin_until(c.executor, lambda: first <= set(stamps("tf")) and first <= set(stamps("cov")), timeout_s=10.0)
+            tf_by_stamp, cov_by_stamp = stamps("tf"), stamps("cov")
+            for pose in poses:
+                key = (pose.header.stamp.sec, pose.header.stamp.nanosec)
+                t = tf_by_stamp[key]
+                assert (t.header.frame_id, t.child_frame_id) == ("base", "platform")
+                p, q = pose.pose.position, pose.pose.orientation
+                tr, rot = t.transform.translation, t.transform.rotation
+                assert max(abs(a - b) for a, b in zip((tr.x, tr.y, tr.z, rot.x, rot.y, rot.z, rot.w),
+                                                      (p.x, p.y, p.z, q.x, q.y, q.z, q.w))) <= 1e-12
+                cov = cov_by_stamp[key]
+                assert cov.pose.pose == pose.pose
+                cv = list(cov.pose.covariance)
+                assert cv[14] == cv[21] == cv[28] == 1e6 and all(math.isfinite(v) for v in cv)
+                assert all(cv[6 * i + j] == cv[6 * j + i] for i in range(6) for j in range(6))
+            assert got["twist"][0].header.frame_id == "base"
+            legs = next(m for m in got["markers"][0].markers if m.ns == "legs")
+            assert len(legs.points) == 6
     finally:
-        executor.shutdown()
-        client.destroy_node()
         node.destroy_node()
 
 
@@ -225,29 +211,22 @@ def test_mechanism_joint_states(ros):
                                        Parameter("initial_pose", value=SEED_X),
                                        Parameter("time_budget_ms", value=50.0),
                                        Parameter("publish_joint_states", value=True)])
-    client = rclpy.create_node("glpma_fk_joint_states_client")
-    poses, joints = [], []
-    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
-    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 100)
-    client.create_subscription(JointState, "/glpma_fk/mechanism_joint_states", joints.append, 100)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    executor.add_node(client)
-    mech = Mechanism(load_manipulator(RPR_YAML))
     try:
-        assert _spin_until(executor, lambda: len(joints) >= 2,
-                           publish=lambda: pub.publish(Float64MultiArray(data=[0.100, 0.120, 0.150])))
-        by_stamp = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in poses}
-        for js in joints[:2]:
-            pose = by_stamp[(js.header.stamp.sec, js.header.stamp.nanosec)]
-            p, o = pose.pose.position, pose.pose.orientation
-            assert list(js.name) == list(mech.joint_names)
-            # the node computed them from this pose's doubles the same way: only round-off could differ
-            expected = mech.positions((p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
-            assert max(abs(a - b) for a, b in zip(js.position, expected)) <= 1e-12
+        with _client("glpma_fk_joint_states_client", node, depth=100) as c:
+            poses, joints = c.poses, []
+            c.node.create_subscription(JointState, "/glpma_fk/mechanism_joint_states", joints.append, 100)
+            mech = Mechanism(load_manipulator(RPR_YAML))
+            assert _spin_until(c.executor, lambda: len(joints) >= 2,
+                               publish=lambda: c.publish([0.100, 0.120, 0.150]))
+            by_stamp = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in poses}
+            for js in joints[:2]:
+                pose = by_stamp[(js.header.stamp.sec, js.header.stamp.nanosec)]
+                p, o = pose.pose.position, pose.pose.orientation
+                assert list(js.name) == list(mech.joint_names)
+                # the node computed them from this pose's doubles the same way: only round-off could differ
+                expected = mech.positions((p.x, p.y, p.z), (o.x, o.y, o.z, o.w))
+                assert max(abs(a - b) for a, b in zip(js.position, expected)) <= 1e-12
     finally:
-        executor.shutdown()
-        client.destroy_node()
         node.destroy_node()
 
 
@@ -293,40 +272,33 @@ def test_lifecycle_node_walk_in_process(ros):
         Parameter("time_budget_ms", value=GENEROUS_BUDGET_MS),
         Parameter("qos_overrides./leg_lengths.subscription.reliability", value="best_effort"),
         Parameter("qos_overrides./leg_lengths.subscription.depth", value=4)])
-    client = rclpy.create_node("glpma_fk_lifecycle_client")
-    poses = []
-    pub = client.create_publisher(Float64MultiArray, "leg_lengths", 10)
-    client.create_subscription(PoseStamped, "pose_estimate", poses.append, 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    executor.add_node(client)
-
-    def mine():     # the node's own subscription as the ROS graph (discovery, asynchronous) shows it
-        return [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
     try:
-        assert node.service is None and not mine()
-        assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
-        assert node.service is not None
-        assert node.get_parameter("qos_overrides./leg_lengths.subscription.depth").value == 4
+        with _client("glpma_fk_lifecycle_client", node) as c:
+            poses = c.poses
 
-        assert _spin_until(executor, lambda: mine())
-        assert mine()[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
-        legs = Float64MultiArray(data=[0.100, 0.120, 0.150])
-        # inactive: inputs are taken and counted as dropped, no pose
-        assert _spin_until(executor, lambda: node.service.stats.dropped >= 3, publish=lambda: pub.publish(legs))
-        assert poses == []
-        assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
-        assert _spin_until(executor, lambda: poses, publish=lambda: pub.publish(legs))
-        assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)
-        assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
-        assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
-        assert node.service is None and _spin_until(executor, lambda: not mine())
-        assert node.trigger_shutdown() == TransitionCallbackReturn.SUCCESS
-        # rclpy (Jazzy) has no public accessor of the current state
-        assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED  # noqa: SLF001
+            def mine():     # the node's own subscription as the ROS graph (discovery, asynchronous) shows it
+                return [i for i in node.get_subscriptions_info_by_topic("/leg_lengths") if i.node_name == "glpma_fk"]
+            assert node.service is None and not mine()
+            assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
+            assert node.service is not None
+            assert node.get_parameter("qos_overrides./leg_lengths.subscription.depth").value == 4
+
+            assert _spin_until(c.executor, lambda: mine())
+            assert mine()[0].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+            legs = [0.100, 0.120, 0.150]
+            # inactive: inputs are taken and counted as dropped, no pose
+            assert _spin_until(c.executor, lambda: node.service.stats.dropped >= 3, publish=lambda: c.publish(legs))
+            assert poses == []
+            assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
+            assert _spin_until(c.executor, lambda: poses, publish=lambda: c.publish(legs))
+            assert poses[0].pose.position.x == pytest.approx(SEED_X[0] / 1000, abs=1e-9)
+            assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
+            assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
+            assert node.service is None and _spin_until(c.executor, lambda: not mine())
+            assert node.trigger_shutdown() == TransitionCallbackReturn.SUCCESS
+            # rclpy (Jazzy) has no public accessor of the current state
+            assert node._state_machine.current_state[0] == State.PRIMARY_STATE_FINALIZED  # noqa: SLF001
     finally:
-        executor.shutdown()
-        client.destroy_node()
         node.destroy_node()
 
 
