@@ -199,6 +199,33 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
 _LAST_COSTS: dict = {}
 
 
+class GenerationInProgress(EvolutionaryState):
+    """An evolutionary state whose compiled generation may stop between two children at the deadline and
+    resume at the next call: the children made so far in ``new`` / ``new_f`` (the elite first), their count in
+    ``progress[0]`` (0: no generation in progress).  Subclasses allocate the three."""
+
+    new: np.ndarray
+    new_f: np.ndarray
+    progress: np.ndarray
+
+    def best(self):
+        """Best of the population and of the children of the generation in progress."""
+        x, f = super().best()
+        k = int(self.progress[0])
+        if k:
+            i = int(np.argmin(self.new_f[:k]))
+            if self.new_f[i] < f:
+                return self.new[i].copy(), float(self.new_f[i])
+        return x, f
+
+    def inject(self, x, f):
+        """Into the population's worst slot, and as the elite of the generation in progress."""
+        super().inject(x, f)
+        if self.progress[0] and f < self.new_f[0]:
+            self.new[0] = x
+            self.new_f[0] = f
+
+
 class Costs:
     """The measured cost of the compiled work under a deadline, which sizes every compiled call so that it
     is expected to end before the deadline: the thread's CPU time (``time.thread_time``: the work itself,

@@ -55,7 +55,7 @@ from numba import njit
 
 from ..models.kernels import fitness_one
 from . import sa
-from .driver import EvolutionaryState, solve_population
+from .driver import GenerationInProgress, solve_population
 from .rcga import CROSSOVER_RATE, mutation_width, roulette, start_generation, wright_crossover
 
 #: 004 section IV.A item 4: "initial temperature of 10"
@@ -159,7 +159,7 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, child, child_best, chi
     return gens, evals, temperature
 
 
-class GASAPopulation(EvolutionaryState):
+class GASAPopulation(GenerationInProgress):
     """The population, with the generation and the annealed child in progress
     alongside it.  Under a deadline (``term.deadline``) the compiled kernel runs
     ``DEADLINE_CHAINS`` Markov chains per call and the clock is checked in between:
@@ -190,23 +190,6 @@ class GASAPopulation(EvolutionaryState):
         self.child = np.empty(pop.shape[1])
         self.child_best = np.empty(pop.shape[1])
         self.child_state = np.zeros(4)
-
-    def best(self):
-        """Best of the population and of the generation in progress."""
-        x, f = super().best()
-        k = int(self.progress[0])
-        if k:
-            i = int(np.argmin(self.new_f[:k]))
-            if self.new_f[i] < f:
-                return self.new[i].copy(), float(self.new_f[i])
-        return x, f
-
-    def inject(self, x, f):
-        """Into the population's worst slot, and as the elite of the generation in progress."""
-        super().inject(x, f)
-        if self.progress[0] and f < self.new_f[0]:
-            self.new[0] = x
-            self.new_f[0] = f
 
     def evals_per_generation(self) -> int:
         return (len(self.pop) - 1) * (1 + self.sa_iterations * self.chain_length)

@@ -32,7 +32,7 @@ from numba import njit
 from ..models.kernels import fitness_one
 from ..runtime.clock import kernel_end, reached
 from ..runtime.compat import NUMBA_INLINE
-from .driver import EvolutionaryState, solve_population
+from .driver import GenerationInProgress, solve_population
 
 #: the papers' rates (Chandra & Rolland 2014; Chandra, Zhang & Rolland 2009)
 CROSSOVER_RATE = 0.9
@@ -155,7 +155,7 @@ def rcga_generations(pop, fit, new, new_f, cum, progress, r, rng, n_generations,
     return gens, evals
 
 
-class RCGAPopulation(EvolutionaryState):
+class RCGAPopulation(GenerationInProgress):
     """The population, with the generation in progress alongside it (a compiled call may stop inside a
     generation at the deadline; the next resumes it)."""
 
@@ -174,23 +174,6 @@ class RCGAPopulation(EvolutionaryState):
         self.cum = np.empty_like(self.fit)
         self.progress = np.zeros(1, dtype=np.int64)      # next child of the generation in progress (0: none)
         self.residuals = np.empty(problem.n_res)
-
-    def best(self):
-        """Best of the population and of the children of the generation in progress."""
-        x, f = super().best()
-        k = int(self.progress[0])
-        if k:
-            i = int(np.argmin(self.new_f[:k]))
-            if self.new_f[i] < f:
-                return self.new[i].copy(), float(self.new_f[i])
-        return x, f
-
-    def inject(self, x, f):
-        """Into the population's worst slot, and as the elite of the generation in progress."""
-        super().inject(x, f)
-        if self.progress[0] and f < self.new_f[0]:
-            self.new[0] = x
-            self.new_f[0] = f
 
     def advance(self, n_generations, max_evals, tolerance):
         p = self.problem
