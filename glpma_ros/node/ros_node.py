@@ -20,7 +20,8 @@ the input: rclpy's executors rebuild their wait set from every entity of the nod
 hundred microseconds of Python per input on a small machine. Solving in the thread that takes the input saves
 the thread switch per input that a solver thread would cost (BENCHMARKS.md, "Extra outputs and the transport
 path", measures the set-ups). Messages: the input is taken as bytes (``raw=True``) and read with ``struct``,
-the pose and its extra outputs are published as bytes (``Publisher.publish(bytes)``) from the DDS twin's
+the pose and its extra outputs are written as bytes (through ``rcl``, :mod:`~glpma_ros.node.rcl_publish`; a
+real-time node's pose by ``Publisher.publish(bytes)``) from the DDS twin's
 :class:`~glpma_ros.node.dds.cdr.Encoder` -- no rclpy message object is built per input (test_rclpy_node checks
 that rclpy reads those bytes as the same messages); diagnostics and assembly modes are rclpy messages.
 Signals: rclpy's own handler is not installed (``SignalHandlerOptions.NO``); SIGINT / SIGTERM stop the node,
