@@ -56,7 +56,7 @@ from numba import njit
 from ..models.kernels import fitness_one
 from . import sa
 from .driver import GenerationInProgress, solve_population
-from .rcga import CROSSOVER_RATE, mutation_width, roulette, start_generation, wright_crossover
+from .rcga import CROSSOVER_RATE, crossover_or_copy, mutation_width, start_generation
 
 #: 004 section IV.A item 4: "initial temperature of 10"
 T0 = 10.0
@@ -122,15 +122,12 @@ def gasa_generations(pop, fit, new, new_f, cum, progress, child, child_best, chi
                 if not start_generation(pop, fit, cum, new, new_f, tolerance):
                     break
                 progress[0] = 1
-            a = roulette(cum, rng)
-            b = roulette(cum, rng)
-            if rng.random() < crossover_rate and a != b:
-                wright_crossover(pop, fit, a, b, rng, child)
+            parent = crossover_or_copy(pop, fit, cum, rng, crossover_rate, child)
+            if parent < 0:
                 cf = fitness_one(child, kind, data, legs, r)
                 evals += 1
             else:
-                child[:] = pop[a]
-                cf = fit[a]
+                cf = fit[parent]
             if rng.random() >= sa_rate:            # not annealed: the child as it is
                 temperature *= 1.0 - cooling_rate  # Algorithm 1 step 6
                 gens += _finish_child(pop, fit, new, new_f, progress, child, cf, tolerance, evals, max_evals)

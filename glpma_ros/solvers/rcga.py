@@ -94,20 +94,29 @@ def wright_crossover(pop, fit, a, b, rng, out):
 
 
 @njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
-def make_child(pop, fit, cum, rng, i, t, crossover_rate, mutation_rate, mutation_b, width, new, new_f):
-    """Child ``i`` of the generation in progress into ``new[i]``: two roulette parents, Wright's crossover
-    (else a copy of the first parent, with its fitness in ``new_f[i]``), then the non-uniform mutation at
-    generation share ``t``.  True when the child differs from its parent (it needs an evaluation)."""
-    n = pop.shape[1]
+def crossover_or_copy(pop, fit, cum, rng, crossover_rate, out):
+    """Two roulette parents and, with probability ``crossover_rate`` (distinct parents), Wright's crossover of
+    them into ``out``; otherwise a copy of the first parent.  Returns the parent copied, or -1 when ``out`` is a
+    crossover child (a new point: it needs an evaluation)."""
     a = roulette(cum, rng)
     b = roulette(cum, rng)
-    changed = False
     if rng.random() < crossover_rate and a != b:
-        wright_crossover(pop, fit, a, b, rng, new[i])
-        changed = True
-    else:
-        new[i] = pop[a]
-        new_f[i] = fit[a]
+        wright_crossover(pop, fit, a, b, rng, out)
+        return -1
+    out[:] = pop[a]
+    return a
+
+
+@njit(cache=True, error_model="numpy", inline=NUMBA_INLINE)
+def make_child(pop, fit, cum, rng, i, t, crossover_rate, mutation_rate, mutation_b, width, new, new_f):
+    """Child ``i`` of the generation in progress into ``new[i]``: :func:`crossover_or_copy` (a copy takes its
+    parent's fitness into ``new_f[i]``), then the non-uniform mutation at generation share ``t``.  True when
+    the child differs from its parent (it needs an evaluation)."""
+    n = pop.shape[1]
+    parent = crossover_or_copy(pop, fit, cum, rng, crossover_rate, new[i])
+    changed = parent < 0
+    if not changed:
+        new_f[i] = fit[parent]
     if rng.random() < mutation_rate:
         k = rng.integers(0, n)
         step = width[k] * (1.0 - rng.random() ** ((1.0 - t) ** mutation_b))
