@@ -275,7 +275,8 @@ class SolveLoop:
                     item = None
 
     def _solve(self, item) -> None:
-        outcome = self.service.handle(*item)
+        """Solve, publish the pose, then account for it (the statistics wait until the pose is out)."""
+        outcome = self.service.solve(*item)
         if outcome.pose is None:
             return
         try:
@@ -283,6 +284,8 @@ class SolveLoop:
         except Exception as exc:  # noqa: BLE001 - a failed publish must not stop the loop
             self.service.log.error(f"publishing the pose failed: {exc!r}")
             return
+        finally:
+            self.service.account(outcome)
         if self.extras is not None and self.service.extras_on():
             t0 = time.perf_counter()
             self.extras.put(outcome)

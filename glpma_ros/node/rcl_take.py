@@ -7,7 +7,8 @@ this project's 2-core machine, as much as the rest of the node's path (BENCHMARK
 the transport path", part 4).  :class:`InputThread` waits on a wait set of two entities -- the input
 subscription and a guard condition that stops it -- built once and refilled per wake-up, with the
 interpreter lock released in ``rcl_wait``; it takes every sample waiting (raw bytes), and hands the newest
-to the node with the count of the ones passed over (the node's newest-input rule).  The subscription is
+to the node with the count of the ones passed over (the node's newest-input rule) -- or, for a subscriber
+that wants them all (the bench's client taking poses), each sample in the order taken.  The subscription is
 created by the node as any other (remapping, QoS overrides and ``ros2 node info`` see it) in a
 :class:`NotByExecutor` callback group, which no executor waits on or runs.  The executor keeps the
 parameters, services, the assembly-modes request and the lifecycle transitions.
@@ -48,20 +49,23 @@ class NotByExecutor(CallbackGroup):
         pass
 
 
-def subscribe_taken_by_thread(create_subscription, msg_type, topic: str, qos, context, handle, **options):
+def subscribe_taken_by_thread(create_subscription, msg_type, topic: str, qos, context, handle, *,
+                              newest_only: bool = True, **options):
     """A raw subscription (``create_subscription(msg_type, topic, callback, qos, raw=True, ...)``, rclpy's
     signature, ``options`` passed on) in a :class:`NotByExecutor` group, and the started :class:`InputThread`
-    that takes its samples and calls ``handle(data, passed_over)``."""
+    that takes its samples and calls ``handle(data, passed_over)`` (``newest_only``: see :class:`InputThread`)."""
     subscription = create_subscription(msg_type, topic, taken_by_input_thread, qos, raw=True,
                                        callback_group=NotByExecutor(), **options)
-    return subscription, InputThread(subscription, context, handle).start()
+    return subscription, InputThread(subscription, context, handle, newest_only=newest_only).start()
 
 
 class InputThread:
     """Waits on ``subscription`` (created with a :class:`NotByExecutor` group, ``raw=True``) and calls
-    ``handle(data, passed_over)`` with the newest sample taken and the number of older ones taken with it."""
+    ``handle(data, passed_over)`` with the newest sample taken and the number of older ones taken with it;
+    with ``newest_only=False``, ``handle(data, 0)`` for every sample taken, oldest first."""
 
-    def __init__(self, subscription, context, handle, name: str = "glpma_fk-input"):
+    def __init__(self, subscription, context, handle, name: str = "glpma_fk-input", *, newest_only: bool = True):
+        self.newest_only = newest_only
         self.subscription = subscription
         self.context = context
         self.handle = handle
@@ -88,14 +92,21 @@ class InputThread:
             if threading.current_thread() is not self._thread:
                 self._thread.join(timeout)
 
+    def _take(self):
+        sub = self.subscription
+        with sub.handle:
+            taken = sub.handle.take_message(sub.msg_type, sub.raw)
+        return None if taken is None else taken[0]
+
     def _take_newest(self):
-        sub, newest, taken_count = self.subscription, None, 0
-        while True:
-            with sub.handle:
-                taken = sub.handle.take_message(sub.msg_type, sub.raw)
-            if taken is None:
-                return newest, taken_count
-            newest, taken_count = taken[0], taken_count + 1
+        newest, taken_count = None, 0
+        while (data := self._take()) is not None:
+            newest, taken_count = data, taken_count + 1
+        return newest, taken_count
+
+    def _take_each(self) -> None:
+        while (data := self._take()) is not None:
+            self.handle(data, 0)
 
     def _wait(self, wait_set) -> bool:
         """Wait for a sample or the stop; False when the context or the subscription is gone."""
@@ -117,6 +128,9 @@ class InputThread:
             if self._stop.is_set():
                 break
             try:
+                if not self.newest_only:
+                    self._take_each()
+                    continue
                 newest, count = self._take_newest()
             except Exception:  # noqa: BLE001 - the subscription was destroyed: the thread ends
                 break

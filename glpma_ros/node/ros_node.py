@@ -149,6 +149,7 @@ class FkEndpoints:
         self.active = active
         self.service = None
         self._stopped = True
+        self._clock = node.get_clock()
 
     def open(self, values: dict) -> None:
         """Build the service (reads the config), warm up the solvers, create every endpoint and
@@ -239,7 +240,7 @@ class FkEndpoints:
         """The newest input taken (:class:`~.rcl_take.InputThread`), ``passed_over``: the older ones taken with it."""
         if not self._taking(passed_over):
             return
-        stamp_ns = self.node.get_clock().now().nanoseconds   # the pose's stamp: the arrival of its input
+        stamp_ns = self._now_ns()       # the pose's stamp: the arrival of its input
         try:
             legs = (cdr.float64_multi_array_data(data) if cdr.little_endian_cdr(data)
                     else tuple(deserialize_message(data, Float64MultiArray).data))
@@ -247,6 +248,12 @@ class FkEndpoints:
             self.service.log.warning(f"could not read leg_lengths: {exc}")
             return
         self.loop.offer(legs, stamp_ns)
+
+    def _now_ns(self) -> int:
+        """The node's ROS clock now (ns): the system clock read directly unless simulated time is active --
+        what the ROS clock reads then, at a tenth of the cost of ``Clock.now()`` and its ``Time`` object."""
+        clock = self._clock
+        return clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
 
     def _on_joint_state(self, data: bytes, passed_over: int) -> None:
         if not self._taking(passed_over):
@@ -265,7 +272,7 @@ class FkEndpoints:
 
     def _on_request_modes(self, _msg: Empty) -> None:
         if self.active:
-            self.modes.request(self.node.get_clock().now().nanoseconds)
+            self.modes.request(self._now_ns())
 
     def _publish_modes(self, modes) -> None:
         msg = PoseArray()

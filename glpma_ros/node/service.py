@@ -69,6 +69,7 @@ class Outcome:
     latency_s: float = 0.0
     legs: np.ndarray | None = None         # the input's leg lengths, config unit
     leg_rates_m: np.ndarray | None = None  # their rates (m/s) from a JointState's velocities, if any
+    arrival: float | None = None           # perf_counter() at arrival, until FkService.account took it
 
 
 class FkService:
@@ -221,14 +222,21 @@ class FkService:
         return self.inputs.to_config_unit(raw)
 
     def handle(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
-        """Solve one input.  ``legs_m``: leg lengths in metres, or a :class:`JointStateInput`;
-        ``stamp_ns``: the pose's header.stamp (the arrival time of a leg_lengths message, the
-        header.stamp of a JointState); ``arrival``: ``time.perf_counter()`` at arrival, for the
-        latency and the deadline (default: now).  Never raises."""
+        """Solve one input and account for it (:meth:`solve`, then :meth:`account`).  ``legs_m``: leg lengths in
+        metres, or a :class:`JointStateInput`; ``stamp_ns``: the pose's header.stamp (the arrival time of a
+        leg_lengths message, the header.stamp of a JointState); ``arrival``: ``time.perf_counter()`` at arrival,
+        for the latency and the deadline (default: now).  Never raises."""
+        outcome = self.solve(legs_m, stamp_ns, arrival)
+        self.account(outcome)
+        return outcome
+
+    def solve(self, legs_m, stamp_ns: int, arrival: float | None = None) -> Outcome:
+        """What :meth:`handle` does before the pose can go out: the input converted, the estimate, the publish
+        decision and the pose; a rejection is accounted for at once.  A pose's statistics, the legs' health
+        and the latency are left to :meth:`account`, which a transport calls once the pose is written (the
+        solve loop: :class:`~glpma_ros.node.loops.SolveLoop`).  Never raises."""
         arrival = time.perf_counter() if arrival is None else arrival
-        st = self.stats
         with self._lock:
-            st.record_handled()
             try:
                 legs = self.inputs.to_config_unit(legs_m)
                 estimate = self.estimator.estimate(legs)
@@ -237,18 +245,28 @@ class FkService:
             except Exception as exc:  # noqa: BLE001 - the node must survive anything
                 self.log.error(f"internal error while solving: {exc!r}")
                 return self._reject(f"internal error: {exc}", "internal error", None, arrival)
-            st.record_estimate(estimate)
-            self.leg_health.note(estimate)
             if not estimate.publishable:
                 return self._reject(f"{estimate.status}: {estimate.message}", estimate.status, estimate, arrival)
-            st.record_published(estimate.conditioning,
-                                math.sqrt(estimate.fitness / self.model.n_res) * self.metres_per_unit)
             pose = estimate.pose
             out = PoseOutput(int(stamp_ns), self.frame_id,
                              tuple((np.asarray(pose.position, dtype=float) * self.metres_per_unit).tolist()),
                              tuple(np.asarray(pose.orientation, dtype=float).tolist()))
             rates = self.inputs.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
-            return Outcome(out, None, estimate, self._finish(arrival), legs, rates)
+            return Outcome(out, None, estimate, 0.0, legs, rates, arrival)
+
+    def account(self, outcome: Outcome) -> None:
+        """The statistics of a pose :meth:`solve` returned (once; a rejection's were recorded by :meth:`solve`):
+        the input handled, its estimate, the legs' health, the latency from its arrival to now."""
+        if outcome.arrival is None:
+            return
+        arrival, outcome.arrival = outcome.arrival, None
+        estimate, st = outcome.estimate, self.stats
+        st.record_handled()
+        st.record_estimate(estimate)
+        self.leg_health.note(estimate)
+        st.record_published(estimate.conditioning,
+                            math.sqrt(estimate.fitness / self.model.n_res) * self.metres_per_unit)
+        outcome.latency_s = self._finish(arrival)
 
     def extras(self, outcome: Outcome, params: dict | None = None, subscribed=None):
         """TF, covariance, twist and markers (:class:`~glpma_ros.node.outputs.ExtraOutputs`) of a
@@ -296,6 +314,10 @@ class FkService:
         return latency
 
     def _reject(self, reason: str, key: str, estimate, arrival: float) -> Outcome:
+        self.stats.record_handled()
+        if estimate is not None:
+            self.stats.record_estimate(estimate)
+            self.leg_health.note(estimate)
         self.stats.record_rejected(key, reason)
         suppressed = self.log_throttle(key)
         if suppressed is not None:

@@ -20,6 +20,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray
 from tf2_msgs.msg import TFMessage
 
@@ -29,7 +30,7 @@ from glpma_ros.node.rcl_publish import RawPublisher
 from glpma_ros.node.rcl_take import subscribe_taken_by_thread
 from glpma_ros.node.ros_node import FkNode
 from glpma_tools.bench.transport import END_TO_END, answers, params_of
-from glpma_tools.sim.controller import Sent
+from glpma_tools.sim.controller import Sent, pose_stamped_fields
 from glpma_tools.sim.echo_node import POSE_NUMBERS
 from glpma_tools.sim.node_process import PACKAGE_PARENT, node_environment
 from glpma_tools.sim.trajectories import Plan
@@ -42,6 +43,9 @@ POLL_S = 0.1
 CLIENT_SLACK_S = 300.0
 #: the listener's keep-last depth per topic (as the rclpy subscriptions of the client: 100) and its wait's timeout (s)
 LISTENER_DEPTH, LISTENER_WAIT_S = 100, 1.0
+#: an input sent this many periods after its time is late: it reaches the node less than half a period before
+#: the next one, which a node still answering the first then takes with it (and answers alone)
+LATE_PERIODS = 0.5
 #: a process that keeps one core busy (the "one core busy" rows), at normal priority even where the bench runs
 #: under a real-time policy (``chrt``, to shield it from other processes): a real-time busy loop would
 #: starve its core instead
@@ -156,11 +160,11 @@ def run_variant(sc, seconds: float, domain: int, variant: str, extras: str | Non
                               "extras" if extras == CLIENT else "-", variant], env=env, capture_output=True,
                              text=True, timeout=seconds + CLIENT_SLACK_S, cwd=PACKAGE_PARENT)
         cpu_s = time.process_time() - cpu0          # this process = the node under test
-        sent, poses, p50, p99, wrong = map(float, out.stdout.split())
+        sent, poses, p50, p99, wrong, late = map(float, out.stdout.split())
         st = node if variant == "echo" else node.service.stats
         return {"sent": int(sent), "received": st.handled + st.dropped, "poses": int(poses),
                 "answered": poses / max(sent, 1), "dropped": st.dropped, "wrong": int(wrong), "p50": p50,
-                "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6}
+                "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6, "client_late": int(late)}
     finally:
         for process in (hog, listener):
             if process is not None:
@@ -234,42 +238,56 @@ def listen() -> int:
 def main(argv=None) -> int:
     """The client process: ``python -m glpma_tools.bench.rclpy_client CONFIG RATE_HZ SECONDS EXTRAS VARIANT``
     (``EXTRAS`` = ``extras``: also subscribe to ``/tf``, ``pose_estimate_cov`` and ``twist_estimate``;
-    ``VARIANT`` = ``echo``: the poses carry the legs they answer); ``... rclpy_client listener``: :func:`listen`."""
+    ``VARIANT`` = ``echo``: the poses carry the legs they answer); ``... rclpy_client listener``: :func:`listen`.
+
+    A controller that keeps its period, as far as a Python process can: every input serialized beforehand
+    and written as bytes through ``rcl`` (:class:`~glpma_ros.node.rcl_publish.RawPublisher`, the interpreter
+    lock released), the poses taken as bytes by a thread of their own (:mod:`glpma_ros.node.rcl_take`, each
+    one, its receive time at once) rather than by the executor, whose Python per message would hold the
+    lock when an input is due and send it late, in a burst with the next one (the node under test then
+    answers the newest of the two).  Prints inputs sent, poses received, latency p50 and p99 (ms), poses
+    wrong and the inputs sent more than :data:`LATE_PERIODS` late."""
     argv = argv or sys.argv[1:]
     if argv[:1] == [LISTENER]:
         return listen()
     config, rate, seconds, extras, variant = argv[:5]
     rate, plan = float(rate), Plan(config)
     samples = [plan.sample(i / rate) for i in range(int(rate * float(seconds)))]
+    messages = [serialize_message(Float64MultiArray(data=[float(v) for v in legs * plan.mpu]))
+                for legs, _, _ in samples]
     rclpy.init()
     node = rclpy.create_node("glpma_fk_bench_client")
     received = []
 
-    def take(m):
-        p, q, stamp = m.pose.position, m.pose.orientation, m.header.stamp
-        received.append((time.time_ns(), stamp.sec * 1_000_000_000 + stamp.nanosec, m.header.frame_id,
-                         np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])))
+    def take(data, _passed_over):
+        received.append((time.time_ns(), *pose_stamped_fields(data)))
 
-    node.create_subscription(PoseStamped, "pose_estimate", take, 100)
+    pose_sub, pose_thread = subscribe_taken_by_thread(node.create_subscription, PoseStamped, "pose_estimate", 100,
+                                                      node.context, take, newest_only=False)
     if extras == "extras":
         subscribe_extras(node)
     pub = node.create_publisher(Float64MultiArray, "leg_lengths", 10)
+    writer = RawPublisher(pub)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     threading.Thread(target=executor.spin, daemon=True).start()
     while pub.get_subscription_count() == 0:
         time.sleep(POLL_S)
     time.sleep(SETTLE_S)
-    sent, t0 = [], time.perf_counter()
-    for i, (legs, position, quaternion) in enumerate(samples):
-        time.sleep(max(0.0, t0 + i / rate - time.perf_counter()))
-        msg = Float64MultiArray(data=[float(v) for v in legs * plan.mpu])
+    sent, late, t0 = [], 0, time.perf_counter()
+    for i, ((legs, position, quaternion), data) in enumerate(zip(samples, messages)):
+        delay = t0 + i / rate - time.perf_counter()
+        if delay > 0:
+            time.sleep(delay)
+        elif delay < -LATE_PERIODS / rate:
+            late += 1
         sent.append(Sent(time.time_ns(), legs, position, quaternion))
-        pub.publish(msg)
+        writer.publish(data)
     time.sleep(SETTLE_S)
+    pose_thread.stop()
     index, paired, wrong, _ = answers(plan, sent, list(received), variant == "echo")
     latency = [(p[0] - sent[i].send_ns) * 1e-6 for i, p in zip(index, paired)]
-    print(len(sent), len(received), *np.percentile(latency, [50, 99]), wrong, flush=True)
+    print(len(sent), len(received), *np.percentile(latency, [50, 99]), wrong, late, flush=True)
     executor.shutdown()
     rclpy.try_shutdown()
     return 0
