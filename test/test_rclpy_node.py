@@ -393,3 +393,20 @@ def test_the_encoders_bytes_are_the_messages_rclpy_reads():
     js = JointState(name=["a", "leg_1"], position=[0.5, 0.1], velocity=[0.0, -0.01])
     js.header.stamp.sec, js.header.stamp.nanosec = 7, 8
     assert cdr.joint_state_fields(serialize_message(js)) == (7_000_000_008, ("a", "leg_1"), (0.5, 0.1), (0.0, -0.01))
+
+
+@pytest.mark.parametrize("variant", ["echo", "shipped"])
+def test_bench_part_4_pairs_every_pose_with_the_input_it_answers(dds_env, dds_domain, variant):
+    """The bench's part 4 for 1 s: the client process writes the legs as bytes and takes every pose by its own
+    thread; each pose it received pairs with an input sent (by the legs an echo carries, by the true pose
+    the node's lies on), none is wrong, and the counts add up (no share asserted: that is the bench's figure)."""
+    from glpma_tools.bench import rclpy_client
+    from glpma_tools.bench.scenarios import load
+    from glpma_tools.bench.transport import params_of
+    sc = load("3rpr")
+    row = rclpy_client.run_variant(sc, 1.0, dds_domain, variant, rclpy_client.LISTENER, False,
+                                   {**params_of(sc.model.kind), "manipulator_config": sc.path})
+    assert row["sent"] == 1000 and row["wrong"] == 0
+    assert 0 < row["poses"] <= row["received"] <= row["sent"]
+    assert row["received"] - row["dropped"] >= row["poses"]          # a pose per input solved, at most
+    assert 0 <= row["client_late"] <= row["sent"] and row["p50"] <= row["p99"]
