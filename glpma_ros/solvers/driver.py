@@ -11,7 +11,7 @@ import numpy as np
 from ..models.kernels import population_fitness
 from ..runtime.collector import HOLD
 from . import refine
-from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population
+from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population, kernel_array
 
 #: generations per compiled call when no deadline limits it
 CHUNK_GENERATIONS = 256
@@ -35,14 +35,14 @@ class Problem:
 
     def __init__(self, model, legs):
         self.model = model
-        self.legs = np.ascontiguousarray(legs, dtype=float)
+        self.legs = kernel_array(legs)
         self.kind = model.kind_id
         self.data = model.data
         self.n_res = model.n_res
 
     def evaluate(self, X, term: Termination) -> np.ndarray:
         term.nfev += len(X)
-        return population_fitness(np.ascontiguousarray(X), self.kind, self.data, self.legs, self.n_res)
+        return population_fitness(kernel_array(X), self.kind, self.data, self.legs, self.n_res)
 
 
 class EvolutionaryState:
@@ -52,8 +52,8 @@ class EvolutionaryState:
 
     def __init__(self, problem, pop, fit, rng):
         self.problem = problem
-        self.pop = np.ascontiguousarray(pop, dtype=float)
-        self.fit = np.ascontiguousarray(fit, dtype=float)
+        self.pop = kernel_array(pop)
+        self.fit = kernel_array(fit)
         self.rng = rng
         #: the ``time.perf_counter()`` value by which the compiled calls of a chunk must end (the deadline less
         #: the Python that follows the last one), set by the driver before each chunk; None: no deadline

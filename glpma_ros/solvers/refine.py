@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .common import kernel_array
 from .local import LocalSolver
 
 
@@ -36,8 +37,8 @@ def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadli
     """
     if deadline is not None and time.perf_counter() >= deadline:
         max_iter = 0
-    x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
-    legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
+    x0 = kernel_array(x0).reshape(-1)
+    legs = kernel_array(legs).reshape(-1)
     solver = LocalSolver(model)
     r = solver.solve(x0, legs, max_iter=max_iter, ftol=tolerance)
     if r is None or not math.isfinite(r.leg_fitness):
@@ -91,10 +92,10 @@ def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None)
     fitness of the solver's model), then, for models whose solver variables are
     redundant like the hexapod's nine, the round-off search.  Past ``deadline`` (a
     ``time.perf_counter`` value) nothing is computed: ``x0`` comes back with an infinite fitness."""
-    x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
+    x0 = kernel_array(x0).reshape(-1)
     if deadline is not None and time.perf_counter() >= deadline:
         return Polished(x0.copy(), math.inf, 0, False)      # no work after the deadline: not even evaluated
-    legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
+    legs = kernel_array(legs).reshape(-1)
     # redundant legs: measured legs leave a residual, the least-squares pose is the goal
     r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance if model.redundancy == 0 else math.inf)
     if r is None:                       # legs outside the model's limits: evaluated, not refined
