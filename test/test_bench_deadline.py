@@ -9,7 +9,16 @@ from types import SimpleNamespace
 import numpy as np
 
 from glpma_tools import timing
-from glpma_tools.bench.timing import CPU_PAST, DISTURBED, LATE_MS, deadline_section, disturbed, late_solves
+from glpma_tools.bench.timing import (
+    CPU_PAST,
+    DISTURBED,
+    LATE_MS,
+    OFF_CORE,
+    RAN_PAST,
+    deadline_section,
+    disturbed,
+    late_solves,
+)
 
 #: a call that waits this long (s) is off its core for it: many times the off-core threshold
 WAIT_S = 40 * timing.OFF_CORE_S
@@ -54,15 +63,15 @@ def test_the_undisturbed_figures_leave_out_preempted_off_core_and_collected_solv
 
 def test_a_late_solve_is_split_into_time_off_its_core_and_cpu_past_the_budget():
     """The first solve (30 ms late) used 1 ms of CPU for its 1 ms budget: off its core for 30 ms, the OS's doing;
-    the second (20 ms late) used 20.5 ms of CPU: it ran past; the third (10 ms late) 1.05 ms of CPU (0.05 ms
-    past the budget, within LATE_MS): off its core.  The rest are within LATE_MS of the deadline: not listed."""
+    the second (20 ms late) used 20.5 ms of CPU: on its core past the deadline; the third (10 ms late) 1.05 ms of
+    CPU (0.05 ms past the budget, within LATE_MS): off its core.  The rest are within LATE_MS of the deadline: not
+    listed."""
     row = _row(cpu_ms=[1.0, 20.5, 1.05, 1.0, 1.0, 0.5])
     late = late_solves([row])
     assert [line[4] for line in late] == ["+30.000", "+20.000", "+10.000"]          # the latest first
-    assert [line[-1] for line in late] == ["off its core (the OS took it)", "the solver ran past",
-                                           "off its core (the OS took it)"]
+    assert [line[-1] for line in late] == [OFF_CORE, RAN_PAST, OFF_CORE]
     assert late[0][5] == "30.000" and late[1][6] == "+19.500", late    # wall less CPU; CPU less the budget
     assert 0.05 < LATE_MS                                               # the third's CPU past is within it
     text = "\n".join(deadline_section({"deadline": [row], "figures": {}}, "BENCHMARKS.md"))
     # the CPU column's max, per solver and per cell; the late table
-    assert text.count("/ +19.500 |") == 2 and "| the solver ran past |" in text, text
+    assert text.count("/ +19.500 |") == 2 and f"| {RAN_PAST} |" in text, text

@@ -217,8 +217,13 @@ TAIL_QUANTILE = 99.9
 #: a solve that ends more than this (ms) after its deadline is listed apart with the split of its lateness:
 #: what a solver may overrun at the tail (p99.9) for the deadline to hold
 LATE_MS = 0.1
-#: ... at most this many of them, the latest first
-LATE_LISTED = 20
+#: ... at most this many of them per load, the latest first
+LATE_LISTED = 8
+#: why a listed solve was late: its thread's CPU time ran past the budget by more than LATE_MS (its code, or
+#: interrupts served on its core: a kernel without IRQ time accounting counts them as the thread's time) ...
+RAN_PAST = "on its core past the deadline"
+#: ... or not: the time off its core explains the lateness
+OFF_CORE = "off its core (the OS took it)"
 
 
 def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> list[SimpleNamespace]:
@@ -337,9 +342,16 @@ def tail(over) -> str:
 
 
 def late_solves(rows) -> list[list]:
-    """The solves more than :data:`LATE_MS` past their deadline, the latest first (at most :data:`LATE_LISTED`),
-    each with its lateness split: the time off its core (wall time less the thread's CPU time) and the CPU time
-    past the budget (:func:`cpu_past`), and which of the two explains it."""
+    """The solves more than :data:`LATE_MS` past their deadline, per load the latest first (at most
+    :data:`LATE_LISTED` per load), each with its lateness split: the time off its core (wall time less the
+    thread's CPU time) and the CPU time past the budget (:func:`cpu_past`), and which of the two explains it."""
+    lines = []
+    for load in dict.fromkeys(getattr(r, "load", LOADS[0]) for r in rows):
+        lines += _late([r for r in rows if getattr(r, "load", LOADS[0]) == load])
+    return lines
+
+
+def _late(rows) -> list[list]:
     late = []
     for r in rows:
         past = cpu_past(r)
@@ -347,7 +359,7 @@ def late_solves(rows) -> list[list]:
         for i in np.flatnonzero(r.overrun_ms > LATE_MS):
             off = MISSING if cpu is None else f"{r.elapsed_s[i] * 1e3 - cpu[i] * 1e3:.3f}"
             why = MISSING if np.isnan(past[i]) else \
-                "the solver ran past" if past[i] > LATE_MS else "off its core (the OS took it)"
+                RAN_PAST if past[i] > LATE_MS else OFF_CORE
             late.append((float(r.overrun_ms[i]), [r.case, r.solver, f"{r.budget_ms:g}", getattr(r, "load", LOADS[0]),
                                                   f"{r.overrun_ms[i]:+.3f}", off,
                                                   MISSING if np.isnan(past[i]) else f"{past[i]:+.3f}", why]))
