@@ -302,7 +302,8 @@ class Costs:
             per_iteration = self.per_iteration
             if per_iteration is None:
                 per_iteration = POLISH_ITERATION_EVALS * self.per_eval
-            deadline -= refine.GRID_CANDIDATES * self.per_eval          # a round of the round-off search
+            # a round of the round-off search: as measured, or its evaluations before any was
+            deadline -= max(refine.round_s(model), refine.GRID_CANDIDATES * self.per_eval)
             left = deadline - time.perf_counter()
             if per_iteration > 0.0:
                 max_iter = min(max_iter, int(left / per_iteration))

@@ -51,6 +51,19 @@ GRID_CANDIDATES = 64
 GRID_ROUNDS = 8
 #: perturbations of up to this many units in the last place per variable
 GRID_ULPS = 3
+#: the longest round of the grid search measured so far, per model kind (the thread's CPU time, s): a round is
+#: NumPy and Python around one compiled evaluation of the candidates, several times the evaluation's own time,
+#: so a round starts only when this much still fits before the deadline, and the driver leaves this much free
+#: for the first (:func:`round_s`)
+_ROUND_S: dict = {}
+#: ... forgetting this share of itself per shorter round: a round slowed once (an interrupt on its core) does
+#: not hold the search back for long, while the rounds' usual time stays reserved
+ROUND_DECAY = 0.01
+
+
+def round_s(model) -> float:
+    """The expected time (s) of one round of :func:`round_off_search` on ``model`` (0: none measured yet)."""
+    return _ROUND_S.get(model.kind, 0.0)
 
 
 def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
@@ -60,13 +73,16 @@ def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
     ``2 d_n`` times one unit in the last place of a coordinate (~1e-10 mm^2), so
     the float vector nearest the exact solution can have a fitness of 1e-19.
     Random perturbations of a few ulps, evaluated as one population, find a
-    representable neighbour whose fitness is at round-off (< ``target``).
+    representable neighbour whose fitness is at round-off (< ``target``).  Under a ``deadline`` (a
+    ``time.perf_counter`` value) a round starts only when its expected time (:func:`round_s`) still fits.
     Returns ``(x, f, nfev)``.
     """
     nfev = 0
+    expected = round_s(model)
     for _ in range(GRID_ROUNDS):
-        if f < target or (deadline is not None and time.perf_counter() >= deadline):
+        if f < target or (deadline is not None and time.perf_counter() + expected >= deadline):
             break
+        c0 = time.thread_time()
         steps = rng.integers(-GRID_ULPS, GRID_ULPS + 1, size=(GRID_CANDIDATES, x.size))
         X = x + steps * np.spacing(x)
         F = model.fitness(X, legs)
@@ -74,6 +90,8 @@ def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
         i = int(np.argmin(F))
         if F[i] < f:
             x, f = X[i], float(F[i])
+        expected = max(time.thread_time() - c0, (1.0 - ROUND_DECAY) * expected)
+    _ROUND_S[model.kind] = expected
     return x, f, nfev
 
 
