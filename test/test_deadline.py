@@ -22,8 +22,9 @@ from glpma_ros import solvers
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.runtime import clock as kernel_clock
+from glpma_ros.runtime import precompile
 from glpma_ros.runtime.collector import CollectorHold
-from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga
+from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga, refine
 from glpma_ros.solvers.common import Termination, initial_population
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)
@@ -403,3 +404,17 @@ def test_the_collector_hold_nests_and_restores():
             gc.enable()
         else:
             gc.disable()
+
+
+def test_a_round_of_the_round_off_search_starts_only_when_its_measured_time_fits(hexapod, monkeypatch):
+    """Counted evaluations: a round measured at 1 s does not start before a deadline 0.5 s away (the candidates'
+    evaluation alone is a fraction of a round's time, NumPy and Python around it); without a deadline every
+    round runs (a target of 0 is never met)."""
+    x = precompile.warm_up_pose(hexapod)
+    legs = hexapod.inverse_kinematics(x)
+    monkeypatch.setattr(refine, "_ROUND_S", {hexapod.kind: 1.0})
+    rng = np.random.default_rng(0)
+    _, _, nfev = refine.round_off_search(hexapod, x, legs, 1.0, rng, target=0.0, deadline=time.perf_counter() + 0.5)
+    assert nfev == 0
+    _, _, nfev = refine.round_off_search(hexapod, x, legs, 1.0, rng, target=0.0)
+    assert nfev == refine.GRID_ROUNDS * refine.GRID_CANDIDATES
