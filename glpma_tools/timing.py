@@ -116,7 +116,8 @@ def warm_up(call, budget_ms: float, quiet: int = WARM_UP_QUIET, max_calls: int =
 @dataclass
 class TimedCalls:
     """Per call: wall time (s), preempted, garbage collector ran, what the call returned, off its core
-    (wall time more than :data:`OFF_CORE_S` over the thread's CPU time, without a context switch)."""
+    (wall time more than :data:`OFF_CORE_S` over the thread's CPU time, without a context switch), and the
+    thread's CPU time (s): a call's wall time less it is the time the thread was off its core."""
 
     budget_ms: float
     elapsed_s: np.ndarray
@@ -125,6 +126,7 @@ class TimedCalls:
     results: list = field(default_factory=list)
     stopped_early: bool = False
     off_core: np.ndarray | None = None
+    cpu_s: np.ndarray | None = None
 
     @property
     def overrun_ms(self) -> np.ndarray:
@@ -151,7 +153,7 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
         if phase == "start":
             collections[0] += 1
 
-    el, pre, col, off, results = [], [], [], [], []
+    el, cpu, pre, col, off, results = [], [], [], [], [], []
     stopped = False
     gc.collect()
     gc.callbacks.append(on_gc)
@@ -164,7 +166,8 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
             t0 = time.perf_counter()
             results.append(call(i))
             el.append(time.perf_counter() - t0)
-            off.append(el[-1] - (time.thread_time() - cpu0) > OFF_CORE_S)
+            cpu.append(time.thread_time() - cpu0)
+            off.append(el[-1] - cpu[-1] > OFF_CORE_S)
             pre.append(involuntary_switches() > c0)
             col.append(collections[0] > g0)
             if (stop_early and i + 1 == STOP_AFTER and n > STOP_AFTER
@@ -174,7 +177,7 @@ def timed_calls(call, n: int, budget_ms: float, desc: str = "", progress: bool =
     finally:
         gc.callbacks.remove(on_gc)
     return TimedCalls(budget_ms, np.array(el), np.array(pre, dtype=bool), np.array(col, dtype=bool), results,
-                      stopped, np.array(off, dtype=bool) & ~np.array(pre, dtype=bool))
+                      stopped, np.array(off, dtype=bool) & ~np.array(pre, dtype=bool), np.array(cpu))
 
 
 def _version(name):

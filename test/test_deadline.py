@@ -22,8 +22,9 @@ from glpma_ros import solvers
 from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.runtime import clock as kernel_clock
+from glpma_ros.runtime import precompile
 from glpma_ros.runtime.collector import CollectorHold
-from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga
+from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga, refine
 from glpma_ros.solvers.common import Termination, initial_population
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)
@@ -347,20 +348,22 @@ def test_a_glpma_chunk_does_no_work_after_its_work_deadline(hexapod, into_local_
 def test_glpma_stopped_inside_its_generations_resumes_them_exactly(hexapod):
     """Chunks cut short by the clock (inside master generations and local searches, wherever it lands) make
     the same generations as chunks without a deadline: the same populations and the same evaluations."""
-    def run(chunk_s):
-        """Chunks of one master generation until RESUMED_GENERATIONS are done and no generation or local
-        search is under way; each chunk given ``chunk_s`` (None: no deadline).  The state, its termination
-        and the chunks the clock cut."""
+    def run(chunk_s, generations):
+        """Chunks of one master generation until ``generations`` are done and no generation or local search is
+        under way; each chunk given ``chunk_s`` (None: no deadline).  The state, its termination and the chunks
+        the clock cut."""
         state, term = _glpma_hexapod(hexapod, seed=1)
         cut = 0
-        while state.master.generation < RESUMED_GENERATIONS or state.local_left or state.master.progress[0]:
+        while state.master.generation < generations or state.local_left or state.master.progress[0]:
             state.work_deadline = None if chunk_s is None else time.perf_counter() + chunk_s
             state.step(1, term)
             cut += state.out_of_time
         return state, term, cut
 
-    whole, whole_term, _ = run(None)
-    cut, cut_term, stops = run(SHORT_CHUNK_S)
+    whole, whole_term, _ = run(None, RESUMED_GENERATIONS)
+    # the same number of generations: a chunk that finishes a local search also runs the next master generation
+    # unless the clock stops it there, so the run without a deadline may end one generation later than asked
+    cut, cut_term, stops = run(SHORT_CHUNK_S, whole.master.generation)
     assert stops > 0            # the clock did cut chunks
     assert cut.master.generation == whole.master.generation and cut_term.nfev == whole_term.nfev
     for a, b in ((cut.master.pop, whole.master.pop), (cut.master.fit, whole.master.fit),
@@ -403,3 +406,17 @@ def test_the_collector_hold_nests_and_restores():
             gc.enable()
         else:
             gc.disable()
+
+
+def test_a_round_of_the_round_off_search_starts_only_when_its_measured_time_fits(hexapod, monkeypatch):
+    """Counted evaluations: a round measured at 1 s does not start before a deadline 0.5 s away (the candidates'
+    evaluation alone is a fraction of a round's time, NumPy and Python around it); without a deadline every
+    round runs (a target of 0 is never met)."""
+    x = precompile.warm_up_pose(hexapod)
+    legs = hexapod.inverse_kinematics(x)
+    monkeypatch.setattr(refine, "_ROUND_S", {hexapod.kind: 1.0})
+    rng = np.random.default_rng(0)
+    _, _, nfev = refine.round_off_search(hexapod, x, legs, 1.0, rng, target=0.0, deadline=time.perf_counter() + 0.5)
+    assert nfev == 0
+    _, _, nfev = refine.round_off_search(hexapod, x, legs, 1.0, rng, target=0.0)
+    assert nfev == refine.GRID_ROUNDS * refine.GRID_CANDIDATES

@@ -84,6 +84,15 @@ class Termination:
         return self.status(best) or MAX_EVALS
 
 
+def kernel_array(a) -> np.ndarray:
+    """``a`` as the one array type the compiled kernels are loaded for: float64, C-contiguous, aligned and
+    writable (copied only when it is not).  Numba compiles a function once per type of its arguments, and an
+    array's type includes whether it is read-only: a read-only view (``np.broadcast_to``, an array over a
+    message's buffer) would load -- or, the first time, compile -- other machine code on its first use, tens of
+    milliseconds inside the solve that brings it, which the start-up's warm-up never touched."""
+    return np.require(a, dtype=np.float64, requirements="CAW")
+
+
 def initial_population(rng: np.random.Generator, size: int, n_vars: int, init_range=None,
                        center=None, spread=None) -> np.ndarray:
     """Uniform in ``init_range = (low, high)`` (the papers' protocol) or normal

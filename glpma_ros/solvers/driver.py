@@ -11,7 +11,7 @@ import numpy as np
 from ..models.kernels import population_fitness
 from ..runtime.collector import HOLD
 from . import refine
-from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population
+from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initial_population, kernel_array
 
 #: generations per compiled call when no deadline limits it
 CHUNK_GENERATIONS = 256
@@ -21,6 +21,10 @@ CHUNK_SHARE = 0.1
 #: an estimate of the time per evaluation (or per refinement iteration) that measures less forgets at most
 #: this share of itself per chunk (a slow chunk raises it at once: overrunning is worse than stopping early)
 COST_DECAY = 0.5
+#: ... and the tail (the Python from the last compiled call to the result) this share per solve: that Python
+#: runs two to three times slower while the core's sibling is busy, and a tail longer than its reserve is time
+#: past the deadline, while a reserve longer than the tail only ends the search a few microseconds early
+TAIL_DECAY = 0.1
 #: the first refinement's time per iteration, in evaluations of the fitness (one residual vector with its
 #: Jacobian costs a few evaluations of the fitness; measured on the next refinement)
 POLISH_ITERATION_EVALS = 8
@@ -35,14 +39,14 @@ class Problem:
 
     def __init__(self, model, legs):
         self.model = model
-        self.legs = np.ascontiguousarray(legs, dtype=float)
+        self.legs = kernel_array(legs)
         self.kind = model.kind_id
         self.data = model.data
         self.n_res = model.n_res
 
     def evaluate(self, X, term: Termination) -> np.ndarray:
         term.nfev += len(X)
-        return population_fitness(np.ascontiguousarray(X), self.kind, self.data, self.legs, self.n_res)
+        return population_fitness(kernel_array(X), self.kind, self.data, self.legs, self.n_res)
 
 
 class EvolutionaryState:
@@ -52,8 +56,8 @@ class EvolutionaryState:
 
     def __init__(self, problem, pop, fit, rng):
         self.problem = problem
-        self.pop = np.ascontiguousarray(pop, dtype=float)
-        self.fit = np.ascontiguousarray(fit, dtype=float)
+        self.pop = kernel_array(pop)
+        self.fit = kernel_array(fit)
         self.rng = rng
         #: the ``time.perf_counter()`` value by which the compiled calls of a chunk must end (the deadline less
         #: the Python that follows the last one), set by the driver before each chunk; None: no deadline
@@ -148,6 +152,7 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         last_polish_f = warm[1]
     x, f = state.best()
     stop = None
+    cut = False             # the last compiled call stopped at the work deadline
     while True:
         x, f = state.best()
         if polish and f * POLISH_GAIN < last_polish_f and term.status(f) is None:
@@ -169,8 +174,7 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         if term.deadline is None:
             chunk = CHUNK_GENERATIONS
         else:
-            # a compiled call that stopped at the work deadline: nothing more fits either
-            chunk = 0 if state.out_of_time else costs.generations(state)
+            chunk = costs.generations(state)
             if chunk == 0:                      # not even one generation fits: stop at the deadline
                 stop = BUDGET_EXHAUSTED
                 break
@@ -182,10 +186,20 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         costs.note_evals(last_work - c0, term.nfev - nfev)
         costs.on_chunks = costs.on_chunks or term.nfev > nfev
         nit += gens
-        if term.nfev == nfev and not state.out_of_time and term.status(state.best()[1]) is None:
+        if state.out_of_time:
+            # the compiled call stopped at the work deadline: nothing more fits (no refinement, no chunk), and
+            # the Python from here to the result is the tail the deadline left room for: straight to the result
+            cut = True
+            break
+        if term.nfev == nfev and term.status(state.best()[1]) is None:
             break  # fewer evaluations left than one generation needs
         polished = polished and state.best()[1] >= f
-    x, f = state.best()
+    x_end, f_end = state.best()
+    if cut:
+        polished = polished and f_end >= f
+        history.append((term.nfev, f_end))
+        stop = term.status(f_end) or BUDGET_EXHAUSTED
+    x, f = x_end, f_end
     result = _result(name, model, x, f, term, nit, polished, history, refined,
                      stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
     costs.note_tail(time.thread_time() - last_work)
@@ -232,7 +246,7 @@ class Costs:
     not the time other processes took the core meanwhile) per evaluation of the fitness and per iteration
     of the refinement, and the *tail*: the Python from the end of the last compiled call to the result,
     which the compiled work leaves room for before the deadline.  Each estimate is the latest measure, or
-    :data:`COST_DECAY` less than the previous estimate when that is larger."""
+    :data:`COST_DECAY` (the tail: :data:`TAIL_DECAY`) less than the previous estimate when that is larger."""
 
     def __init__(self, term: Termination, name: str, model):
         self.term = term
@@ -250,15 +264,15 @@ class Costs:
             _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration, self.tail_s)
 
     @staticmethod
-    def _track(old, seconds):
-        return max(seconds, (1.0 - COST_DECAY) * old) if old else seconds
+    def _track(old, seconds, decay=COST_DECAY):
+        return max(seconds, (1.0 - decay) * old) if old else seconds
 
     def note_evals(self, seconds: float, evals: int) -> None:
         if evals > 0:
             self.per_eval = self._track(self.per_eval, seconds / evals)
 
     def note_tail(self, seconds: float) -> None:
-        self.tail_s = self._track(self.tail_s, seconds)
+        self.tail_s = self._track(self.tail_s, seconds, TAIL_DECAY)
 
     def left(self) -> float:
         """Seconds to the deadline less the tail: what compiled work may still fill."""
@@ -288,7 +302,8 @@ class Costs:
             per_iteration = self.per_iteration
             if per_iteration is None:
                 per_iteration = POLISH_ITERATION_EVALS * self.per_eval
-            deadline -= refine.GRID_CANDIDATES * self.per_eval          # a round of the round-off search
+            # a round of the round-off search: as measured, or its evaluations before any was
+            deadline -= max(refine.round_s(model), refine.GRID_CANDIDATES * self.per_eval)
             left = deadline - time.perf_counter()
             if per_iteration > 0.0:
                 max_iter = min(max_iter, int(left / per_iteration))

@@ -212,9 +212,13 @@ class GASAPopulation(GenerationInProgress):
         if self.term is None or self.term.deadline is None:
             return self._run(n_generations, UNLIMITED, max_evals, tolerance)
         deadline = self.term.deadline if self.work_deadline is None else self.work_deadline
+        self.out_of_time = False
         gens = evals = 0
         call_s = 0.0            # the longest call so far (the thread's CPU time): the next starts only if it fits
-        while gens < n_generations and evals < max_evals and time.perf_counter() + call_s < deadline:
+        while gens < n_generations and evals < max_evals:
+            if time.perf_counter() + call_s >= deadline:
+                self.out_of_time = True     # the next call would end past the work deadline: nothing more fits
+                break
             c0 = time.thread_time()
             g, e = self._run(n_generations - gens, DEADLINE_CHAINS, max_evals - evals, tolerance)
             call_s = max(call_s, time.thread_time() - c0)

@@ -8,6 +8,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .common import kernel_array
 from .lm import (
     I_CONDITIONING,
     I_CONVERGED,
@@ -203,8 +204,8 @@ def local_solve(model, x0, legs, *, max_iter=MAX_ITER, rtol=LEG_RTOL, ftol=math.
     ``converged``: ``max |r_i| <= rtol * max(scale, max leg)`` (and leg fitness ``< ftol``).  Raises
     ``ValueError`` for legs that are not finite, not positive or outside the model's leg limits.
     Thread-safe (its own buffers); for many calls keep a :class:`LocalSolver` per thread."""
-    x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
-    legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
+    x0 = kernel_array(x0).reshape(-1)
+    legs = kernel_array(legs).reshape(-1)
     if x0.size != model.n_vars or legs.size != model.leg_vector_size:
         raise ValueError(f"expected {model.n_vars} variables and {model.leg_vector_size} legs")
     result = LocalSolver(model).solve(x0, legs, max_iter=max_iter, rtol=rtol, ftol=ftol)

@@ -32,6 +32,7 @@ from numba import njit
 from ..models.kernels import fitness_one
 from ..runtime.clock import kernel_end, reached
 from ..runtime.compat import NUMBA_INLINE
+from .common import kernel_array
 from .driver import GenerationInProgress, solve_population
 
 #: the papers' rates (Chandra & Rolland 2014; Chandra, Zhang & Rolland 2009)
@@ -173,7 +174,7 @@ class RCGAPopulation(GenerationInProgress):
     def __init__(self, problem, pop, fit, rng, *, width, max_evals, crossover_rate=CROSSOVER_RATE,
                  mutation_rate=MUTATION_RATE, mutation_b=MUTATION_B):
         super().__init__(problem, pop, fit, rng)
-        self.width = np.ascontiguousarray(np.broadcast_to(np.asarray(width, dtype=float), (pop.shape[1],)))
+        self.width = kernel_array(np.broadcast_to(np.asarray(width, dtype=float), (pop.shape[1],)))
         self.crossover_rate, self.mutation_rate = float(crossover_rate), float(mutation_rate)
         self.mutation_b = float(mutation_b)
         self.generation = 0

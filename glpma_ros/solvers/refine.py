@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .common import kernel_array
 from .local import LocalSolver
 
 
@@ -36,8 +37,8 @@ def levenberg_marquardt(model, x0, legs, *, tolerance=1e-20, max_iter=50, deadli
     """
     if deadline is not None and time.perf_counter() >= deadline:
         max_iter = 0
-    x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
-    legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
+    x0 = kernel_array(x0).reshape(-1)
+    legs = kernel_array(legs).reshape(-1)
     solver = LocalSolver(model)
     r = solver.solve(x0, legs, max_iter=max_iter, ftol=tolerance)
     if r is None or not math.isfinite(r.leg_fitness):
@@ -50,6 +51,19 @@ GRID_CANDIDATES = 64
 GRID_ROUNDS = 8
 #: perturbations of up to this many units in the last place per variable
 GRID_ULPS = 3
+#: the longest round of the grid search measured so far, per model kind (the thread's CPU time, s): a round is
+#: NumPy and Python around one compiled evaluation of the candidates, several times the evaluation's own time,
+#: so a round starts only when this much still fits before the deadline, and the driver leaves this much free
+#: for the first (:func:`round_s`)
+_ROUND_S: dict = {}
+#: ... forgetting this share of itself per shorter round: a round slowed once (an interrupt on its core) does
+#: not hold the search back for long, while the rounds' usual time stays reserved
+ROUND_DECAY = 0.01
+
+
+def round_s(model) -> float:
+    """The expected time (s) of one round of :func:`round_off_search` on ``model`` (0: none measured yet)."""
+    return _ROUND_S.get(model.kind, 0.0)
 
 
 def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
@@ -59,13 +73,16 @@ def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
     ``2 d_n`` times one unit in the last place of a coordinate (~1e-10 mm^2), so
     the float vector nearest the exact solution can have a fitness of 1e-19.
     Random perturbations of a few ulps, evaluated as one population, find a
-    representable neighbour whose fitness is at round-off (< ``target``).
+    representable neighbour whose fitness is at round-off (< ``target``).  Under a ``deadline`` (a
+    ``time.perf_counter`` value) a round starts only when its expected time (:func:`round_s`) still fits.
     Returns ``(x, f, nfev)``.
     """
     nfev = 0
+    expected = round_s(model)
     for _ in range(GRID_ROUNDS):
-        if f < target or (deadline is not None and time.perf_counter() >= deadline):
+        if f < target or (deadline is not None and time.perf_counter() + expected >= deadline):
             break
+        c0 = time.thread_time()
         steps = rng.integers(-GRID_ULPS, GRID_ULPS + 1, size=(GRID_CANDIDATES, x.size))
         X = x + steps * np.spacing(x)
         F = model.fitness(X, legs)
@@ -73,6 +90,8 @@ def round_off_search(model, x, legs, f, rng, *, target, deadline=None):
         i = int(np.argmin(F))
         if F[i] < f:
             x, f = X[i], float(F[i])
+        expected = max(time.thread_time() - c0, (1.0 - ROUND_DECAY) * expected)
+    _ROUND_S[model.kind] = expected
     return x, f, nfev
 
 
@@ -91,10 +110,10 @@ def polish(model, x0, legs, rng, *, tolerance=1e-20, max_iter=50, deadline=None)
     fitness of the solver's model), then, for models whose solver variables are
     redundant like the hexapod's nine, the round-off search.  Past ``deadline`` (a
     ``time.perf_counter`` value) nothing is computed: ``x0`` comes back with an infinite fitness."""
-    x0 = np.ascontiguousarray(x0, dtype=float).reshape(-1)
+    x0 = kernel_array(x0).reshape(-1)
     if deadline is not None and time.perf_counter() >= deadline:
         return Polished(x0.copy(), math.inf, 0, False)      # no work after the deadline: not even evaluated
-    legs = np.ascontiguousarray(legs, dtype=float).reshape(-1)
+    legs = kernel_array(legs).reshape(-1)
     # redundant legs: measured legs leave a residual, the least-squares pose is the goal
     r = LocalSolver(model).solve(x0, legs, max_iter=max_iter, ftol=tolerance if model.redundancy == 0 else math.inf)
     if r is None:                       # legs outside the model's limits: evaluated, not refined

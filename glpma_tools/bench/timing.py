@@ -214,6 +214,16 @@ FIFO_PRIORITY = 10
 FIFO_REST_S = 1e-3
 #: the quantile of (end - deadline) the deadline section reports besides the largest
 TAIL_QUANTILE = 99.9
+#: a solve that ends more than this (ms) after its deadline is listed apart with the split of its lateness:
+#: what a solver may overrun at the tail (p99.9) for the deadline to hold
+LATE_MS = 0.1
+#: ... at most this many of them per load, the latest first
+LATE_LISTED = 8
+#: why a listed solve was late: its thread's CPU time ran past the budget by more than LATE_MS (its code, or
+#: interrupts served on its core: a kernel without IRQ time accounting counts them as the thread's time) ...
+RAN_PAST = "on its core past the deadline"
+#: ... or not: the time off its core explains the lateness
+OFF_CORE = "off its core (the OS took it)"
 
 
 def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> list[SimpleNamespace]:
@@ -291,6 +301,15 @@ def disturbed(row) -> np.ndarray:
     return row.preempted | off_core(row) | row.collected
 
 
+def cpu_past(row) -> np.ndarray:
+    """Per solve of a deadline row: the thread's CPU time less the budget (ms; NaN: not measured).  The CPU time
+    before the deadline is at most the budget, so this is at least the solver's own work after it: a late solve
+    whose CPU time is within the budget was late because it was off its core (wall time less CPU time), not
+    because it ran past."""
+    cpu = getattr(row, "cpu_s", None)
+    return np.full(row.overrun_ms.shape, np.nan) if cpu is None else np.asarray(cpu) * 1e3 - row.budget_ms
+
+
 def all_overruns(rows) -> tuple[np.ndarray, np.ndarray]:
     """The overruns (ms) of every deadline solve, and of those not disturbed."""
     rows = [r for r in rows if hasattr(r, "overrun_ms")]
@@ -315,14 +334,42 @@ def worst_overrun(over) -> str:
 
 
 def tail(over) -> str:
-    """p99.9 and max of the overruns ``over`` (ms), signed; dashes when there are none."""
+    """p99.9 and max of the overruns ``over`` (ms), signed; dashes when there are none (or not measured)."""
+    over = over[~np.isnan(over)]
     if not over.size:
         return f"{MISSING} / {MISSING}"
     return f"{float(np.percentile(over, TAIL_QUANTILE)):+.3f} / {float(np.max(over)):+.3f}"
 
 
+def late_solves(rows) -> list[list]:
+    """The solves more than :data:`LATE_MS` past their deadline, per load the latest first (at most
+    :data:`LATE_LISTED` per load), each with its lateness split: the time off its core (wall time less the
+    thread's CPU time) and the CPU time past the budget (:func:`cpu_past`), and which of the two explains it."""
+    lines = []
+    for load in dict.fromkeys(getattr(r, "load", LOADS[0]) for r in rows):
+        lines += _late([r for r in rows if getattr(r, "load", LOADS[0]) == load])
+    return lines
+
+
+def _late(rows) -> list[list]:
+    late = []
+    for r in rows:
+        past = cpu_past(r)
+        cpu = getattr(r, "cpu_s", None)
+        for i in np.flatnonzero(r.overrun_ms > LATE_MS):
+            off = MISSING if cpu is None else f"{r.elapsed_s[i] * 1e3 - cpu[i] * 1e3:.3f}"
+            why = MISSING if np.isnan(past[i]) else \
+                RAN_PAST if past[i] > LATE_MS else OFF_CORE
+            late.append((float(r.overrun_ms[i]), [r.case, r.solver, f"{r.budget_ms:g}", getattr(r, "load", LOADS[0]),
+                                                  f"{r.overrun_ms[i]:+.3f}", off,
+                                                  MISSING if np.isnan(past[i]) else f"{past[i]:+.3f}", why]))
+    return [line for _, line in sorted(late, key=lambda t: -t[0])[:LATE_LISTED]]
+
+
 #: the deadline tables' column of the solves counted apart (:func:`disturbed`)
 DISTURBED = "preempted / off core / collector"
+#: ... and of the thread's CPU time past the budget (:func:`cpu_past`)
+CPU_PAST = "p99.9 / max of CPU − budget, ms"
 
 
 def deadline_section(res, md_path) -> list[str]:
@@ -339,9 +386,10 @@ def deadline_section(res, md_path) -> list[str]:
         for solver in dict.fromkeys(r.solver for r in rows):
             mine = [r for r in rows if r.solver == solver and getattr(r, "load", LOADS[0]) == load]
             over, calm = all_overruns(mine)
-            per_solver.append([solver, load, len(over), tail(over), _counts(mine), tail(calm)])
+            per_solver.append([solver, load, len(over), tail(over), _counts(mine), tail(calm),
+                               tail(np.concatenate([cpu_past(r) for r in mine]))])
     body = [[r.case, r.solver, f"{r.budget_ms:g}", getattr(r, "load", LOADS[0]), len(over), tail(over),
-             _counts([r]), tail(calm), on_time(over),
+             _counts([r]), tail(calm), tail(cpu_past(r)), on_time(over),
              ", ".join(f"{k} {v}" for k, v in sorted(getattr(r, "statuses", {}).items()))]
             for r in rows for over, calm in [(r.overrun_ms, r.overrun_ms[~disturbed(r)])]]
     total, calm = all_overruns(rows)
@@ -359,7 +407,11 @@ def deadline_section(res, md_path) -> list[str]:
                          [[f.kind, f.load, len(f.floor_ms), fmt(float(np.median(f.floor_ms))),
                            fmt(float(np.max(f.floor_ms)))] for f in floors]),
         table(["solver", "load", "solves", "p99.9 / max of end − deadline, ms", DISTURBED,
-               "p99.9 / max, undisturbed"], per_solver),
+               "p99.9 / max, undisturbed", CPU_PAST], per_solver),
         table(["case", "solver", "budget ms", "load", "solves", "p99.9 / max ms", DISTURBED,
-               "p99.9 / max ms, undisturbed", "within budget + margin", "statuses"], body),
+               "p99.9 / max ms, undisturbed", CPU_PAST, "within budget + margin", "statuses"], body),
+        prose("deadline", "late", late_ms=LATE_MS, listed=LATE_LISTED),
+        table(["case", "solver", "budget ms", "load", "end − deadline ms", "off its core ms", "CPU − budget ms",
+               "late because"], late_solves(rows)) if late_solves(rows) else f"No solve ended more than {LATE_MS:g} "
+                                                                         "ms after its deadline.",
         figure_link(res, "deadline", md_path, "deadline overruns"))
