@@ -23,6 +23,9 @@ JACOBI_TOL = 4e-16
 #: shorter than this share of the matrix's Frobenius norm is left alone (rotating it would change no
 #: singular value by more than that share: a few units in the last place)
 KABSCH_NEGLIGIBLE = 1e-15
+#: a column of a nearly orthogonal basis, less its projections on the columns before it, keeps a norm of about 1;
+#: below this share the basis was not nearly orthogonal (or not finite) and is given up
+ORTHONORMAL_MIN_NORM = 0.5
 
 
 @njit(cache=True, error_model="numpy")
@@ -74,7 +77,7 @@ def damped_solve(A, lam, g, step, L):
 
 
 @njit(cache=True, error_model="numpy")
-def jacobi_svd(A, V, s, negligible=0.0, vectors=True):
+def jacobi_svd(A, V, s, negligible=0.0, vectors=True, from_V=False):
     """One-sided Jacobi SVD (Hestenes 1958) of ``A`` (m x n, m >= n), in place: on return
     ``A = U diag(s)`` (columns) and ``A_in V = U diag(s)``; singular values unsorted.  The squared
     column norms are carried through each rotation (``alpha - t gamma``, ``beta + t gamma``) and
@@ -82,9 +85,12 @@ def jacobi_svd(A, V, s, negligible=0.0, vectors=True):
     norm, e.g. :data:`KABSCH_NEGLIGIBLE`; 0: none): a column shorter than that is not rotated, for a matrix
     known to be rank deficient (the default keeps the method's high relative accuracy for every column).
     ``vectors=False``: only the singular values are wanted (``V`` is left as it was; the rotations of ``A``, and
-    so ``s``, are the same)."""
+    so ``s``, are the same).  ``from_V=True`` (with ``vectors``): the rotations are accumulated onto ``V`` as given
+    instead of the identity -- for ``A`` that is a matrix already multiplied by an orthogonal ``V0`` (``V`` = ``V0``
+    on entry), so that on return ``A_in V0^T V = U diag(s)``: a warm start, when the columns of ``A_in`` are nearly
+    orthogonal already (:func:`orthonormalise_columns` keeps a reused basis orthogonal)."""
     m, n = A.shape
-    if vectors:
+    if vectors and not from_V:
         for i in range(n):
             for j in range(n):
                 V[i, j] = 1.0 if i == j else 0.0
@@ -134,3 +140,27 @@ def jacobi_svd(A, V, s, negligible=0.0, vectors=True):
             acc += A[k, j] * A[k, j]
         s[j] = math.sqrt(acc)
 
+
+
+@njit(cache=True, error_model="numpy")
+def orthonormalise_columns(V):
+    """The columns of the square ``V`` made orthonormal in place (modified Gram-Schmidt): a basis updated by
+    many rotations, each orthogonal to round-off, stays orthogonal to round-off.  False (``V`` then unusable)
+    when a column is not finite or depends on the ones before it."""
+    n = V.shape[1]
+    for j in range(n):
+        for i in range(j):
+            d = 0.0
+            for k in range(V.shape[0]):
+                d += V[k, i] * V[k, j]
+            for k in range(V.shape[0]):
+                V[k, j] -= d * V[k, i]
+        norm = 0.0
+        for k in range(V.shape[0]):
+            norm += V[k, j] * V[k, j]
+        norm = math.sqrt(norm)
+        if not (norm > ORTHONORMAL_MIN_NORM and math.isfinite(norm)):
+            return False
+        for k in range(V.shape[0]):
+            V[k, j] /= norm
+    return True
