@@ -256,3 +256,27 @@ def test_memo_of_the_last_solve_changes_nothing_but_the_work(name):
         x = memo.x                       # the next start: exactly what the memo holds
     work = kept.work[:lm.workspace_size(model.n_legs, model.n_pose, model.n_res)]
     assert work[-model.n_pose ** 2 - lm.M_BASIS + lm.M_RESUME_OK] == 1.0    # the resume did apply
+
+
+@pytest.mark.parametrize("name", ["planar_3rpr_seed.yaml", "hexapod_66_rolland.yaml", "delta_irb360.yaml",
+                                  "planar_3prr_triangle.yaml", "rus6_simulator.yaml", "pus6_rail_hexapod.yaml"])
+def test_warm_kernel_reads_the_models_constants_from_its_pack(name):
+    """The warm path's call (``lm.warm_kernel``: the constants in one buffer, ``lm.call_pack``) returns what
+    ``lm_kernel`` returns with the constants as arguments, from the same start, on fresh work buffers."""
+    path = CONFIG / name
+    doc = load_document(path)
+    model = model_from_dict(doc, str(path))
+    p0, R0 = start_pose(model, doc)
+    truth = variables_along(model, model.variables_from_pose(p0, quaternion_from_matrix(R0)), 20)
+    settings = local.make_settings(model, max_iter=lm.POLISH_STEPS + 20)
+    for k in range(1, len(truth)):
+        legs = np.ascontiguousarray(model.inverse_kinematics(truth[k]), dtype=float)
+        before = np.ascontiguousarray(model.inverse_kinematics(truth[k - 1]), dtype=float)
+        a, b = local.LocalSolver(model), local.LocalSolver(model)
+        out_a, out_b = np.empty(a.n_out), np.empty(b.n_out)
+        lm.lm_kernel(a.kind, a.data, a.platform, a.frame, legs, truth[k - 1], truth[k - 1], before, settings, out_a,
+                     a.work)
+        pack = lm.call_pack(b.data, b.platform, b.frame, settings)
+        lm.warm_kernel(b.kind, pack, b.data[-1], legs, truth[k - 1], before, out_b, b.work)
+        # the same arithmetic on the same values: equal but for the last bit at most
+        np.testing.assert_allclose(out_b, out_a, rtol=1e-15, atol=0.0)

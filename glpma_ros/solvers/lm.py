@@ -252,6 +252,49 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
         out[x0.shape[0] + 7 + I_MOVEMENT] = mv
 
 
+# -- the warm path's call --------------------------------------------------------------------------
+# The model's constants of a compiled call (its data matrices and vector, platform and frame joints, the
+# settings) copied into one buffer, read back as views: the warm path's call (:func:`warm_kernel`) passes
+# that buffer instead of five arguments -- the dispatcher checks the type of every argument on every call,
+# and of the data tuple the slowest.  Layout: a header of (offset, rows, columns) per part, in PACK_PARTS'
+# order, then the parts' values (row-major).
+PACK_PARTS = 6              # data[0], data[1], data[2], platform, frame, settings
+PACK_HEADER = 3 * PACK_PARTS
+
+
+def call_pack(data, platform, frame, settings) -> np.ndarray:
+    """The buffer :func:`warm_kernel` reads the model's constants from (see ``PACK_PARTS``)."""
+    parts = [np.ascontiguousarray(a, dtype=float) for a in (data[0], data[1], data[2], platform, frame, settings)]
+    head = np.zeros(PACK_HEADER)
+    offset = PACK_HEADER
+    for k, a in enumerate(parts):
+        rows, cols = (a.shape[0], a.shape[1]) if a.ndim == 2 else (a.shape[0], 1)
+        head[3 * k:3 * k + 3] = (offset, rows, cols)
+        offset += a.size
+    return np.concatenate([head] + [a.ravel() for a in parts])
+
+
+@njit(cache=True, error_model="numpy")
+def _pack_matrix(pack, k):
+    o, rows, cols = int(pack[3 * k]), int(pack[3 * k + 1]), int(pack[3 * k + 2])
+    return pack[o:o + rows * cols].reshape((rows, cols))
+
+
+@njit(cache=True, error_model="numpy")
+def _pack_vector(pack, k):
+    o, rows = int(pack[3 * k]), int(pack[3 * k + 1])
+    return pack[o:o + rows]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def warm_kernel(kind, pack, counter, legs, x0, legs_ref, out, work):
+    """:func:`lm_kernel` from ``x0`` (also the reference of the distance) with the model's constants read from
+    ``pack`` (:func:`call_pack`); ``counter``: the model's evaluation counter (its data tuple's last entry)."""
+    data = (_pack_matrix(pack, 0), _pack_matrix(pack, 1), _pack_vector(pack, 2), counter)
+    lm_kernel(kind, data, _pack_matrix(pack, 3), _pack_matrix(pack, 4), legs, x0, x0, legs_ref, _pack_vector(pack, 5),
+              out, work)
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def multistart_kernel(kind, data, platform, frame, legs, starts, x_ref, settings, out, work):
     """Levenberg-Marquardt from each row of ``starts`` in turn until one converges.

@@ -31,8 +31,10 @@ from .lm import (
     S_MAX_ITER,
     S_RTOL,
     S_STALL,
+    call_pack,
     lm_kernel,
     multistart_kernel,
+    warm_kernel,
     workspace_size,
 )
 
@@ -139,7 +141,8 @@ class LocalSolver:
         self._limits = model.leg_limits
 
     def prepare(self):
-        """Load (or compile) both kernels for this model's types, with a call that does no iteration."""
+        """Load (or compile) the kernels for this model's types (the estimator's warm one too), with a call that
+        does no iteration."""
         x0 = np.zeros((1, self.n_vars))
         legs = np.ones(self.model.leg_vector_size)
         settings = make_settings(self.model, max_iter=0)
@@ -149,6 +152,8 @@ class LocalSolver:
                   self.work)
         multistart_kernel(self.kind, self.data, self.platform, self.frame, legs, x0, x0[0], settings, out,
                           self.work)
+        warm_kernel(self.kind, call_pack(self.data, self.platform, self.frame, settings), self.data[-1], legs, x0[0],
+                    _NO_LEGS, out, self.work)
 
     def _settings(self, max_iter, rtol, ftol, stall):
         settings = self.settings
