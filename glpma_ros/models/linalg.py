@@ -16,8 +16,13 @@ numba_cache.install()      # before the first compiled function (see numba_cache
 
 #: sweeps of the one-sided Jacobi SVD (it converges quadratically: 6x6 needs 5-7)
 JACOBI_SWEEPS = 30
-#: two columns count as orthogonal when |a.b| <= JACOBI_TOL |a| |b| (a few units in the last place)
+#: two columns count as orthogonal when |a.b| <= JACOBI_TOL |a| |b| (a few units in the last place); tested
+#: squared, (a.b)^2 <= JACOBI_TOL^2 |a|^2 |b|^2, without a square root per pair
 JACOBI_TOL = 4e-16
+JACOBI_TOL_SQUARED = JACOBI_TOL * JACOBI_TOL
+#: the rotation's tangent t = sign(zeta) / (|zeta| + sqrt(1 + zeta^2)) takes its limit 1 / (2 |zeta|) above this |zeta|,
+#: where zeta^2 would overflow (and the two agree to round-off long before)
+JACOBI_ZETA_HUGE = 1e150
 #: the Kabsch fit's matrix (three points: rank 2 at most) has a column that the sweeps drive to round-off; its
 #: direction is noise, so the test above never passes for it and the sweeps would run to JACOBI_SWEEPS.  A column
 #: shorter than this share of the matrix's Frobenius norm is left alone (rotating it would change no
@@ -107,18 +112,36 @@ def jacobi_svd(A, V, s, negligible=0.0, vectors=True, from_V=False):
                 acc += A[k, j] * A[k, j]
             s[j] = acc
         rotated = False
-        for p in range(n - 1):
-            for q in range(p + 1, n):
+        # the pairs in round-robin order: each round's pairs are disjoint, so that a rotation need not wait for the
+        # one before it (the circle method: index 0 stays, the others turn by one place per round; an odd n gets a
+        # bye, the pairs with the extra index are skipped)
+        players = n + (n % 2)
+        turn = players - 1
+        for rnd in range(turn):
+            for slot in range(players // 2):
+                p = 0
+                if slot > 0:
+                    p = rnd + slot - 1
+                    p = 1 + (p - turn if p >= turn else p)
+                q = rnd + turn - 1 - slot
+                q = 1 + (q - turn if q >= turn else q)
+                if p > q:
+                    p, q = q, p
+                if q >= n:
+                    continue
                 alpha = s[p]
                 beta = s[q]
                 gamma = 0.0
                 for k in range(m):
                     gamma += A[k, p] * A[k, q]
-                if not abs(gamma) > JACOBI_TOL * math.sqrt(alpha * beta) or min(alpha, beta) < floor:
+                if not gamma * gamma > JACOBI_TOL_SQUARED * alpha * beta or min(alpha, beta) < floor:
                     continue
                 rotated = True
                 zeta = (beta - alpha) / (2.0 * gamma)
-                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.hypot(1.0, zeta))
+                az = abs(zeta)
+                t = 1.0 / (az + math.sqrt(1.0 + az * az)) if az < JACOBI_ZETA_HUGE else 0.5 / az
+                if zeta < 0.0:
+                    t = -t
                 c = 1.0 / math.sqrt(1.0 + t * t)
                 sn = c * t
                 for k in range(m):
