@@ -53,7 +53,8 @@ def normal_equations(J, r, A, g):
 
 @njit(cache=True, error_model="numpy")
 def damped_solve(A, lam, g, step, L):
-    """Solve ``(A + lam diag(A)) step = -g`` by Cholesky; False when not positive definite."""
+    """Solve ``(A + lam diag(A)) step = -g`` by Cholesky; False when not positive definite.  ``L`` receives the
+    factor with the reciprocals of its diagonal on the diagonal (one division per row; the rest multiplies)."""
     n = A.shape[0]
     for i in range(n):
         for j in range(i + 1):
@@ -65,19 +66,19 @@ def damped_solve(A, lam, g, step, L):
             if i == j:
                 if not s > 0.0 or not math.isfinite(s):
                     return False
-                L[i, i] = math.sqrt(s)
+                L[i, i] = 1.0 / math.sqrt(s)
             else:
-                L[i, j] = s / L[j, j]
+                L[i, j] = s * L[j, j]
     for i in range(n):                       # L y = -g
         s = -g[i]
         for k in range(i):
             s -= L[i, k] * step[k]
-        step[i] = s / L[i, i]
+        step[i] = s * L[i, i]
     for i in range(n - 1, -1, -1):           # L^T step = y
         s = step[i]
         for k in range(i + 1, n):
             s -= L[k, i] * step[k]
-        step[i] = s / L[i, i]
+        step[i] = s * L[i, i]
     return True
 
 
