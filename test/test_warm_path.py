@@ -260,9 +260,10 @@ def test_memo_of_the_last_solve_changes_nothing_but_the_work(name):
 
 @pytest.mark.parametrize("name", ["planar_3rpr_seed.yaml", "hexapod_66_rolland.yaml", "delta_irb360.yaml",
                                   "planar_3prr_triangle.yaml", "rus6_simulator.yaml", "pus6_rail_hexapod.yaml"])
-def test_warm_kernel_reads_the_models_constants_from_its_pack(name):
-    """The warm path's call (``lm.warm_kernel``: the constants in one buffer, ``lm.call_pack``) returns what
-    ``lm_kernel`` returns with the constants as arguments, from the same start, on fresh work buffers."""
+def test_warm_kernel_reads_the_models_constants_from_its_buffer(name):
+    """The warm path's call (``lm.warm_kernel``: the constants and the work space in one buffer,
+    ``lm.warm_buffer``) returns what ``lm_kernel`` returns with them as arguments, from the same start, on fresh
+    work space."""
     path = CONFIG / name
     doc = load_document(path)
     model = model_from_dict(doc, str(path))
@@ -276,7 +277,6 @@ def test_warm_kernel_reads_the_models_constants_from_its_pack(name):
         out_a, out_b = np.empty(a.n_out), np.empty(b.n_out)
         lm.lm_kernel(a.kind, a.data, a.platform, a.frame, legs, truth[k - 1], truth[k - 1], before, settings, out_a,
                      a.work)
-        pack = lm.call_pack(b.data, b.platform, b.frame, settings)
-        lm.warm_kernel(b.kind, pack, b.data[-1], legs, truth[k - 1], before, out_b, b.work)
+        lm.warm_kernel(b.warm_buffer(settings), legs, truth[k - 1], before, out_b)
         # the same arithmetic on the same values: equal but for the last bit at most
         np.testing.assert_allclose(out_b, out_a, rtol=1e-15, atol=0.0)

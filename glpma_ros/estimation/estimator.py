@@ -254,7 +254,7 @@ class Estimator:
         self._lm = local.LocalSolver(model)
         self._n = model.n_vars
         self._info_at = model.n_vars + local.POSE_OUT       # where the kernel's info slots start in its output
-        self._warm_pack = None              # the warm stage's kernel constants (lm.call_pack), built on first use
+        self._warm_buffer = None            # the warm stage's kernel buffer (lm.warm_buffer), built on first use
         self._near_floor = MIN_SPREAD * model.scale
         self._cold_range = cold_range(model) if init_range is None else \
             tuple(np.full(model.n_vars, float(v)) for v in init_range)
@@ -374,13 +374,13 @@ class Estimator:
         # the warm stage: one compiled call (checks the legs, solves, measures); its output is read by the
         # kernel's slot indices (the I_* layout, as LmOutput names them): one list of floats, no object per field
         solver = self._lm
-        pack = self._warm_pack
-        if pack is None or self._warm_key != (model.leg_limits, self.leg_rtol):
-            settings = local.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol)
-            pack = self._warm_pack = lm.call_pack(solver.data, solver.platform, solver.frame, settings)
+        buf = self._warm_buffer
+        if buf is None or self._warm_key != (model.leg_limits, self.leg_rtol):
+            buf = self._warm_buffer = solver.warm_buffer(
+                local.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol))
             self._warm_key = (model.leg_limits, self.leg_rtol)
         out = np.empty(solver.n_out)
-        lm.warm_kernel(solver.kind, pack, solver.data[-1], arr, self.last_x, self.last_legs, out, solver.work)
+        lm.warm_kernel(buf, arr, self.last_x, self.last_legs, out)
         info = out[self._info_at:].tolist()
         if info[lm.I_INPUT_OK] == 0.0:
             model.check_legs(arr)                       # raises with the reason

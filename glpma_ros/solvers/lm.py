@@ -253,46 +253,48 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
 
 
 # -- the warm path's call --------------------------------------------------------------------------
-# The model's constants of a compiled call (its data matrices and vector, platform and frame joints, the
-# settings) copied into one buffer, read back as views: the warm path's call (:func:`warm_kernel`) passes
-# that buffer instead of five arguments -- the dispatcher checks the type of every argument on every call,
-# and of the data tuple the slowest.  Layout: a header of (offset, rows, columns) per part, in PACK_PARTS'
-# order, then the parts' values (row-major).
-PACK_PARTS = 6              # data[0], data[1], data[2], platform, frame, settings
-PACK_HEADER = 3 * PACK_PARTS
+# The warm path's call (:func:`warm_kernel`) takes one buffer (:func:`warm_buffer`) for everything that does not
+# change from one input to the next -- the model's kind, its data matrices and vector, platform and frame joints,
+# the settings and the work space -- instead of eight arguments: the dispatcher checks the type of every argument
+# on every call (of the data tuple the slowest).  Layout: the kind, then (offset, rows, columns) per part in
+# WARM_PARTS' order, then the parts' values (row-major), then the work space (its memo is the warm path's own).
+WARM_PARTS = 7              # data[0], data[1], data[2], platform, frame, settings, work
+WARM_HEADER = 1 + 3 * WARM_PARTS
 
 
-def call_pack(data, platform, frame, settings) -> np.ndarray:
-    """The buffer :func:`warm_kernel` reads the model's constants from (see ``PACK_PARTS``)."""
+def warm_buffer(kind, data, platform, frame, settings, work_size) -> np.ndarray:
+    """The buffer :func:`warm_kernel` reads from (see ``WARM_PARTS``); ``work_size``: :func:`workspace_size`."""
     parts = [np.ascontiguousarray(a, dtype=float) for a in (data[0], data[1], data[2], platform, frame, settings)]
-    head = np.zeros(PACK_HEADER)
-    offset = PACK_HEADER
+    parts.append(np.zeros(int(work_size)))
+    head = np.zeros(WARM_HEADER)
+    head[0] = kind
+    offset = WARM_HEADER
     for k, a in enumerate(parts):
         rows, cols = (a.shape[0], a.shape[1]) if a.ndim == 2 else (a.shape[0], 1)
-        head[3 * k:3 * k + 3] = (offset, rows, cols)
+        head[1 + 3 * k:4 + 3 * k] = (offset, rows, cols)
         offset += a.size
     return np.concatenate([head] + [a.ravel() for a in parts])
 
 
 @njit(cache=True, error_model="numpy")
-def _pack_matrix(pack, k):
-    o, rows, cols = int(pack[3 * k]), int(pack[3 * k + 1]), int(pack[3 * k + 2])
-    return pack[o:o + rows * cols].reshape((rows, cols))
+def _part_matrix(buf, k):
+    o, rows, cols = int(buf[1 + 3 * k]), int(buf[2 + 3 * k]), int(buf[3 + 3 * k])
+    return buf[o:o + rows * cols].reshape((rows, cols))
 
 
 @njit(cache=True, error_model="numpy")
-def _pack_vector(pack, k):
-    o, rows = int(pack[3 * k]), int(pack[3 * k + 1])
-    return pack[o:o + rows]
+def _part_vector(buf, k):
+    o, rows = int(buf[1 + 3 * k]), int(buf[2 + 3 * k])
+    return buf[o:o + rows]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def warm_kernel(kind, pack, counter, legs, x0, legs_ref, out, work):
-    """:func:`lm_kernel` from ``x0`` (also the reference of the distance) with the model's constants read from
-    ``pack`` (:func:`call_pack`); ``counter``: the model's evaluation counter (its data tuple's last entry)."""
-    data = (_pack_matrix(pack, 0), _pack_matrix(pack, 1), _pack_vector(pack, 2), counter)
-    lm_kernel(kind, data, _pack_matrix(pack, 3), _pack_matrix(pack, 4), legs, x0, x0, legs_ref, _pack_vector(pack, 5),
-              out, work)
+def warm_kernel(buf, legs, x0, legs_ref, out):
+    """:func:`lm_kernel` from ``x0`` (also the reference of the distance) with the rest read from ``buf``
+    (:func:`warm_buffer`).  The kernels count no evaluation in the data tuple's counter: a fresh one stands in."""
+    data = (_part_matrix(buf, 0), _part_matrix(buf, 1), _part_vector(buf, 2), np.zeros(1, dtype=np.int64))
+    lm_kernel(int(buf[0]), data, _part_matrix(buf, 3), _part_matrix(buf, 4), legs, x0, x0, legs_ref,
+              _part_vector(buf, 5), out, _part_vector(buf, 6))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

@@ -31,9 +31,9 @@ from .lm import (
     S_MAX_ITER,
     S_RTOL,
     S_STALL,
-    call_pack,
     lm_kernel,
     multistart_kernel,
+    warm_buffer,
     warm_kernel,
     workspace_size,
 )
@@ -152,8 +152,12 @@ class LocalSolver:
                   self.work)
         multistart_kernel(self.kind, self.data, self.platform, self.frame, legs, x0, x0[0], settings, out,
                           self.work)
-        warm_kernel(self.kind, call_pack(self.data, self.platform, self.frame, settings), self.data[-1], legs, x0[0],
-                    _NO_LEGS, out, self.work)
+        warm_kernel(self.warm_buffer(settings), legs, x0[0], _NO_LEGS, out)
+
+    def warm_buffer(self, settings) -> np.ndarray:
+        """The buffer of :func:`warm_kernel` for this model with ``settings`` (its own work space)."""
+        return warm_buffer(self.kind, self.data, self.platform, self.frame, settings,
+                           workspace_size(self.model.n_legs, self.model.n_pose, self.model.n_res))
 
     def _settings(self, max_iter, rtol, ftol, stall):
         settings = self.settings
