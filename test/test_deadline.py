@@ -120,7 +120,7 @@ def clock(monkeypatch):
     c = FakeClock()
     monkeypatch.setattr("time.perf_counter", c.read)
     monkeypatch.setattr("time.thread_time", c.read)
-    for module, name in ((local, "lm_kernel"), (local, "multistart_kernel"), (lm, "lm_kernel"),
+    for module, name in ((local, "lm_kernel"), (local, "multistart_kernel"), (lm, "lm_kernel"), (lm, "warm_kernel"),
                          (driver, "population_fitness")):
         monkeypatch.setattr(module, name, c.work(getattr(module, name)))
     # step(self, n_generations, term)

@@ -97,7 +97,7 @@ def test_bench_families_script_reports_every_family(tmp_path):
                         "--markdown", str(out)], capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     text = out.read_text()
-    for label in ("3-RPR", "6-6 hexapod", "load average", "closed_form", "calls after an untimed one",
+    for label in ("3-RPR", "6-6 hexapod", "load average", "closed_form", "calls after an untimed one", "reference p50",
                   *(c[:-5] for c in FAMILY_CONFIGS)):
         assert label in text
     bad = subprocess.run([sys.executable, str(ROOT / "tools" / "bench_families.py"), "--cold", "0"],

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from conftest import CONFIG
-from glpma_ros.config import load_manipulator
+from glpma_ros.config import load_document, load_manipulator, model_from_dict
 from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.models import linalg, pose_kernels
 from glpma_ros.models.hexapod_66 import kabsch, quaternion_from_matrix, rotation_from_vector
 from glpma_ros.solvers import lm, local, refine
-from glpma_tools.sim.trajectories import variables_along
+from glpma_tools.sim.trajectories import start_pose, variables_along
 
 #: leg residuals and pose differences "at round-off": this share of the geometry's scale
 ROUND_OFF = 1e-12
@@ -206,3 +206,77 @@ def test_bad_legs_are_refused_by_the_kernel(rpr, rpr_solutions):
         assert solver.solve(rpr_solutions[0], np.array(legs)) is None
     with pytest.raises(ValueError):
         local.local_solve(rpr, rpr_solutions[0], [1.0, 1.0])
+
+
+def test_jacobi_svd_from_a_basis_and_its_upkeep():
+    """Started from an orthogonal basis V0 (``from_V``, on A V0): the singular values of A and right singular
+    vectors V with A V = U diag(s), as from the identity; ``orthonormalise_columns`` restores a basis drifted
+    off orthogonal and refuses one that is not nearly orthogonal."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        A = rng.standard_normal((6, 6))
+        V0 = np.linalg.qr(rng.standard_normal((6, 6)))[0]
+        work, V, s = A @ V0, V0.copy(), np.empty(6)
+        linalg.jacobi_svd(work, V, s, 0.0, True, True)
+        expected = np.linalg.svd(A, compute_uv=False)
+        # a few units in the last place of the largest singular value, as from the identity (test above)
+        np.testing.assert_allclose(np.sort(s)[::-1], expected, rtol=0, atol=1e-14 * expected[0])
+        np.testing.assert_allclose(V.T @ V, np.eye(6), atol=1e-14)
+        np.testing.assert_allclose(A @ V, work, atol=1e-13 * expected[0])
+        drifted = V0 + 1e-9 * rng.standard_normal((6, 6))
+        assert linalg.orthonormalise_columns(drifted)
+        np.testing.assert_allclose(drifted.T @ drifted, np.eye(6), atol=1e-15 * 6)
+        assert not linalg.orthonormalise_columns(np.ones((6, 6)))     # dependent columns
+        assert not linalg.orthonormalise_columns(np.full((6, 6), np.nan))
+
+
+@pytest.mark.parametrize("name", ["hexapod_66_rolland.yaml", "rus6_simulator.yaml", "pus6_rail_hexapod.yaml"])
+def test_memo_of_the_last_solve_changes_nothing_but_the_work(name):
+    """A spatial solve that starts from the variables the last one returned resumes its pose state, and the
+    conditioning starts from the last right singular vectors (lm's memo): along a trajectory, the same
+    variables and figures, to round-off, as a solver without a memo (a fresh one for every step)."""
+    path = CONFIG / name
+    doc = load_document(path)
+    model = model_from_dict(doc, str(path))
+    p0, R0 = start_pose(model, doc)
+    truth = variables_along(model, model.variables_from_pose(p0, quaternion_from_matrix(R0)), 200)
+    kept = local.LocalSolver(model)
+    x = truth[0]
+    for k in range(1, len(truth)):
+        legs = np.ascontiguousarray(model.inverse_kinematics(truth[k]), dtype=float)
+        memo = kept.solve(x, legs)
+        fresh = local.LocalSolver(model).solve(np.array(x), legs)
+        assert memo.converged and fresh.converged
+        # both at round-off of the same pose: ROUND_OFF of the scale
+        assert model.distance(memo.x, fresh.x) <= ROUND_OFF * model.scale, k
+        # the conditioning from another start of the same Jacobi SVD: a few units in the last place of
+        # the largest singular value, relative to the smallest (conditioning about 0.1 here)
+        assert memo.conditioning == pytest.approx(fresh.conditioning, rel=1e-12), k
+        # (not the iteration counts: starts a few units in the last place apart may take one polish step more)
+        x = memo.x                       # the next start: exactly what the memo holds
+    work = kept.work[:lm.workspace_size(model.n_legs, model.n_pose, model.n_res)]
+    assert work[-model.n_pose ** 2 - lm.M_BASIS + lm.M_RESUME_OK] == 1.0    # the resume did apply
+
+
+@pytest.mark.parametrize("name", ["planar_3rpr_seed.yaml", "hexapod_66_rolland.yaml", "delta_irb360.yaml",
+                                  "planar_3prr_triangle.yaml", "rus6_simulator.yaml", "pus6_rail_hexapod.yaml"])
+def test_warm_kernel_reads_the_models_constants_from_its_buffer(name):
+    """The warm path's call (``lm.warm_kernel``: the constants and the work space in one buffer,
+    ``lm.warm_buffer``) returns what ``lm_kernel`` returns with them as arguments, from the same start, on fresh
+    work space."""
+    path = CONFIG / name
+    doc = load_document(path)
+    model = model_from_dict(doc, str(path))
+    p0, R0 = start_pose(model, doc)
+    truth = variables_along(model, model.variables_from_pose(p0, quaternion_from_matrix(R0)), 20)
+    settings = local.make_settings(model, max_iter=lm.POLISH_STEPS + 20)
+    for k in range(1, len(truth)):
+        legs = np.ascontiguousarray(model.inverse_kinematics(truth[k]), dtype=float)
+        before = np.ascontiguousarray(model.inverse_kinematics(truth[k - 1]), dtype=float)
+        a, b = local.LocalSolver(model), local.LocalSolver(model)
+        out_a, out_b = np.empty(a.n_out), np.empty(b.n_out)
+        lm.lm_kernel(a.kind, a.data, a.platform, a.frame, legs, truth[k - 1], truth[k - 1], before, settings, out_a,
+                     a.work)
+        lm.warm_kernel(b.warm_buffer(settings), legs, truth[k - 1], before, out_b)
+        # the same arithmetic on the same values: equal but for the last bit at most
+        np.testing.assert_allclose(out_b, out_a, rtol=1e-15, atol=0.0)

@@ -10,7 +10,11 @@ Per family, on its shipped config:
 
 * **warm**: ``Estimator.estimate`` along one loop of the demo's trajectory (``--steps`` inputs, exact inverse
   kinematics), warm from the previous estimate, timed per call (the solve only; wall clock, with the share of
-  calls another process preempted), and the largest distance to the true pose;
+  calls another process preempted), and the largest distance to the true pose; beside it, just before the warm
+  loop, the median time of a fixed piece of interpreter and small-array work (:func:`reference_work`): on a
+  shared virtual machine the speed of such code changes by up to 1.8x from one second to the next (when the
+  host's other tenants compete for the core's caches and units) while a compiled arithmetic loop's does not, and
+  the reference tells a slow stretch from a slow solve;
 * **cold**: ``--cold`` inputs at random points of that loop, each solved by a new ``Estimator`` (no previous
   pose: the closed form where the family has one, else the default solver from its cold range) under the node's
   default budget; the share converged, the evaluations, the time;
@@ -45,6 +49,31 @@ BUDGET_MS = 2.0
 WARM_UP_CALLS = 19
 #: timed solve_all calls (after one untimed call that loads the compiled code), reported by their median
 SOLVE_ALL_CALLS = 3
+#: calls of the machine-speed reference before each warm loop (reported by their median)
+REFERENCE_CALLS = 2000
+
+
+#: the reference's input: the same for every family (a 6-leg reading's size)
+REFERENCE_ROW = np.linspace(1.0, 2.0, 6)
+
+
+def reference_work(row):
+    """A fixed piece of interpreter and small-array work -- a copy, an allocation, a list -- like the Python share
+    of a warm solve: its time follows the machine's speed for that kind of code."""
+    a = np.array(row, dtype=float)
+    b = np.empty(2 * a.shape[0])
+    b[:a.shape[0]] = a
+    return b.tolist()
+
+
+def reference_us() -> float:
+    """Median time (µs) of :func:`reference_work` on :data:`REFERENCE_ROW` over :data:`REFERENCE_CALLS` calls."""
+    times = np.empty(REFERENCE_CALLS)
+    for i in range(REFERENCE_CALLS):
+        t0 = time.perf_counter()
+        reference_work(REFERENCE_ROW)
+        times[i] = time.perf_counter() - t0
+    return 1e6 * float(np.median(times))
 
 
 def family_configs() -> list:
@@ -67,6 +96,7 @@ def measure(name: str, steps: int, cold: int, rng) -> dict:
     spare = Estimator(model, initial_pose=xs[0], time_budget_s=BUDGET_MS / 1e3)
     warm_up(lambda i: spare.estimate(legs[1 + i % WARM_UP_CALLS]), BUDGET_MS)
     est = Estimator(model, initial_pose=xs[0], time_budget_s=BUDGET_MS / 1e3)
+    reference = reference_us()
     calls = timed_calls(lambda i: est.estimate(legs[i + 1]), steps, BUDGET_MS, stop_early=False)
     us = calls.elapsed_s * 1e6
     warm_ok = sum(e.status == STATUS_CONVERGED for e in calls.results)
@@ -91,7 +121,8 @@ def measure(name: str, steps: int, cold: int, rng) -> dict:
         all_times.append(time.perf_counter() - t0)
     all_s = float(np.median(all_times))
     calm = us[~calls.preempted] if np.any(~calls.preempted) else us
-    return {"legs": model.n_legs, "p50": np.percentile(us, 50), "p99": np.percentile(us, 99), "max": us.max(),
+    return {"legs": model.n_legs, "p50": np.percentile(us, 50), "reference": reference,
+            "p99": np.percentile(us, 99), "max": us.max(),
             "p99_calm": np.percentile(calm, 99), "cold_other": cold_other,
             "preempted": 100.0 * calls.preempted.mean(), "warm_ok": warm_ok, "steps": steps,
             "error_rel": err / model.scale, "cold": cold, "cold_ok": cold_ok,
@@ -103,21 +134,26 @@ def report(rows, args, conditions) -> str:
     lines = ["## Every family in one run (`tools/bench_families.py`)", "", conditions.sentence(args.seed), "",
              f"Warm: `Estimator.estimate` along one loop of the demo's trajectory, {args.steps} inputs (exact inverse "
              f"kinematics), warm from the previous estimate, solve only, wall clock; error = largest distance to the "
-             f"true pose over the geometry's scale. Cold: {args.cold} inputs at random points of the loop, each by a "
-             f"new `Estimator` (no previous pose; the Delta: its closed form) under the node's default budget "
+             f"true pose over the geometry's scale; reference: the median time of a fixed piece of interpreter and "
+             f"small-array work ({REFERENCE_CALLS} calls just before the warm loop; on this shared virtual machine its "
+             f"speed, and the warm solve's, changes by up to 1.8x from one second to the next). Cold: {args.cold} "
+             f"inputs at random points of the loop, each by a new `Estimator` (no previous pose; the Delta: its closed "
+             f"form) under the node's default budget "
              f"({BUDGET_MS:g} ms): converged share, mean evaluations, median time. Solve-all: `solve_all` with the "
              f"family's default method at the loop's start, the median of {SOLVE_ALL_CALLS} calls after an untimed "
              f"one (a process's first call loads the compiled code). A cold status `budget_exhausted` is the node's "
              f"wall-clock budget running out (the only status that depends on time: on a loaded machine less work fits "
              f"in it); the tests check cold success with a generous budget. Revision {git_revision()}.", "",
              "| manipulator | legs | warm p50 (µs) | warm p99 (µs) | warm p99 not preempted (µs) | warm max (µs) | "
-             "preempted | warm converged | warm error (rel.) | cold converged | cold, other statuses | "
-             "cold evaluations (mean) | cold p50 (ms) | solve-all method | modes | solve-all (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "preempted | reference p50 (µs) | warm converged | warm error (rel.) | cold converged | "
+             "cold, other statuses | cold evaluations (mean) | cold p50 (ms) | solve-all method | modes | "
+             "solve-all (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, r in rows:
         other = ", ".join(f"{s} {n}" for s, n in sorted(r["cold_other"].items())) or "none"
         lines.append(f"| {label} | {r['legs']} | {r['p50']:.1f} | {r['p99']:.1f} | {r['p99_calm']:.1f} | "
-                     f"{r['max']:.0f} | {r['preempted']:.1f} % | {r['warm_ok']}/{r['steps']} | {r['error_rel']:.1e} | "
+                     f"{r['max']:.0f} | {r['preempted']:.1f} % | {r['reference']:.2f} | {r['warm_ok']}/{r['steps']} | "
+                     f"{r['error_rel']:.1e} | "
                      f"{r['cold_ok']}/{r['cold']} | {other} | {r['cold_evals']:.0f} | {r['cold_p50_ms']:.2f} | "
                      f"{r['method']} | {r['modes']} | {r['all_s']:.2g} |")
     return "\n".join(lines) + "\n"

@@ -253,7 +253,8 @@ class Estimator:
         self.rng = np.random.default_rng(seed)
         self._lm = local.LocalSolver(model)
         self._n = model.n_vars
-        self._warm_settings = None          # the warm stage's kernel settings, built on first use
+        self._info_at = model.n_vars + local.POSE_OUT       # where the kernel's info slots start in its output
+        self._warm_buffer = None            # the warm stage's kernel buffer (lm.warm_buffer), built on first use
         self._near_floor = MIN_SPREAD * model.scale
         self._cold_range = cold_range(model) if init_range is None else \
             tuple(np.full(model.n_vars, float(v)) for v in init_range)
@@ -261,6 +262,8 @@ class Estimator:
             np.random.default_rng(PROBE_SEED).uniform(*self._cold_range, size=(PROBE_STARTS, model.n_vars)))
         self.redundant = redundancy.RedundantLegs(model, leg_noise_std, exclude_faulty_leg, self._probe_starts)
         self.leg_noise_std = self.redundant.leg_noise_std
+        self._redundant = self.redundant.active     # read on every input: a plain attribute
+        self._warm_message = f"warm start, {'least-squares pose' if self._redundant else 'leg residuals at round-off'}"
         # the loop bounds tell unreachable legs only where every leg is needed (redundant legs with a
         # faulty one are the redundancy policy's to judge)
         self._bounds = None if model.redundancy else PairBounds(model)
@@ -355,7 +358,7 @@ class Estimator:
 
     def _estimate(self, legs, t0: float) -> Estimate:
         model = self.model
-        if self.redundant.active:
+        if self._redundant:
             self.redundant.note_input()
         if self.last_x is None or not self.polish:
             return self._search(np.array(model.check_legs(legs), dtype=float), t0, None)
@@ -368,32 +371,33 @@ class Estimator:
             arr = np.array(model.check_legs(arr), dtype=float)
         if self.time_budget_s <= 0.0:                   # no time for any work: straight to what the legs tell
             return self._search(np.array(model.check_legs(arr), dtype=float), t0, None)
-        # the warm stage: one compiled call (checks the legs, solves, measures)
-        settings = self._warm_settings
-        if settings is None or self._warm_key != (model.leg_limits, self.leg_rtol):
-            settings = self._warm_settings = local.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol)
-            self._warm_key = (model.leg_limits, self.leg_rtol)
+        # the warm stage: one compiled call (checks the legs, solves, measures); its output is read by the
+        # kernel's slot indices (the I_* layout, as LmOutput names them): one list of floats, no object per field
         solver = self._lm
+        buf = self._warm_buffer
+        if buf is None or self._warm_key != (model.leg_limits, self.leg_rtol):
+            buf = self._warm_buffer = solver.warm_buffer(
+                local.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol))
+            self._warm_key = (model.leg_limits, self.leg_rtol)
         out = np.empty(solver.n_out)
-        lm.lm_kernel(solver.kind, solver.data, solver.platform, solver.frame, arr, self.last_x, self.last_x,
-                     self.last_legs, settings, out, solver.work)
-        n = self._n
-        o = local.LmOutput.of(out, n)
-        info = o.info
-        if info.input_ok == 0.0:
+        lm.warm_kernel(buf, arr, self.last_x, self.last_legs, out)
+        info = out[self._info_at:].tolist()
+        if info[lm.I_INPUT_OK] == 0.0:
             model.check_legs(arr)                       # raises with the reason
-        if info.converged == 1.0 and info.distance <= max(CONTINUITY_FACTOR * info.movement, self._near_floor):
-            x = o.x
-            cond = info.conditioning
-            note = "" if cond >= NEAR_SINGULAR else f", near a singularity (conditioning {cond:.2g})"
-            how = "least-squares pose" if self.redundant.active else "leg residuals at round-off"
-            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(o.position, o.orientation), info.fitness,
-                         int(info.nfev), time.perf_counter() - t0, cond, self.solver, f"warm start, {how}{note}",
-                         info.max_residual)
-            if not self.redundant.active:       # the everyday case, no call more than needed
+        if info[lm.I_CONVERGED] == 1.0 and \
+                info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
+            n = self._n
+            x = out[:n]
+            cond = info[lm.I_CONDITIONING]
+            message = self._warm_message if cond >= NEAR_SINGULAR else \
+                f"{self._warm_message}, near a singularity (conditioning {cond:.2g})"
+            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + local.POSE_OUT]),
+                         info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond, self.solver,
+                         message, info[lm.I_MAX_RESIDUAL])
+            if not self._redundant:             # the everyday case, no call more than needed
                 self.last_x, self.last_legs = x, arr
                 return e
-            return self._accept(e, arr, info.leg_fitness, t0)
+            return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
         return self._search(arr, t0, solver.result(out))
 
     def _advance(self, x, legs):

@@ -67,7 +67,7 @@ import numpy as np
 from numba import njit
 
 from ..models.kernels import residuals_into
-from ..models.linalg import damped_solve, jacobi_svd, normal_equations
+from ..models.linalg import damped_solve, jacobi_svd, normal_equations, orthonormalise_columns
 from ..models.pose_kernels import (
     STATE_SIZE,
     is_planar,
@@ -78,7 +78,7 @@ from ..models.pose_kernels import (
     retract,
     rows_from_quaternion,
 )
-from ..models.residuals import KIND_ACTUATED_TRANSLATION
+from ..models.residuals import KIND_ACTUATED_SPATIAL, KIND_ACTUATED_TRANSLATION, KIND_HEXAPOD_66
 
 #: convergence: largest leg residual relative to the reference length L (about 450 units in the last
 #: place of L; a converged pose is then polished to round-off by the next step)
@@ -135,10 +135,25 @@ S_GTOL = 8            # redundant legs: least-squares stationarity that counts a
 S_COL_SCALE = 9       # then the model's pose_column_scale (n_pose values)
 
 
+# the memo a work buffer keeps from one solve to the next (after the scratch space; the spatial full-pose kinds
+# only, whose state is fitted from their variables and whose Jacobian has 6 columns): the variables a spatial
+# solve returned and the pose state they were written from (a solve that starts from exactly those variables,
+# the warm path's everyday case, resumes that state instead of fitting it again from the variables: Kabsch), and
+# the right singular vectors of the last conditioning (the next one starts from them: on a trajectory the leg
+# Jacobian turns little between two inputs, so its columns in that basis are nearly orthogonal and the Jacobi
+# SVD needs fewer sweeps).  Either part is a start only: the results are the same to round-off without it.
+M_RESUME_X = 0                      # the returned variables (up to STATE_SIZE of them)
+M_RESUME_STATE = STATE_SIZE         # the state they were written from
+M_RESUME_OK = 2 * STATE_SIZE        # 1.0: the two above are set
+M_BASIS_OK = 2 * STATE_SIZE + 1     # 1.0: the basis below is set
+M_BASIS = 2 * STATE_SIZE + 2        # the right singular vectors (n_pose x n_pose)
+
+
 def workspace_size(n_legs: int, n_pose: int, n_res: int) -> int:
-    """Length of the float64 work buffer :func:`lm_kernel` needs."""
+    """Length of the float64 work buffer :func:`lm_kernel` needs (one buffer serves one model: it keeps a
+    memo of the last solve, see ``M_*``)."""
     return 2 * (n_legs + n_legs * n_pose) + 3 * n_pose * n_pose + 2 * n_pose + 2 * STATE_SIZE \
-        + n_legs * n_pose + n_pose + n_res
+        + n_legs * n_pose + n_pose + n_res + M_BASIS + n_pose * n_pose
 
 
 # -- the kernel -------------------------------------------------------------------------------------
@@ -176,6 +191,44 @@ def _least_squares_reached(A, g, f, col_scale, ref, gtol):
     return den > 0.0 and math.sqrt(gn) <= gtol * den
 
 
+@njit(cache=True, error_model="numpy")
+def _is_last_returned(x0, memo):
+    """``x0`` is exactly the variables the last spatial solve on this work buffer returned (``memo``)."""
+    if memo[M_RESUME_OK] != 1.0:
+        return False
+    for k in range(x0.shape[0]):
+        if x0[k] != memo[M_RESUME_X + k]:
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _singular_values(Js, V, sv, memo, basis, row):
+    """The singular values ``sv`` of ``Js`` (destroyed) by the Jacobi SVD, started from the memo's basis when
+    it holds one (``Js`` multiplied by it first, ``row``: n_pose floats of scratch); the basis is then the
+    right singular vectors found, for the next call."""
+    n_rows, n = Js.shape
+    if memo[M_BASIS_OK] == 1.0:
+        for i in range(n_rows):
+            for k in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += Js[i, j] * basis[j, k]
+                row[k] = acc
+            for k in range(n):
+                Js[i, k] = row[k]
+        for i in range(n):
+            for k in range(n):
+                V[i, k] = basis[i, k]
+        jacobi_svd(Js, V, sv, 0.0, True, True)
+    else:
+        jacobi_svd(Js, V, sv, 0.0, True)
+    for i in range(n):
+        for k in range(n):
+            basis[i, k] = V[i, k]
+    memo[M_BASIS_OK] = 1.0 if orthonormalise_columns(basis) else 0.0
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, out, work):
     """Levenberg-Marquardt from solver variables ``x0`` for leg lengths ``legs``.
@@ -197,6 +250,51 @@ def lm_kernel(kind, data, platform, frame, legs, x0, x_ref, legs_ref, settings, 
         for i in range(legs.shape[0]):
             mv = max(mv, abs(legs[i] - legs_ref[i]))
         out[x0.shape[0] + 7 + I_MOVEMENT] = mv
+
+
+# -- the warm path's call --------------------------------------------------------------------------
+# The warm path's call (:func:`warm_kernel`) takes one buffer (:func:`warm_buffer`) for everything that does not
+# change from one input to the next -- the model's kind, its data matrices and vector, platform and frame joints,
+# the settings and the work space -- instead of eight arguments: the dispatcher checks the type of every argument
+# on every call (of the data tuple the slowest).  Layout: the kind, then (offset, rows, columns) per part in
+# WARM_PARTS' order, then the parts' values (row-major), then the work space (its memo is the warm path's own).
+WARM_PARTS = 7              # data[0], data[1], data[2], platform, frame, settings, work
+WARM_HEADER = 1 + 3 * WARM_PARTS
+
+
+def warm_buffer(kind, data, platform, frame, settings, work_size) -> np.ndarray:
+    """The buffer :func:`warm_kernel` reads from (see ``WARM_PARTS``); ``work_size``: :func:`workspace_size`."""
+    parts = [np.ascontiguousarray(a, dtype=float) for a in (data[0], data[1], data[2], platform, frame, settings)]
+    parts.append(np.zeros(int(work_size)))
+    head = np.zeros(WARM_HEADER)
+    head[0] = kind
+    offset = WARM_HEADER
+    for k, a in enumerate(parts):
+        rows, cols = (a.shape[0], a.shape[1]) if a.ndim == 2 else (a.shape[0], 1)
+        head[1 + 3 * k:4 + 3 * k] = (offset, rows, cols)
+        offset += a.size
+    return np.concatenate([head] + [a.ravel() for a in parts])
+
+
+@njit(cache=True, error_model="numpy")
+def _part_matrix(buf, k):
+    o, rows, cols = int(buf[1 + 3 * k]), int(buf[2 + 3 * k]), int(buf[3 + 3 * k])
+    return buf[o:o + rows * cols].reshape((rows, cols))
+
+
+@njit(cache=True, error_model="numpy")
+def _part_vector(buf, k):
+    o, rows = int(buf[1 + 3 * k]), int(buf[2 + 3 * k])
+    return buf[o:o + rows]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def warm_kernel(buf, legs, x0, legs_ref, out):
+    """:func:`lm_kernel` from ``x0`` (also the reference of the distance) with the rest read from ``buf``
+    (:func:`warm_buffer`).  The kernels count no evaluation in the data tuple's counter: a fresh one stands in."""
+    data = (_part_matrix(buf, 0), _part_matrix(buf, 1), _part_vector(buf, 2), np.zeros(1, dtype=np.int64))
+    lm_kernel(int(buf[0]), data, _part_matrix(buf, 3), _part_matrix(buf, 4), legs, x0, x0, legs_ref,
+              _part_vector(buf, 5), out, _part_vector(buf, 6))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -281,6 +379,12 @@ def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, 
     sv = work[o:o + n_pose]
     o += n_pose
     rm = work[o:o + int(settings[S_N_RES])]  # the model's residual vector
+    o += int(settings[S_N_RES])
+    memo = work[o:o + M_BASIS + n_pose * n_pose]
+    basis = memo[M_BASIS:].reshape((n_pose, n_pose))
+    # the spatial full-pose kinds (fitted by Kabsch, a 6-column Jacobian) keep the memo; the others' state is
+    # their variables, and a 3-column SVD costs less than the basis' upkeep
+    spatial = kind == KIND_HEXAPOD_66 or kind == KIND_ACTUATED_SPATIAL
     base = data[0]
     M = L[:3, :3]                            # scratch for the rotation of a step (L is free then)
 
@@ -295,6 +399,10 @@ def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, 
         for k in range(3):
             state[k] = x0[k]
             state[3 + 4 * k] = 1.0           # R = I: the platform only translates
+        ok = True
+    elif spatial and _is_last_returned(x0, memo):
+        for k in range(STATE_SIZE):
+            state[k] = memo[M_RESUME_STATE + k]
         ok = True
     else:
         ok = kabsch_state(frame, x0, state, L[:3, :3], V[:3, :3], sv[:3])
@@ -412,6 +520,14 @@ def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, 
                                                + state[5 + 3 * a] * cz)
         for a in range(3):
             pose_out[a] = state[a]
+        if spatial:
+            finite = True
+            for k in range(STATE_SIZE):
+                memo[M_RESUME_STATE + k] = state[k]
+                finite = finite and math.isfinite(state[k])
+            for k in range(n_vars):
+                memo[M_RESUME_X + k] = x_out[k]
+            memo[M_RESUME_OK] = 1.0 if finite else 0.0
 
     # the figures at the returned variables
     f = residuals_jacobian(kind, state, base, platform, legs, r, J)
@@ -450,7 +566,10 @@ def solve_one(kind, data, platform, frame, legs, ref, x0, x_ref, settings, out, 
     den = math.sqrt(jn) * math.sqrt(f)
     info[I_STATIONARITY] = math.sqrt(gn) / den if (den > 0.0 and math.isfinite(den)) else math.inf
     if math.isfinite(jn):
-        jacobi_svd(Js, V, sv, 0.0, False)     # the singular values only
+        if spatial:
+            _singular_values(Js, V, sv, memo, basis, step)
+        else:
+            jacobi_svd(Js, V, sv, 0.0, False)     # the singular values only
         smax = 0.0
         smin = math.inf
         for k in range(n_pose):

@@ -34,6 +34,8 @@ from .lm import (
     S_STALL,
     lm_kernel,
     multistart_kernel,
+    warm_buffer,
+    warm_kernel,
     workspace_size,
 )
 
@@ -140,7 +142,8 @@ class LocalSolver:
         self._limits = model.leg_limits
 
     def prepare(self):
-        """Load (or compile) both kernels for this model's types, with a call that does no iteration."""
+        """Load (or compile) the kernels for this model's types (the estimator's warm one too), with a call that
+        does no iteration."""
         x0 = np.zeros((1, self.n_vars))
         legs = np.ones(self.model.leg_vector_size)
         settings = make_settings(self.model, max_iter=0)
@@ -150,6 +153,12 @@ class LocalSolver:
                   self.work)
         multistart_kernel(self.kind, self.data, self.platform, self.frame, legs, x0, x0[0], settings, out,
                           self.work)
+        warm_kernel(self.warm_buffer(settings), legs, x0[0], _NO_LEGS, out)
+
+    def warm_buffer(self, settings) -> np.ndarray:
+        """The buffer of :func:`warm_kernel` for this model with ``settings`` (its own work space)."""
+        return warm_buffer(self.kind, self.data, self.platform, self.frame, settings,
+                           workspace_size(self.model.n_legs, self.model.n_pose, self.model.n_res))
 
     def _settings(self, max_iter, rtol, ftol, stall):
         settings = self.settings
