@@ -164,8 +164,8 @@ def structured_path(kind, p0, p1, constants=()) -> ParameterPath:
 # compiled tracker
 # ==========================================================================================================
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t):
-    """``H = F(z; p(tau))``, ``J = F_z`` and, when ``with_t``, ``Ht = F_tau dtau/dt``: every equation is
+def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_j, with_t):
+    """``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` and when ``with_t`` ``Ht = F_tau dtau/dt``: every equation is
     ``w^T Q_i w`` with ``w = (z, 1)`` and ``Q_i = K_0 + tau K_1 + tau^2 K_2`` (symmetric), so with
     ``P_l = K_l w``: ``Q_i w = P_0 + tau P_1 + tau^2 P_2``, ``F_z = 2 (Q_i w)[:n]`` and
     ``F_tau = w^T (P_1 + 2 tau P_2)``."""
@@ -192,7 +192,7 @@ def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t):
             h += w[j] * v
             if with_t:
                 ht += w[j] * (p1 + two_tau * p2)
-            if j < n:
+            if with_j and j < n:
                 J[i, j] = 2.0 * v
         H[i] = h
         Ht[i] = ht * dtau
@@ -368,11 +368,11 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_h, with_j, with_t):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_h, with_j, with_t):
     """When ``with_h`` ``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` and when ``with_t`` ``Ht = F_tau dtau/dt``
-    (the dense evaluator forms ``H`` and ``J`` anyway), by the evaluator ``kind``;
+    (the dense evaluator forms ``H`` anyway), by the evaluator ``kind``;
     a structured one prepares its per-leg quantities once per distinct ``tau`` (``prepared``: the last one's,
     with a flag: the predictor's middle stages share a tau, its last stage and the corrector another)."""
     if kind == DENSE:
-        _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t)
+        _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_j, with_t)
         return
     if prepared[0] == 0.0 or prepared[1] != tau.real or prepared[2] != tau.imag:
         if kind == PLANAR_3RPR:
@@ -387,44 +387,68 @@ def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_h, with_j
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _lu_solve(A, b, x, LU):
-    """``x = A^{-1} b`` by Gaussian elimination with partial pivoting (``LU`` a work copy); False when a
-    pivot is exactly zero.  The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's complex routines choose
-    it: within a factor sqrt(2) of the modulus, and no square root per candidate); its reciprocal is formed
-    once, as ``conj(p) / |p|^2`` (a pivot is never near overflow here), for the back substitution too."""
+def _lu_factor_solve(A, pivots, x):
+    """``x = A^{-1} x`` by Gaussian elimination with partial pivoting, in place: ``A`` is left holding its LU
+    factors (the multipliers below the diagonal, ``U`` above it with the reciprocals of the pivots on it, the row
+    taken as column ``c``'s pivot in ``pivots[c]``) for :func:`_lu_solve`; False when a pivot is exactly zero.
+    The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's complex routines choose it: within a factor sqrt(2)
+    of the modulus, and no square root per candidate); its reciprocal is formed once, as ``conj(p) / |p|^2`` (a
+    pivot is never near overflow here), for the back substitution too."""
     n = A.shape[0]
-    for i in range(n):
-        for j in range(n):
-            LU[i, j] = A[i, j]
-        x[i] = b[i]
     for c in range(n):
         p = c
-        best = abs(LU[c, c].real) + abs(LU[c, c].imag)
+        best = abs(A[c, c].real) + abs(A[c, c].imag)
         for r in range(c + 1, n):
-            a = abs(LU[r, c].real) + abs(LU[r, c].imag)
+            a = abs(A[r, c].real) + abs(A[r, c].imag)
             if a > best:
                 best, p = a, r
         if best == 0.0:
             return False
-        if p != c:                                       # the columns left of c are no longer read
-            for j in range(c, n):
-                LU[c, j], LU[p, j] = LU[p, j], LU[c, j]
+        pivots[c] = p
+        if p != c:                                       # whole rows: the multipliers follow their row
+            for j in range(n):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
             x[c], x[p] = x[p], x[c]
-        pivot = LU[c, c]
+        pivot = A[c, c]
         inv = pivot.conjugate() / (pivot.real * pivot.real + pivot.imag * pivot.imag)
-        LU[c, c] = inv
+        A[c, c] = inv
         xc = x[c]
         for r in range(c + 1, n):
-            m = LU[r, c] * inv
+            m = A[r, c] * inv
+            A[r, c] = m
             for j in range(c + 1, n):
-                LU[r, j] -= m * LU[c, j]
+                A[r, j] -= m * A[c, j]
             x[r] -= m * xc
+    _back_substitute(A, x)
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _back_substitute(LU, x):
+    """``x = U^{-1} x``, ``U`` the upper triangle of :func:`_lu_factor_solve`'s factors."""
+    n = LU.shape[0]
     for c in range(n - 1, -1, -1):
         s = x[c]
         for j in range(c + 1, n):
             s -= LU[c, j] * x[j]
         x[c] = s * LU[c, c]
-    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_solve(LU, pivots, x):
+    """``x = A^{-1} x`` in place from the factors :func:`_lu_factor_solve` left of ``A``: the rows exchanged as
+    they were (every exchange first: the factors' rows are in their final order), forward and back
+    substitution."""
+    n = LU.shape[0]
+    for c in range(n):
+        p = pivots[c]
+        if p != c:
+            x[c], x[p] = x[p], x[c]
+    for c in range(n):
+        xc = x[c]
+        for r in range(c + 1, n):
+            x[r] -= LU[r, c] * xc
+    _back_substitute(LU, x)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -447,18 +471,22 @@ def _norm(z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, LU, rhs):
-    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``; False when ``F_z`` is singular."""
+def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, pivots, factored):
+    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``: ``F_z`` evaluated and factored into ``J`` (``pivots``), or
+    when ``factored`` the factors already in ``J`` used (``F_t`` alone evaluated); False when ``F_z`` is
+    singular."""
     tau, dtau = _tau(t, gamma)
-    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, False, True, True)
+    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, False, not factored, True)
     for k in range(z.shape[0]):
-        rhs[k] = -Ht[k]
-    return _lu_solve(J, rhs, out, LU)
+        out[k] = -Ht[k]
+    if factored:
+        _lu_solve(J, pivots, out)
+        return True
+    return _lu_factor_solve(J, pivots, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k3, k4,
-               zt):
+def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, pivots, k1, k2, k3, k4, zt):
     """Tracks one path from ``start`` at t = 0; leaves the endpoint in ``z`` and ``F_z`` there in ``J``;
     returns (outcome, steps, t reached)."""
     n = start.shape[0]
@@ -477,6 +505,9 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
     steps = 0
     successes = 0
     k1_current = False                                   # k1 is the velocity at (z, t): kept after a failed step
+    # J holds the factors of F_z at the corrector's last iterate, within the corrector's tolerance of (z, t): the
+    # next step's first velocity solves with them (an error of that tolerance in k1 is far below the predictor's)
+    factors_at_z = False
     while t < 1.0:
         if steps >= max_steps:
             return STEPS_EXHAUSTED, steps, t
@@ -486,35 +517,39 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             h = 1.0 - t
         t1 = 1.0 if last else t + h
         # classical Runge-Kutta predictor
-        ok = k1_current or _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, LU, rhs)
+        ok = k1_current or _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, pivots,
+                                     factors_at_z)
         k1_current = ok
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k1[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, pivots, False)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k2[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, pivots, False)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h * k3[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, pivots, False)
+        factors_at_z = False
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k])
-            # Newton corrector at t1 (a chord method, F_z kept from the first iteration or from the predictor's
-            # last stage, converged so much more slowly that it took more steps and rejected more of them)
+            # Newton corrector at t1; its first iteration solves with the factors of F_z at the last stage's point
+            # (z + h k3, t1), within the predictor's own increment of the predicted point, the next ones with
+            # F_z at their iterate (a chord method, F_z kept for every iteration, converged so much more slowly
+            # that it took more steps and rejected more of them)
             tau, dtau = _tau(t1, gamma)
             ok = False
             previous = 0.0
             for it in range(iterations):
                 _evaluate(kind, K, P, S, prepared, zt, tau, dtau, w, H, J, Ht, True, True, False)
-                if not _lu_solve(J, H, dz, LU):
+                if not _lu_factor_solve(J, pivots, H):          # H = the Newton update
                     break
                 for k in range(n):
-                    zt[k] -= dz[k]
-                step = _norm(dz)
+                    zt[k] -= H[k]
+                step = _norm(H)
                 scale = 1.0 + _norm(zt)
                 if it == 0:
                     first = step / scale
@@ -525,6 +560,7 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
                 previous = step
                 if step <= tol * scale:
                     ok = True
+                    factors_at_z = True
                     break
         if ok:
             for k in range(n):
@@ -556,11 +592,11 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
     # final polish at t = 1 (tau = 1)
     for _ in range(final_iterations):
         _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
-        if not _lu_solve(J, H, dz, LU):
+        if not _lu_factor_solve(J, pivots, H):
             return SINGULAR, steps, t
         for k in range(n):
-            z[k] -= dz[k]
-        if _norm(dz) <= final_tol * (1.0 + _norm(z)):
+            z[k] -= H[k]
+        if _norm(H) <= final_tol * (1.0 + _norm(z)):
             break
     _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
     return REGULAR, steps, t
@@ -578,9 +614,7 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
     H = np.empty(m, np.complex128)
     Ht = np.empty(m, np.complex128)
     J = np.empty((n, n), np.complex128)
-    LU = np.empty((n, n), np.complex128)
-    rhs = np.empty(n, np.complex128)
-    dz = np.empty(n, np.complex128)
+    pivots = np.empty(n, np.int64)
     k1 = np.empty(n, np.complex128)
     k2 = np.empty(n, np.complex128)
     k3 = np.empty(n, np.complex128)
@@ -594,8 +628,8 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
         S = np.empty((0, 0), np.complex128)
     prepared = np.zeros(3)
     for p in range(starts.shape[0]):
-        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, LU, rhs, dz,
-                             k1, k2, k3, k4, zt)
+        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, pivots, k1,
+                             k2, k3, k4, zt)
         outcome[p] = o
         steps[p] = s
         t_end[p] = t
