@@ -133,11 +133,13 @@ RPR_A, RPR_B, RPR_L2, RPR_DA, RPR_DB, RPR_DL2 = 0, 2, 4, 5, 7, 9
 RPR_WIDTH = 10
 #: 6-6, the parameters p = (a (6x3), b (6x3), L (6)) and after p_0 and dp the patch: e_0 = c_0 + c . (e_1, e_2, e_3);
 #: per leg at a tau (_prepare_66): a, b, b x a, d = b - a, s = b + a, a.b, k = a.a + b.b - L^2 and the
-#: tau-derivatives of b x a, d, s, a.b, k, a and b
+#: tau-derivatives of b x a, d, s, a.b, k, a and b; then the coefficients of the quadratics in tau among them
+#: (b x a, a.b and k: a and b are linear in tau), formed with the tau-independent columns once per parameter path
 HEX_PARAMS = 42
 HEX_A, HEX_B, HEX_BXA, HEX_D, HEX_S, HEX_AB, HEX_K = 0, 3, 6, 9, 12, 15, 16
 HEX_DBXA, HEX_DD, HEX_DS, HEX_DAB, HEX_DK, HEX_DA, HEX_DB = 17, 20, 23, 26, 27, 28, 31
-HEX_WIDTH = 34
+HEX_BXA_COEF, HEX_AB_COEF, HEX_K_COEF = 34, 43, 46     # (1, tau, tau^2) coefficients: 3 per quantity
+HEX_WIDTH = 49
 
 
 class ParameterPath(NamedTuple):
@@ -250,42 +252,69 @@ def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_h, with_j, with_t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _prepare_66(P, tau, S):
-    """Per leg of a 6-6 at ``tau`` (row of ``S``, the layout of ``HEX_*``)."""
+def _prepare_66_path(P, S):
+    """The tau-independent columns of :func:`_prepare_66` per leg of a 6-6: ``a'``, ``b'``, ``d'``, ``s'``
+    (``p`` is linear in tau) and the coefficients of ``b x a``, ``a.b`` and ``k`` as quadratics in tau (from
+    ``a = a_0 + tau a'``, ``b = b_0 + tau b'``, ``L = L_0 + tau L'``)."""
     for i in range(6):
-        ab = 0j
-        dab = 0j
-        aa_bb = 0j
-        daa_dbb = 0j
         for k in range(3):
             da = P[HEX_PARAMS + 3 * i + k]
             db = P[HEX_PARAMS + 18 + 3 * i + k]
-            a = P[3 * i + k] + tau * da
-            b = P[18 + 3 * i + k] + tau * db
-            S[i, HEX_A + k] = a
-            S[i, HEX_B + k] = b
             S[i, HEX_DA + k] = da
             S[i, HEX_DB + k] = db
-            S[i, HEX_D + k] = b - a
-            S[i, HEX_S + k] = b + a
             S[i, HEX_DD + k] = db - da
             S[i, HEX_DS + k] = db + da
-            ab += a * b
-            dab += da * b + a * db
-            aa_bb += a * a + b * b
-            daa_dbb += a * da + b * db
+        ab0 = ab1 = ab2 = 0j
+        aa0 = aa1 = aa2 = 0j                             # a.a + b.b
         for k in range(3):
+            a0, da = P[3 * i + k], S[i, HEX_DA + k]
+            b0, db = P[18 + 3 * i + k], S[i, HEX_DB + k]
+            ab0 += a0 * b0
+            ab1 += da * b0 + a0 * db
+            ab2 += da * db
+            aa0 += a0 * a0 + b0 * b0
+            aa1 += 2.0 * (a0 * da + b0 * db)
+            aa2 += da * da + db * db
             k1 = (k + 1) % 3
             k2 = (k + 2) % 3
-            S[i, HEX_BXA + k] = S[i, HEX_B + k1] * S[i, HEX_A + k2] - S[i, HEX_B + k2] * S[i, HEX_A + k1]
-            S[i, HEX_DBXA + k] = (S[i, HEX_DB + k1] * S[i, HEX_A + k2] - S[i, HEX_DB + k2] * S[i, HEX_A + k1]
-                                  + S[i, HEX_B + k1] * S[i, HEX_DA + k2] - S[i, HEX_B + k2] * S[i, HEX_DA + k1])
-        dL = P[HEX_PARAMS + 36 + i]
-        L = P[36 + i] + tau * dL
-        S[i, HEX_AB] = ab
-        S[i, HEX_DAB] = dab
-        S[i, HEX_K] = aa_bb - L * L
-        S[i, HEX_DK] = 2.0 * (daa_dbb - L * dL)
+            a0k1, a0k2 = P[3 * i + k1], P[3 * i + k2]
+            b0k1, b0k2 = P[18 + 3 * i + k1], P[18 + 3 * i + k2]
+            dak1, dak2 = P[HEX_PARAMS + 3 * i + k1], P[HEX_PARAMS + 3 * i + k2]
+            dbk1, dbk2 = P[HEX_PARAMS + 18 + 3 * i + k1], P[HEX_PARAMS + 18 + 3 * i + k2]
+            S[i, HEX_BXA_COEF + 3 * k] = b0k1 * a0k2 - b0k2 * a0k1
+            S[i, HEX_BXA_COEF + 3 * k + 1] = dbk1 * a0k2 - dbk2 * a0k1 + b0k1 * dak2 - b0k2 * dak1
+            S[i, HEX_BXA_COEF + 3 * k + 2] = dbk1 * dak2 - dbk2 * dak1
+        L0, dL = P[36 + i], P[HEX_PARAMS + 36 + i]
+        S[i, HEX_AB_COEF], S[i, HEX_AB_COEF + 1], S[i, HEX_AB_COEF + 2] = ab0, ab1, ab2
+        S[i, HEX_K_COEF] = aa0 - L0 * L0
+        S[i, HEX_K_COEF + 1] = aa1 - 2.0 * L0 * dL
+        S[i, HEX_K_COEF + 2] = aa2 - dL * dL
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _prepare_66(P, tau, S):
+    """Per leg of a 6-6 at ``tau`` (row of ``S``, the layout of ``HEX_*``): ``a``, ``b``, ``d``, ``s`` from
+    ``p(tau)``, the quadratics ``b x a``, ``a.b``, ``k`` and their derivatives from the coefficients of
+    :func:`_prepare_66_path` (already in ``S``)."""
+    for i in range(6):
+        for k in range(3):
+            a = P[3 * i + k] + tau * S[i, HEX_DA + k]
+            b = P[18 + 3 * i + k] + tau * S[i, HEX_DB + k]
+            S[i, HEX_A + k] = a
+            S[i, HEX_B + k] = b
+            S[i, HEX_D + k] = b - a
+            S[i, HEX_S + k] = b + a
+        for k in range(3):
+            S[i, HEX_BXA + k], S[i, HEX_DBXA + k] = _quadratic(S, i, HEX_BXA_COEF + 3 * k, tau)
+        S[i, HEX_AB], S[i, HEX_DAB] = _quadratic(S, i, HEX_AB_COEF, tau)
+        S[i, HEX_K], S[i, HEX_DK] = _quadratic(S, i, HEX_K_COEF, tau)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _quadratic(S, i, at, tau):
+    """The value and the derivative at ``tau`` of ``S[i, at] + S[i, at + 1] tau + S[i, at + 2] tau^2``."""
+    c1, c2 = S[i, at + 1], S[i, at + 2]
+    return S[i, at] + tau * (c1 + tau * c2), c1 + 2.0 * tau * c2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -374,6 +403,8 @@ def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_h, with_j
     if kind == DENSE:
         _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_j, with_t)
         return
+    if prepared[0] == 0.0 and kind == HEXAPOD_66:
+        _prepare_66_path(P, S)
     if prepared[0] == 0.0 or prepared[1] != tau.real or prepared[2] != tau.imag:
         if kind == PLANAR_3RPR:
             _prepare_3rpr(P, tau, S)
