@@ -84,7 +84,9 @@ ENDGAME_ZONE = 1e-4
 STEP_TARGET = 1e-2
 #: the next step is this share of the step the error model predicts (the usual safety factor of step control)
 STEP_SAFETY = 0.8
-#: ... and at most this many times the last one, at least half of it
+#: ... and at most this many times the last one, at least half of it; right after a rejected step at most the
+#: last one (on 20 random 6-6s and Dietmaier's, 3 gammas each: 4 % fewer steps, 28.2 -> 27.0 per path, as many
+#: rounds incomplete, 3 of 63; a limit of 2 instead of 4 on top: 27.4)
 STEP_GROWTH_MAX = 4.0
 SETTINGS = np.array([STEP_INITIAL, STEP_MAX, STEP_MIN, STEP_EXPAND_AFTER, CORRECTOR_ITERATIONS,
                      CORRECTOR_TOLERANCE, CORRECTOR_CONTRACTION, CORRECTOR_MAX_FIRST, AT_INFINITY, MAX_STEPS,
@@ -601,12 +603,14 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             successes += 1
             if step_target > 0.0:
                 # the predictor's error, measured by the first corrector update, grows like h^5: the next step
-                # aims at step_target, within [1/2, STEP_GROWTH_MAX] times this one
+                # aims at step_target, within [1/2, STEP_GROWTH_MAX] times this one, and at most this one right
+                # after a rejected step (the model has just overestimated a step: the usual rule of step control)
+                growth = STEP_GROWTH_MAX if successes > 1 or steps == 1 else 1.0
                 if first > 0.0:
                     factor = STEP_SAFETY * (step_target / first) ** 0.2
-                    h = min(max(factor, 0.5), STEP_GROWTH_MAX) * h
+                    h = min(max(factor, 0.5), growth) * h
                 else:
-                    h = STEP_GROWTH_MAX * h
+                    h = growth * h
                 h = min(h, h_max)
             elif successes >= expand_after:
                 h = min(2.0 * h, h_max)
