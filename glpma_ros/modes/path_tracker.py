@@ -1,20 +1,22 @@
 """The compiled path tracker of the parameter homotopy (:mod:`.homotopy`).
 
-Every start solution of a family's start system is followed from the start member ``p_0`` to the target
-``p_1`` along ``p(t) = (1 - tau) p_0 + tau p_1``, ``tau = t / (t + gamma (1 - t))``, ``t`` from 0 to 1, with a
-random unit complex ``gamma`` (the gamma trick; Sommese & Wampler, *The Numerical Solution of Systems of
-Polynomials Arising in Engineering and Science*, World Scientific 2005, ch. 2.2 and 7).  The tracker is an
-adaptive predictor-corrector: classical Runge-Kutta of order 4 on ``dz/dt = -F_z^{-1} F_t``, Newton corrector,
-the step halved on a failed correction; after a success the next step is chosen from the size of the first
-corrector update (the predictor's error, of order h^5), aiming at ``STEP_TARGET``.  A compiled call
-(:func:`track_paths`; complex LU with partial pivoting) tracks a batch of paths; at ``t = 1`` Newton's method
-polishes the endpoint.  The paths are independent: :func:`track` splits them over threads, each running the
-compiled kernel (which releases the GIL) on a chunk of paths; the endpoints do not depend on the thread count.
-The system along the path is evaluated by the family's own evaluator from its parameters
-interpolated at ``tau`` (3-RPR, 6-6: residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities
-prepared once per distinct ``tau``), or for any family of quadrics from their coefficients, a quadratic
-polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each path ends with an outcome
-(:data:`OUTCOMES`): regular, at infinity, a failed step, out of steps, or singular.  No ROS import.
+Every start solution of a family's start system is followed from the start member ``p_0`` to the target ``p_1``
+along ``p(t) = (1 - tau) p_0 + tau p_1``, ``tau = t / (t + gamma (1 - t))``, ``t`` from 0 to 1, with a random unit
+complex ``gamma`` (the gamma trick; Sommese & Wampler, *The Numerical Solution of Systems of Polynomials Arising in
+Engineering and Science*, World Scientific 2005, ch. 2.2 and 7).  The tracker is an adaptive predictor-corrector:
+classical Runge-Kutta of order 4 on ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed
+correction; after a success the next step is chosen from the size of the first corrector update (the predictor's
+error, of order h^5), aiming at ``STEP_TARGET`` (and not longer than the last one right after a failed correction).
+A compiled call (:func:`track_paths`; complex LU with partial pivoting, in place, the corrector's last factors kept
+for the next step's first predictor stage) tracks a batch of paths; at ``t = 1`` Newton's method polishes the
+endpoint.  The paths are independent: :func:`track` splits them over threads, each running the compiled kernel
+(which releases the GIL) on a chunk of paths; the endpoints do not depend on the thread count.  The system along
+the path is evaluated by the family's own evaluator from its parameters interpolated at ``tau`` (3-RPR, 6-6:
+residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities prepared once per distinct ``tau``, the
+6-6's from their coefficients in ``tau`` formed once per path set), or for any family of quadrics from their
+coefficients, a quadratic polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each
+path ends with an outcome (:data:`OUTCOMES`): regular, at infinity, a failed step, out of steps, or singular.  No
+ROS import.
 """
 from __future__ import annotations
 
