@@ -571,10 +571,9 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k])
-            # Newton corrector at t1; its first iteration solves with the factors of F_z at the last stage's point
-            # (z + h k3, t1), within the predictor's own increment of the predicted point, the next ones with
-            # F_z at their iterate (a chord method, F_z kept for every iteration, converged so much more slowly
-            # that it took more steps and rejected more of them)
+            # Newton corrector at t1, F_z evaluated at every iterate (a chord method, F_z kept from the first
+            # iteration or from the predictor's last stage, even for the first iteration alone, converged so much
+            # more slowly that it took more steps and rejected more of them)
             tau, dtau = _tau(t1, gamma)
             ok = False
             previous = 0.0
