@@ -38,9 +38,10 @@ Morgan & Sommese 1989, "Coefficient-parameter polynomial continuation", Appl. Ma
   1``).  The tracker is an adaptive predictor-corrector (classical Runge-Kutta of order 4 on
   ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed correction; after a success the
   next step is chosen from the size of the first corrector update, the predictor's error, of order h^5, aiming
-  at ``STEP_TARGET``), compiled (:func:`.path_tracker.track_paths`; complex LU with partial pivoting); the paths
-  are independent and split over threads (:func:`.path_tracker.track`).  At ``t = 1`` Newton's method
-  polishes the endpoint.  The system along the path is evaluated by the family's own evaluator from the
+  at ``STEP_TARGET``, not longer than the last one right after a failed correction), compiled
+  (:func:`.path_tracker.track_paths`; complex LU with partial pivoting); the paths are independent and split
+  over threads (:func:`.path_tracker.track`).  At ``t = 1`` Newton's method polishes the endpoint.  The system
+  along the path is evaluated by the family's own evaluator from the
   parameters interpolated at ``tau`` (residual, Jacobian and ``dF/dtau`` written out); a family without one by
   its quadrics, whose coefficients along the path are a quadratic polynomial in ``tau`` (they are of degree two
   in ``p``), interpolated exactly from three evaluations.

@@ -1,20 +1,22 @@
 """The compiled path tracker of the parameter homotopy (:mod:`.homotopy`).
 
-Every start solution of a family's start system is followed from the start member ``p_0`` to the target
-``p_1`` along ``p(t) = (1 - tau) p_0 + tau p_1``, ``tau = t / (t + gamma (1 - t))``, ``t`` from 0 to 1, with a
-random unit complex ``gamma`` (the gamma trick; Sommese & Wampler, *The Numerical Solution of Systems of
-Polynomials Arising in Engineering and Science*, World Scientific 2005, ch. 2.2 and 7).  The tracker is an
-adaptive predictor-corrector: classical Runge-Kutta of order 4 on ``dz/dt = -F_z^{-1} F_t``, Newton corrector,
-the step halved on a failed correction; after a success the next step is chosen from the size of the first
-corrector update (the predictor's error, of order h^5), aiming at ``STEP_TARGET``.  A compiled call
-(:func:`track_paths`; complex LU with partial pivoting) tracks a batch of paths; at ``t = 1`` Newton's method
-polishes the endpoint.  The paths are independent: :func:`track` splits them over threads, each running the
-compiled kernel (which releases the GIL) on a chunk of paths; the endpoints do not depend on the thread count.
-The system along the path is evaluated by the family's own evaluator from its parameters
-interpolated at ``tau`` (3-RPR, 6-6: residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities
-prepared once per distinct ``tau``), or for any family of quadrics from their coefficients, a quadratic
-polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each path ends with an outcome
-(:data:`OUTCOMES`): regular, at infinity, a failed step, out of steps, or singular.  No ROS import.
+Every start solution of a family's start system is followed from the start member ``p_0`` to the target ``p_1``
+along ``p(t) = (1 - tau) p_0 + tau p_1``, ``tau = t / (t + gamma (1 - t))``, ``t`` from 0 to 1, with a random unit
+complex ``gamma`` (the gamma trick; Sommese & Wampler, *The Numerical Solution of Systems of Polynomials Arising in
+Engineering and Science*, World Scientific 2005, ch. 2.2 and 7).  The tracker is an adaptive predictor-corrector:
+classical Runge-Kutta of order 4 on ``dz/dt = -F_z^{-1} F_t``, Newton corrector, the step halved on a failed
+correction; after a success the next step is chosen from the size of the first corrector update (the predictor's
+error, of order h^5), aiming at ``STEP_TARGET`` (and not longer than the last one right after a failed correction).
+A compiled call (:func:`track_paths`; complex LU with partial pivoting, in place, the corrector's last factors kept
+for the next step's first predictor stage) tracks a batch of paths; at ``t = 1`` Newton's method polishes the
+endpoint.  The paths are independent: :func:`track` splits them over threads, each running the compiled kernel
+(which releases the GIL) on a chunk of paths; the endpoints do not depend on the thread count.  The system along
+the path is evaluated by the family's own evaluator from its parameters interpolated at ``tau`` (3-RPR, 6-6:
+residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities prepared once per distinct ``tau``, the
+6-6's from their coefficients in ``tau`` formed once per path set), or for any family of quadrics from their
+coefficients, a quadratic polynomial in ``tau`` (``K``, :meth:`.homotopy_families.Family.coefficient_path`).  Each
+path ends with an outcome (:data:`OUTCOMES`): regular, at infinity, a failed step, out of steps, or singular.  No
+ROS import.
 """
 from __future__ import annotations
 
@@ -84,7 +86,9 @@ ENDGAME_ZONE = 1e-4
 STEP_TARGET = 1e-2
 #: the next step is this share of the step the error model predicts (the usual safety factor of step control)
 STEP_SAFETY = 0.8
-#: ... and at most this many times the last one, at least half of it
+#: ... and at most this many times the last one, at least half of it; right after a rejected step at most the
+#: last one (on 20 random 6-6s and Dietmaier's, 3 gammas each: 4 % fewer steps, 28.2 -> 27.0 per path, as many
+#: rounds incomplete, 3 of 63; a limit of 2 instead of 4 on top: 27.4)
 STEP_GROWTH_MAX = 4.0
 SETTINGS = np.array([STEP_INITIAL, STEP_MAX, STEP_MIN, STEP_EXPAND_AFTER, CORRECTOR_ITERATIONS,
                      CORRECTOR_TOLERANCE, CORRECTOR_CONTRACTION, CORRECTOR_MAX_FIRST, AT_INFINITY, MAX_STEPS,
@@ -133,11 +137,13 @@ RPR_A, RPR_B, RPR_L2, RPR_DA, RPR_DB, RPR_DL2 = 0, 2, 4, 5, 7, 9
 RPR_WIDTH = 10
 #: 6-6, the parameters p = (a (6x3), b (6x3), L (6)) and after p_0 and dp the patch: e_0 = c_0 + c . (e_1, e_2, e_3);
 #: per leg at a tau (_prepare_66): a, b, b x a, d = b - a, s = b + a, a.b, k = a.a + b.b - L^2 and the
-#: tau-derivatives of b x a, d, s, a.b, k, a and b
+#: tau-derivatives of b x a, d, s, a.b, k, a and b; then the coefficients of the quadratics in tau among them
+#: (b x a, a.b and k: a and b are linear in tau), formed with the tau-independent columns once per parameter path
 HEX_PARAMS = 42
 HEX_A, HEX_B, HEX_BXA, HEX_D, HEX_S, HEX_AB, HEX_K = 0, 3, 6, 9, 12, 15, 16
 HEX_DBXA, HEX_DD, HEX_DS, HEX_DAB, HEX_DK, HEX_DA, HEX_DB = 17, 20, 23, 26, 27, 28, 31
-HEX_WIDTH = 34
+HEX_BXA_COEF, HEX_AB_COEF, HEX_K_COEF = 34, 43, 46     # (1, tau, tau^2) coefficients: 3 per quantity
+HEX_WIDTH = 49
 
 
 class ParameterPath(NamedTuple):
@@ -164,8 +170,8 @@ def structured_path(kind, p0, p1, constants=()) -> ParameterPath:
 # compiled tracker
 # ==========================================================================================================
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t):
-    """``H = F(z; p(tau))``, ``J = F_z`` and, when ``with_t``, ``Ht = F_tau dtau/dt``: every equation is
+def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_j, with_t):
+    """``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` and when ``with_t`` ``Ht = F_tau dtau/dt``: every equation is
     ``w^T Q_i w`` with ``w = (z, 1)`` and ``Q_i = K_0 + tau K_1 + tau^2 K_2`` (symmetric), so with
     ``P_l = K_l w``: ``Q_i w = P_0 + tau P_1 + tau^2 P_2``, ``F_z = 2 (Q_i w)[:n]`` and
     ``F_tau = w^T (P_1 + 2 tau P_2)``."""
@@ -192,7 +198,7 @@ def _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t):
             h += w[j] * v
             if with_t:
                 ht += w[j] * (p1 + two_tau * p2)
-            if j < n:
+            if with_j and j < n:
                 J[i, j] = 2.0 * v
         H[i] = h
         Ht[i] = ht * dtau
@@ -250,42 +256,69 @@ def _evaluate_3rpr(S, z, dtau, H, J, Ht, with_h, with_j, with_t):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _prepare_66(P, tau, S):
-    """Per leg of a 6-6 at ``tau`` (row of ``S``, the layout of ``HEX_*``)."""
+def _prepare_66_path(P, S):
+    """The tau-independent columns of :func:`_prepare_66` per leg of a 6-6: ``a'``, ``b'``, ``d'``, ``s'``
+    (``p`` is linear in tau) and the coefficients of ``b x a``, ``a.b`` and ``k`` as quadratics in tau (from
+    ``a = a_0 + tau a'``, ``b = b_0 + tau b'``, ``L = L_0 + tau L'``)."""
     for i in range(6):
-        ab = 0j
-        dab = 0j
-        aa_bb = 0j
-        daa_dbb = 0j
         for k in range(3):
             da = P[HEX_PARAMS + 3 * i + k]
             db = P[HEX_PARAMS + 18 + 3 * i + k]
-            a = P[3 * i + k] + tau * da
-            b = P[18 + 3 * i + k] + tau * db
-            S[i, HEX_A + k] = a
-            S[i, HEX_B + k] = b
             S[i, HEX_DA + k] = da
             S[i, HEX_DB + k] = db
-            S[i, HEX_D + k] = b - a
-            S[i, HEX_S + k] = b + a
             S[i, HEX_DD + k] = db - da
             S[i, HEX_DS + k] = db + da
-            ab += a * b
-            dab += da * b + a * db
-            aa_bb += a * a + b * b
-            daa_dbb += a * da + b * db
+        ab0 = ab1 = ab2 = 0j
+        aa0 = aa1 = aa2 = 0j                             # a.a + b.b
         for k in range(3):
+            a0, da = P[3 * i + k], S[i, HEX_DA + k]
+            b0, db = P[18 + 3 * i + k], S[i, HEX_DB + k]
+            ab0 += a0 * b0
+            ab1 += da * b0 + a0 * db
+            ab2 += da * db
+            aa0 += a0 * a0 + b0 * b0
+            aa1 += 2.0 * (a0 * da + b0 * db)
+            aa2 += da * da + db * db
             k1 = (k + 1) % 3
             k2 = (k + 2) % 3
-            S[i, HEX_BXA + k] = S[i, HEX_B + k1] * S[i, HEX_A + k2] - S[i, HEX_B + k2] * S[i, HEX_A + k1]
-            S[i, HEX_DBXA + k] = (S[i, HEX_DB + k1] * S[i, HEX_A + k2] - S[i, HEX_DB + k2] * S[i, HEX_A + k1]
-                                  + S[i, HEX_B + k1] * S[i, HEX_DA + k2] - S[i, HEX_B + k2] * S[i, HEX_DA + k1])
-        dL = P[HEX_PARAMS + 36 + i]
-        L = P[36 + i] + tau * dL
-        S[i, HEX_AB] = ab
-        S[i, HEX_DAB] = dab
-        S[i, HEX_K] = aa_bb - L * L
-        S[i, HEX_DK] = 2.0 * (daa_dbb - L * dL)
+            a0k1, a0k2 = P[3 * i + k1], P[3 * i + k2]
+            b0k1, b0k2 = P[18 + 3 * i + k1], P[18 + 3 * i + k2]
+            dak1, dak2 = P[HEX_PARAMS + 3 * i + k1], P[HEX_PARAMS + 3 * i + k2]
+            dbk1, dbk2 = P[HEX_PARAMS + 18 + 3 * i + k1], P[HEX_PARAMS + 18 + 3 * i + k2]
+            S[i, HEX_BXA_COEF + 3 * k] = b0k1 * a0k2 - b0k2 * a0k1
+            S[i, HEX_BXA_COEF + 3 * k + 1] = dbk1 * a0k2 - dbk2 * a0k1 + b0k1 * dak2 - b0k2 * dak1
+            S[i, HEX_BXA_COEF + 3 * k + 2] = dbk1 * dak2 - dbk2 * dak1
+        L0, dL = P[36 + i], P[HEX_PARAMS + 36 + i]
+        S[i, HEX_AB_COEF], S[i, HEX_AB_COEF + 1], S[i, HEX_AB_COEF + 2] = ab0, ab1, ab2
+        S[i, HEX_K_COEF] = aa0 - L0 * L0
+        S[i, HEX_K_COEF + 1] = aa1 - 2.0 * L0 * dL
+        S[i, HEX_K_COEF + 2] = aa2 - dL * dL
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _prepare_66(P, tau, S):
+    """Per leg of a 6-6 at ``tau`` (row of ``S``, the layout of ``HEX_*``): ``a``, ``b``, ``d``, ``s`` from
+    ``p(tau)``, the quadratics ``b x a``, ``a.b``, ``k`` and their derivatives from the coefficients of
+    :func:`_prepare_66_path` (already in ``S``)."""
+    for i in range(6):
+        for k in range(3):
+            a = P[3 * i + k] + tau * S[i, HEX_DA + k]
+            b = P[18 + 3 * i + k] + tau * S[i, HEX_DB + k]
+            S[i, HEX_A + k] = a
+            S[i, HEX_B + k] = b
+            S[i, HEX_D + k] = b - a
+            S[i, HEX_S + k] = b + a
+        for k in range(3):
+            S[i, HEX_BXA + k], S[i, HEX_DBXA + k] = _quadratic(S, i, HEX_BXA_COEF + 3 * k, tau)
+        S[i, HEX_AB], S[i, HEX_DAB] = _quadratic(S, i, HEX_AB_COEF, tau)
+        S[i, HEX_K], S[i, HEX_DK] = _quadratic(S, i, HEX_K_COEF, tau)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _quadratic(S, i, at, tau):
+    """The value and the derivative at ``tau`` of ``S[i, at] + S[i, at + 1] tau + S[i, at + 2] tau^2``."""
+    c1, c2 = S[i, at + 1], S[i, at + 2]
+    return S[i, at] + tau * (c1 + tau * c2), c1 + 2.0 * tau * c2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -368,12 +401,14 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_h, with_j, with_t):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_h, with_j, with_t):
     """When ``with_h`` ``H = F(z; p(tau))``, when ``with_j`` ``J = F_z`` and when ``with_t`` ``Ht = F_tau dtau/dt``
-    (the dense evaluator forms ``H`` and ``J`` anyway), by the evaluator ``kind``;
+    (the dense evaluator forms ``H`` anyway), by the evaluator ``kind``;
     a structured one prepares its per-leg quantities once per distinct ``tau`` (``prepared``: the last one's,
     with a flag: the predictor's middle stages share a tau, its last stage and the corrector another)."""
     if kind == DENSE:
-        _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_t)
+        _evaluate_dense(K, z, tau, dtau, w, H, J, Ht, with_j, with_t)
         return
+    if prepared[0] == 0.0 and kind == HEXAPOD_66:
+        _prepare_66_path(P, S)
     if prepared[0] == 0.0 or prepared[1] != tau.real or prepared[2] != tau.imag:
         if kind == PLANAR_3RPR:
             _prepare_3rpr(P, tau, S)
@@ -387,44 +422,68 @@ def _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, with_h, with_j
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _lu_solve(A, b, x, LU):
-    """``x = A^{-1} b`` by Gaussian elimination with partial pivoting (``LU`` a work copy); False when a
-    pivot is exactly zero.  The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's complex routines choose
-    it: within a factor sqrt(2) of the modulus, and no square root per candidate); its reciprocal is formed
-    once, as ``conj(p) / |p|^2`` (a pivot is never near overflow here), for the back substitution too."""
+def _lu_factor_solve(A, pivots, x):
+    """``x = A^{-1} x`` by Gaussian elimination with partial pivoting, in place: ``A`` is left holding its LU
+    factors (the multipliers below the diagonal, ``U`` above it with the reciprocals of the pivots on it, the row
+    taken as column ``c``'s pivot in ``pivots[c]``) for :func:`_lu_solve`; False when a pivot is exactly zero.
+    The pivot is the largest by ``|Re| + |Im|`` (as LAPACK's complex routines choose it: within a factor sqrt(2)
+    of the modulus, and no square root per candidate); its reciprocal is formed once, as ``conj(p) / |p|^2`` (a
+    pivot is never near overflow here), for the back substitution too."""
     n = A.shape[0]
-    for i in range(n):
-        for j in range(n):
-            LU[i, j] = A[i, j]
-        x[i] = b[i]
     for c in range(n):
         p = c
-        best = abs(LU[c, c].real) + abs(LU[c, c].imag)
+        best = abs(A[c, c].real) + abs(A[c, c].imag)
         for r in range(c + 1, n):
-            a = abs(LU[r, c].real) + abs(LU[r, c].imag)
+            a = abs(A[r, c].real) + abs(A[r, c].imag)
             if a > best:
                 best, p = a, r
         if best == 0.0:
             return False
-        if p != c:                                       # the columns left of c are no longer read
-            for j in range(c, n):
-                LU[c, j], LU[p, j] = LU[p, j], LU[c, j]
+        pivots[c] = p
+        if p != c:                                       # whole rows: the multipliers follow their row
+            for j in range(n):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
             x[c], x[p] = x[p], x[c]
-        pivot = LU[c, c]
+        pivot = A[c, c]
         inv = pivot.conjugate() / (pivot.real * pivot.real + pivot.imag * pivot.imag)
-        LU[c, c] = inv
+        A[c, c] = inv
         xc = x[c]
         for r in range(c + 1, n):
-            m = LU[r, c] * inv
+            m = A[r, c] * inv
+            A[r, c] = m
             for j in range(c + 1, n):
-                LU[r, j] -= m * LU[c, j]
+                A[r, j] -= m * A[c, j]
             x[r] -= m * xc
+    _back_substitute(A, x)
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _back_substitute(LU, x):
+    """``x = U^{-1} x``, ``U`` the upper triangle of :func:`_lu_factor_solve`'s factors."""
+    n = LU.shape[0]
     for c in range(n - 1, -1, -1):
         s = x[c]
         for j in range(c + 1, n):
             s -= LU[c, j] * x[j]
         x[c] = s * LU[c, c]
-    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_solve(LU, pivots, x):
+    """``x = A^{-1} x`` in place from the factors :func:`_lu_factor_solve` left of ``A``: the rows exchanged as
+    they were (every exchange first: the factors' rows are in their final order), forward and back
+    substitution."""
+    n = LU.shape[0]
+    for c in range(n):
+        p = pivots[c]
+        if p != c:
+            x[c], x[p] = x[p], x[c]
+    for c in range(n):
+        xc = x[c]
+        for r in range(c + 1, n):
+            x[r] -= LU[r, c] * xc
+    _back_substitute(LU, x)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -447,18 +506,22 @@ def _norm(z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, LU, rhs):
-    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``; False when ``F_z`` is singular."""
+def _velocity(kind, K, P, S, prepared, z, t, gamma, out, w, H, J, Ht, pivots, factored):
+    """``out = dz/dt = -F_z^{-1} F_t`` at ``(z, t)``: ``F_z`` evaluated and factored into ``J`` (``pivots``), or
+    when ``factored`` the factors already in ``J`` used (``F_t`` alone evaluated); False when ``F_z`` is
+    singular."""
     tau, dtau = _tau(t, gamma)
-    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, False, True, True)
+    _evaluate(kind, K, P, S, prepared, z, tau, dtau, w, H, J, Ht, False, not factored, True)
     for k in range(z.shape[0]):
-        rhs[k] = -Ht[k]
-    return _lu_solve(J, rhs, out, LU)
+        out[k] = -Ht[k]
+    if factored:
+        _lu_solve(J, pivots, out)
+        return True
+    return _lu_factor_solve(J, pivots, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
-def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, LU, rhs, dz, k1, k2, k3, k4,
-               zt):
+def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, pivots, k1, k2, k3, k4, zt):
     """Tracks one path from ``start`` at t = 0; leaves the endpoint in ``z`` and ``F_z`` there in ``J``;
     returns (outcome, steps, t reached)."""
     n = start.shape[0]
@@ -477,6 +540,9 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
     steps = 0
     successes = 0
     k1_current = False                                   # k1 is the velocity at (z, t): kept after a failed step
+    # J holds the factors of F_z at the corrector's last iterate, within the corrector's tolerance of (z, t): the
+    # next step's first velocity solves with them (an error of that tolerance in k1 is far below the predictor's)
+    factors_at_z = False
     while t < 1.0:
         if steps >= max_steps:
             return STEPS_EXHAUSTED, steps, t
@@ -486,35 +552,38 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             h = 1.0 - t
         t1 = 1.0 if last else t + h
         # classical Runge-Kutta predictor
-        ok = k1_current or _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, LU, rhs)
+        ok = k1_current or _velocity(kind, K, P, S, prepared, z, t, gamma, k1, w, H, J, Ht, pivots,
+                                     factors_at_z)
         k1_current = ok
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k1[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k2, w, H, J, Ht, pivots, False)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + 0.5 * h * k2[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t + 0.5 * h, gamma, k3, w, H, J, Ht, pivots, False)
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h * k3[k]
-            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, LU, rhs)
+            ok = _velocity(kind, K, P, S, prepared, zt, t1, gamma, k4, w, H, J, Ht, pivots, False)
+        factors_at_z = False
         if ok:
             for k in range(n):
                 zt[k] = z[k] + h / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k])
-            # Newton corrector at t1 (a chord method, F_z kept from the first iteration or from the predictor's
-            # last stage, converged so much more slowly that it took more steps and rejected more of them)
+            # Newton corrector at t1, F_z evaluated at every iterate (a chord method, F_z kept from the first
+            # iteration or from the predictor's last stage, even for the first iteration alone, converged so much
+            # more slowly that it took more steps and rejected more of them)
             tau, dtau = _tau(t1, gamma)
             ok = False
             previous = 0.0
             for it in range(iterations):
                 _evaluate(kind, K, P, S, prepared, zt, tau, dtau, w, H, J, Ht, True, True, False)
-                if not _lu_solve(J, H, dz, LU):
+                if not _lu_factor_solve(J, pivots, H):          # H = the Newton update
                     break
                 for k in range(n):
-                    zt[k] -= dz[k]
-                step = _norm(dz)
+                    zt[k] -= H[k]
+                step = _norm(H)
                 scale = 1.0 + _norm(zt)
                 if it == 0:
                     first = step / scale
@@ -525,6 +594,7 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
                 previous = step
                 if step <= tol * scale:
                     ok = True
+                    factors_at_z = True
                     break
         if ok:
             for k in range(n):
@@ -534,12 +604,14 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             successes += 1
             if step_target > 0.0:
                 # the predictor's error, measured by the first corrector update, grows like h^5: the next step
-                # aims at step_target, within [1/2, STEP_GROWTH_MAX] times this one
+                # aims at step_target, within [1/2, STEP_GROWTH_MAX] times this one, and at most this one right
+                # after a rejected step (the model has just overestimated a step: the usual rule of step control)
+                growth = STEP_GROWTH_MAX if successes > 1 or steps == 1 else 1.0
                 if first > 0.0:
                     factor = STEP_SAFETY * (step_target / first) ** 0.2
-                    h = min(max(factor, 0.5), STEP_GROWTH_MAX) * h
+                    h = min(max(factor, 0.5), growth) * h
                 else:
-                    h = STEP_GROWTH_MAX * h
+                    h = growth * h
                 h = min(h, h_max)
             elif successes >= expand_after:
                 h = min(2.0 * h, h_max)
@@ -556,11 +628,11 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
     # final polish at t = 1 (tau = 1)
     for _ in range(final_iterations):
         _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
-        if not _lu_solve(J, H, dz, LU):
+        if not _lu_factor_solve(J, pivots, H):
             return SINGULAR, steps, t
         for k in range(n):
-            z[k] -= dz[k]
-        if _norm(dz) <= final_tol * (1.0 + _norm(z)):
+            z[k] -= H[k]
+        if _norm(H) <= final_tol * (1.0 + _norm(z)):
             break
     _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
     return REGULAR, steps, t
@@ -578,9 +650,7 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
     H = np.empty(m, np.complex128)
     Ht = np.empty(m, np.complex128)
     J = np.empty((n, n), np.complex128)
-    LU = np.empty((n, n), np.complex128)
-    rhs = np.empty(n, np.complex128)
-    dz = np.empty(n, np.complex128)
+    pivots = np.empty(n, np.int64)
     k1 = np.empty(n, np.complex128)
     k2 = np.empty(n, np.complex128)
     k3 = np.empty(n, np.complex128)
@@ -594,8 +664,8 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
         S = np.empty((0, 0), np.complex128)
     prepared = np.zeros(3)
     for p in range(starts.shape[0]):
-        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, LU, rhs, dz,
-                             k1, k2, k3, k4, zt)
+        o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, pivots, k1,
+                             k2, k3, k4, zt)
         outcome[p] = o
         steps[p] = s
         t_end[p] = t
