@@ -5,7 +5,6 @@ turned into the config's unit, the config's ``leg_offsets`` added -- with a one-
 :class:`~glpma_ros.errors.InputError` naming what is wrong with a bad input."""
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,8 +37,8 @@ class InputConverter:
     def __init__(self, model, joint_names=()):
         self.model = model
         self.metres_per_unit = float(model.metres_per_unit)
-        #: leg lengths (m) below this divide by metres_per_unit without overflow
-        self._overflow_m = sys.float_info.max * min(self.metres_per_unit, 1.0)
+        self._band = plausible_band(model)          # config unit
+        self._actuated = model_is_actuated(model)
         self.joint_names = joint_names
 
     @property
@@ -99,22 +98,22 @@ class InputConverter:
         config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for; an actuated
         family's actuator positions (radians, or metres for prismatic ones) as its leg vector."""
         model = self.model
-        if model_is_actuated(model):
+        if self._actuated:
             return model.legs_from_si(self.legs_m(raw))
+        if type(raw) is tuple and len(raw) == model.n_legs:
+            # the usual input (a message's floats), every leg within the plausible band (finite, no unit
+            # mistake possible): the checks below would pass; deciding it on the Python floats saves their
+            # NumPy calls
+            try:
+                legs = [v / self.metres_per_unit for v in raw]
+            except (TypeError, ZeroDivisionError):
+                legs = None
+            if legs is not None and self._band[0] <= min(legs) and max(legs) <= self._band[1]:
+                return model.legs_from_sensors(np.array(legs))      # the config's leg_offsets added
         try:
             legs_m = np.asarray(self.legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise InputError("leg lengths are not numbers") from None
-        if legs_m.size == model.n_legs:
-            # the usual input, every leg within the plausible band (finite, no unit mistake possible):
-            # the checks below would pass; deciding it on Python floats saves their NumPy calls
-            given = legs_m.tolist()
-            if -self._overflow_m < min(given) and max(given) < self._overflow_m:
-                legs = legs_m / self.metres_per_unit
-                values = legs.tolist()
-                lo, hi = plausible_band(model)
-                if lo <= min(values) and max(values) <= hi:
-                    return model.legs_from_sensors(legs)      # the config's leg_offsets added
         with np.errstate(over="ignore", invalid="ignore"):
             legs = legs_m / self.metres_per_unit
         if legs.size == model.n_legs and np.all(np.isfinite(legs_m)) and not np.all(np.isfinite(legs)):
