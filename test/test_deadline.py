@@ -71,6 +71,11 @@ RESUMED_GENERATIONS = 15
 #: the same children from the same random stream, evaluated in the same order: the same floats (up to
 #: the last bits, which the tests never compare)
 SAME_RTOL = 1e-12
+#: time each chunk of the resumed G3-PCX run is given (s): a few generations (a few microseconds each) after the
+#: call's entry (10-50 µs), so that the clock cuts most chunks
+G3PCX_CHUNK_S = 5e-5
+#: G3-PCX generations both runs of its resume test make
+G3PCX_GENERATIONS = 400
 
 
 class FakeClock:
@@ -369,6 +374,70 @@ def test_glpma_stopped_inside_its_generations_resumes_them_exactly(hexapod):
     for a, b in ((cut.master.pop, whole.master.pop), (cut.master.fit, whole.master.fit),
                  (cut.local.pop, whole.local.pop), (cut.local.fit, whole.local.fit)):
         np.testing.assert_allclose(a, b, rtol=SAME_RTOL)
+
+
+def _g3pcx_hexapod(model, seed):
+    """A G3-PCX population on hexapod legs no pose reaches (nothing converges), and a termination without a cap."""
+    rng = np.random.default_rng(seed)
+    term = Termination(max_evals=10**9)
+    problem = driver.Problem(model, np.array(HEX_CASES[0]))
+    pop = initial_population(rng, HEX_GLPMA["local_population"], model.n_vars, HEX_RANGE, None, None)
+    return g3pcx.G3PCXPopulation(problem, pop, problem.evaluate(pop, term), rng), term
+
+
+def test_a_g3pcx_chunk_does_no_work_after_its_work_deadline(hexapod):
+    """Counted evaluations: a G3-PCX chunk whose work deadline has passed makes none (its kernel reads the clock
+    before each generation) and says so; it reports how long the call took to reach its kernel, the fixed cost
+    a chunk must leave room for.  Without a deadline the same chunk runs and the kernel never reads the clock."""
+    state, term = _g3pcx_hexapod(hexapod, seed=0)
+    before = term.nfev
+    state.work_deadline = time.perf_counter()
+    gens = state.step(driver.CHUNK_GENERATIONS, term)
+    assert (gens, term.nfev - before) == (0, 0) and state.out_of_time and state.entry_s > 0.0
+    state.work_deadline = None
+    assert state.step(driver.CHUNK_GENERATIONS, term) == driver.CHUNK_GENERATIONS
+    assert term.nfev - before == driver.CHUNK_GENERATIONS * g3pcx.LAMBDA and not state.out_of_time
+    assert state.entry_s == 0.0
+
+
+def test_g3pcx_stopped_by_the_clock_resumes_exactly(hexapod):
+    """Chunks cut short by the clock make the same generations as chunks without a deadline: the clock is read
+    before a generation draws anything, so the next chunk goes on with the same random stream."""
+    def run(chunk_s):
+        state, term = _g3pcx_hexapod(hexapod, seed=1)
+        done = cut = 0
+        while done < G3PCX_GENERATIONS:
+            state.work_deadline = None if chunk_s is None else time.perf_counter() + chunk_s
+            done += state.step(G3PCX_GENERATIONS - done, term)
+            cut += state.out_of_time
+        return state, term, cut
+
+    whole, whole_term, _ = run(None)
+    cut, cut_term, stops = run(G3PCX_CHUNK_S)
+    assert stops > 0            # the clock did cut chunks
+    assert cut_term.nfev == whole_term.nfev
+    np.testing.assert_allclose(cut.pop, whole.pop, rtol=SAME_RTOL)
+    np.testing.assert_allclose(cut.fit, whole.fit, rtol=SAME_RTOL)
+
+
+def test_a_chunk_that_stops_itself_is_sized_by_the_budget(hexapod, monkeypatch):
+    """Late in a budget the chunk of a kernel that stops itself at the deadline is a share of the budget (within
+    the time left), not of the time left; and none starts when the call's measured entry and a generation do not
+    fit before the deadline."""
+    now = 1000.0
+    monkeypatch.setattr("time.perf_counter", lambda: now)
+    budget = 1e-3
+    costs = driver.Costs(Termination(max_evals=10**9, budget_s=budget, start=now - 0.8 * budget), "test", hexapod)
+    costs.per_eval, costs.tail_s, costs.entry_s, costs.on_chunks = 4e-7, 0.0, 0.0, True
+    state, _ = _g3pcx_hexapod(hexapod, seed=2)
+    by_budget = costs.generations(state)
+    monkeypatch.setattr(g3pcx.G3PCXPopulation, "stops_itself", False)
+    by_time_left = costs.generations(state)
+    # 0.2 ms left, a generation 2 evaluations of 0.4 µs: a tenth of the budget (0.1 ms) holds 125 generations, a
+    # tenth of the time left (0.02 ms) 25; a chunk is a power of two, doubled while twice it fits: 64 and 16
+    assert (by_budget, by_time_left) == (64, 16)
+    costs.entry_s = 0.2 * budget
+    assert costs.generations(state) == 0
 
 
 def test_the_kernels_clock_is_the_one_python_reads():

@@ -16,7 +16,8 @@ from .common import BUDGET_EXHAUSTED, CONVERGED, SolveResult, Termination, initi
 #: generations per compiled call when no deadline limits it
 CHUNK_GENERATIONS = 256
 #: share of the time left that one chunk of generations may take under a deadline: the clock is read
-#: often enough that a mis-estimated time per evaluation stays a small overrun
+#: often enough that a mis-estimated time per evaluation stays a small overrun.  A state whose kernel stops
+#: itself at the deadline takes this share of the whole budget instead (:attr:`EvolutionaryState.stops_itself`)
 CHUNK_SHARE = 0.1
 #: an estimate of the time per evaluation (or per refinement iteration) that measures less forgets at most
 #: this share of itself per chunk (a slow chunk raises it at once: overrunning is worse than stopping early)
@@ -65,6 +66,17 @@ class EvolutionaryState:
         #: the last compiled call stopped at ``work_deadline`` (kernels that read the clock themselves set it)
         self.out_of_time = False
 
+    #: the compiled call reads the clock between two steps of a few microseconds and stops at ``work_deadline``:
+    #: its chunk's size decides how often the driver may refine between chunks, not how far it may overrun, so
+    #: it is sized by the budget (:meth:`Costs.generations`); sized by the time left, the last chunks before
+    #: the deadline would be a generation each, each paying a compiled call's fixed cost (some 15 µs, several
+    #: generations of work) and ending on the driver's longer way to the result
+    stops_itself = False
+    #: the last compiled call's time from Python to its kernel's first read of the clock (the call's fixed cost:
+    #: its arguments unboxed, a ``numpy.random.Generator``'s the most), which no clock check inside the kernel
+    #: bounds; set by states whose kernel reports its entry under a deadline (0: not measured)
+    entry_s = 0.0
+
     def best(self):
         i = int(np.argmin(self.fit))
         return self.pop[i].copy(), float(self.fit[i])
@@ -106,7 +118,8 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     hard: every compiled call is sized by the measured cost of the work (:class:`Costs`: the thread's CPU
     time per evaluation, first from the initial population's evaluation, then from every chunk) so that it
     is expected to end before the deadline; a chunk of generations takes at most :data:`CHUNK_SHARE` of the
-    time left and starts only when one generation still fits, a refinement's iteration cap is cut to the
+    time left (of the budget, for a kernel that stops itself at the deadline) and starts only when one
+    generation still fits, a refinement's iteration cap is cut to the
     iterations that fit, both before the deadline less the measured tail (the Python that builds the
     result).  The search therefore returns by its deadline plus the error of that estimate on one compiled
     call.  The first population's evaluation runs whatever the budget (a result needs a point).
@@ -115,17 +128,25 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     """
     if budget_s is None:
         return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
-                       budget_s=budget_s, polish=polish, center=center, start=start)
+                       budget_s=budget_s, polish=polish, center=center, start=start)[0]
     HOLD.acquire()
     try:
-        return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
-                       budget_s=budget_s, polish=polish, center=center, start=start)
+        result, costs, last_work = _evolve(name, model, legs, make_state, rng, tolerance=tolerance,
+                                           max_evals=max_evals, budget_s=budget_s, polish=polish, center=center,
+                                           start=start)
     finally:
         HOLD.release()
+    # the tail counts to here: the search's objects freed and the collector's hold released are Python after
+    # the last compiled call too
+    if last_work is not None:
+        costs.note_tail(time.thread_time() - last_work)
+    costs.keep()
+    return result
 
 
 def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center, start):
-    """:func:`run_evolution`'s search."""
+    """:func:`run_evolution`'s search: its result, its :class:`Costs` and the thread's time at the end of its
+    last compiled call (None: it returned from the warm start's refinement, not a tail to learn from)."""
     least_squares = polish and model.redundancy > 0
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, start=start)
     problem = Problem(model, legs)
@@ -141,8 +162,7 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         refined = warm[:2] if math.isfinite(warm[1]) else None
         if warm[1] < tolerance or (least_squares and warm.converged):
             history.append((term.nfev, warm[1]))
-            costs.keep()
-            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED)
+            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED), costs, None
     c0, nfev0 = time.thread_time(), term.nfev
     state = make_state(problem, term)
     last_work = time.thread_time()              # the end of the last compiled call: the tail counts from it
@@ -184,6 +204,7 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         gens = state.step(chunk, term)
         last_work = time.thread_time()
         costs.note_evals(last_work - c0, term.nfev - nfev)
+        costs.note_entry(state.entry_s)
         costs.on_chunks = costs.on_chunks or term.nfev > nfev
         nit += gens
         if state.out_of_time:
@@ -202,9 +223,7 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
     x, f = x_end, f_end
     result = _result(name, model, x, f, term, nit, polished, history, refined,
                      stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
-    costs.note_tail(time.thread_time() - last_work)
-    costs.keep()
-    return result
+    return result, costs, last_work
 
 
 #: the costs measured by the last solve under a deadline, per solver and model (kind, legs): the next solve's
@@ -253,7 +272,9 @@ class Costs:
         self.key = (name, model.kind, model.n_legs)
         # s per fitness evaluation (0: not measured yet), s per refinement iteration (None: not measured yet)
         # s of Python from the end of the last compiled call to the result (0: not measured yet)
-        self.per_eval, self.per_iteration, self.tail_s = _LAST_COSTS.get(self.key, (0.0, None, 0.0))
+        # s from Python to a chunk's kernel reading the clock (0: not measured)
+        self.per_eval, self.per_iteration, self.tail_s, self.entry_s = _LAST_COSTS.get(self.key,
+                                                                                      (0.0, None, 0.0, 0.0))
         # the time per evaluation was measured on a chunk of generations (the initial population's evaluation
         # alone, one vectorised call, says nothing of what a generation adds around its evaluations)
         self.on_chunks = self.key in _LAST_COSTS
@@ -261,7 +282,7 @@ class Costs:
     def keep(self) -> None:
         """These estimates become the next solve's first ones."""
         if self.term.deadline is not None and self.on_chunks:
-            _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration, self.tail_s)
+            _LAST_COSTS[self.key] = (self.per_eval, self.per_iteration, self.tail_s, self.entry_s)
 
     @staticmethod
     def _track(old, seconds, decay=COST_DECAY):
@@ -271,6 +292,10 @@ class Costs:
         if evals > 0:
             self.per_eval = self._track(self.per_eval, seconds / evals)
 
+    def note_entry(self, seconds: float) -> None:
+        if seconds > 0.0:
+            self.entry_s = self._track(self.entry_s, seconds)
+
     def note_tail(self, seconds: float) -> None:
         self.tail_s = self._track(self.tail_s, seconds, TAIL_DECAY)
 
@@ -279,16 +304,18 @@ class Costs:
         return self.term.deadline - self.tail_s - time.perf_counter()
 
     def generations(self, state) -> int:
-        """Generations of the next chunk: as many as fit in :data:`CHUNK_SHARE` of the time left (at most
-        :data:`CHUNK_GENERATIONS`; one until a chunk has been measured), at least one; 0 when not even one
-        fits before the deadline."""
+        """Generations of the next chunk: as many as fit in :data:`CHUNK_SHARE` of the time left (a state that
+        :attr:`~EvolutionaryState.stops_itself`: of the budget, within the time left; at most
+        :data:`CHUNK_GENERATIONS`; one until a chunk has been measured), at least one; 0 when not even one fits
+        before the deadline (after the call's measured entry, :attr:`EvolutionaryState.entry_s`)."""
         left = self.left()
-        if self.per_eval * state.evals_in(1) > left:
+        if self.entry_s + self.per_eval * state.evals_in(1) > left:
             return 0
         if not self.on_chunks:
             return 1
+        room = min(CHUNK_SHARE * self.term.budget_s, left) if state.stops_itself else CHUNK_SHARE * left
         n = 1
-        while n < CHUNK_GENERATIONS and self.per_eval * state.evals_in(2 * n) <= CHUNK_SHARE * left:
+        while n < CHUNK_GENERATIONS and self.per_eval * state.evals_in(2 * n) <= room:
             n *= 2
         return min(n, CHUNK_GENERATIONS)
 

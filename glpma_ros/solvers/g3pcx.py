@@ -26,12 +26,13 @@ spread), never a division by zero.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from numba import njit
 
 from ..models.kernels import population_fitness
-from ..runtime.clock import kernel_end, reached
+from ..runtime.clock import kernel_end, monotonic_s, reached
 from ..runtime.compat import NUMBA_INLINE
 from .driver import EvolutionaryState, solve_population
 
@@ -118,10 +119,12 @@ def _draw_distinct(rng, N, out, start):
 @njit(cache=True, error_model="numpy")
 def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance, end,
                       mu, lam, r, sigma_zeta, sigma_eta, kind, data, legs, n_res):
-    """Evolve ``pop``/``fit`` in place; returns (generations, evaluations, stopped by the clock).  The clock is
-    read before each generation (a few microseconds of work) and the call stops there once it reads ``end``
-    (the kernels' clock, :func:`~glpma_ros.runtime.clock.kernel_end`; ``inf``: never)."""
+    """Evolve ``pop``/``fit`` in place; returns (generations, evaluations, stopped by the clock, the kernels'
+    clock on entry).  The clock is read on entry and before each generation (a few microseconds of work) and
+    the call stops there once it reads ``end`` (the kernels' clock, :func:`~glpma_ros.runtime.clock.kernel_end`;
+    ``inf``: never, and the clock is never read: entry 0)."""
     N, n = pop.shape
+    entered = 0.0 if end == math.inf else monotonic_s()
     timed_out = False
     idx = np.empty(mu, dtype=np.int64)
     parents = np.empty((mu, n))
@@ -156,7 +159,7 @@ def g3pcx_generations(pop, fit, rng, n_generations, max_evals, tolerance, end,
             fit[slots[k]] = pool_f[order[k]]
         best = _argmin(fit)
         gens += 1
-    return gens, evals, timed_out
+    return gens, evals, timed_out, entered
 
 
 class G3PCXPopulation(EvolutionaryState):
@@ -164,6 +167,8 @@ class G3PCXPopulation(EvolutionaryState):
     (GLPMA keeps one between local searches)."""
 
     name = "g3pcx"
+    #: the kernel reads the clock before each generation (two children: a few microseconds)
+    stops_itself = True
 
     def __init__(self, problem, pop, fit, rng, *, mu=MU, lam=LAMBDA, r=R_REPLACE,
                  sigma_zeta=SIGMA_ZETA, sigma_eta=SIGMA_ETA):
@@ -178,10 +183,12 @@ class G3PCXPopulation(EvolutionaryState):
 
     def advance(self, n_generations, max_evals, tolerance):
         p = self.problem
-        gens, evals, self.out_of_time = g3pcx_generations(self.pop, self.fit, self.rng, n_generations, max_evals,
-                                                          tolerance, kernel_end(self.work_deadline), self.mu,
-                                                          self.lam, self.r, self.sigma_zeta, self.sigma_eta,
-                                                          p.kind, p.data, p.legs, p.n_res)
+        end = kernel_end(self.work_deadline)
+        called = time.monotonic()           # the kernels' clock, read by Python
+        gens, evals, self.out_of_time, entered = g3pcx_generations(
+            self.pop, self.fit, self.rng, n_generations, max_evals, tolerance, end, self.mu, self.lam, self.r,
+            self.sigma_zeta, self.sigma_eta, p.kind, p.data, p.legs, p.n_res)
+        self.entry_s = entered - called if end != math.inf else 0.0
         return gens, evals
 
 
