@@ -69,8 +69,8 @@ class EvolutionaryState:
     #: the compiled call reads the clock between two steps of a few microseconds and stops at ``work_deadline``:
     #: its chunk's size decides how often the driver may refine between chunks, not how far it may overrun, so
     #: it is sized by the budget (:meth:`Costs.generations`); sized by the time left, the last chunks before
-    #: the deadline would be a generation each, each paying a compiled call's fixed cost (some 15 µs, several
-    #: generations of work) and ending on the driver's longer way to the result
+    #: the deadline would be a generation each, each paying a compiled call's fixed cost (12-50 µs measured,
+    #: several generations of work) and ending on the driver's longer way to the result
     stops_itself = False
     #: the last compiled call's time from Python to its kernel's first read of the clock (the call's fixed cost:
     #: its arguments unboxed, a ``numpy.random.Generator``'s the most), which no clock check inside the kernel
@@ -128,25 +128,17 @@ def run_evolution(name, model, legs, make_state, rng, *, tolerance, max_evals, b
     """
     if budget_s is None:
         return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
-                       budget_s=budget_s, polish=polish, center=center, start=start)[0]
+                       budget_s=budget_s, polish=polish, center=center, start=start)
     HOLD.acquire()
     try:
-        result, costs, last_work = _evolve(name, model, legs, make_state, rng, tolerance=tolerance,
-                                           max_evals=max_evals, budget_s=budget_s, polish=polish, center=center,
-                                           start=start)
+        return _evolve(name, model, legs, make_state, rng, tolerance=tolerance, max_evals=max_evals,
+                       budget_s=budget_s, polish=polish, center=center, start=start)
     finally:
         HOLD.release()
-    # the tail counts to here: the search's objects freed and the collector's hold released are Python after
-    # the last compiled call too
-    if last_work is not None:
-        costs.note_tail(time.thread_time() - last_work)
-    costs.keep()
-    return result
 
 
 def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_s, polish, center, start):
-    """:func:`run_evolution`'s search: its result, its :class:`Costs` and the thread's time at the end of its
-    last compiled call (None: it returned from the warm start's refinement, not a tail to learn from)."""
+    """:func:`run_evolution`'s search."""
     least_squares = polish and model.redundancy > 0
     term = Termination(tolerance=tolerance, max_evals=max_evals, budget_s=budget_s, start=start)
     problem = Problem(model, legs)
@@ -162,7 +154,8 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
         refined = warm[:2] if math.isfinite(warm[1]) else None
         if warm[1] < tolerance or (least_squares and warm.converged):
             history.append((term.nfev, warm[1]))
-            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED), costs, None
+            costs.keep()
+            return _result(name, model, warm[0], warm[1], term, nit, True, history, refined, CONVERGED)
     c0, nfev0 = time.thread_time(), term.nfev
     state = make_state(problem, term)
     last_work = time.thread_time()              # the end of the last compiled call: the tail counts from it
@@ -223,7 +216,9 @@ def _evolve(name, model, legs, make_state, rng, *, tolerance, max_evals, budget_
     x, f = x_end, f_end
     result = _result(name, model, x, f, term, nit, polished, history, refined,
                      stop if stop in (CONVERGED, BUDGET_EXHAUSTED) else None)
-    return result, costs, last_work
+    costs.note_tail(time.thread_time() - last_work)
+    costs.keep()
+    return result
 
 
 #: the costs measured by the last solve under a deadline, per solver and model (kind, legs): the next solve's
