@@ -249,6 +249,14 @@ def test_every_bad_input_is_rejected_with_a_reason_and_the_state_is_kept(limited
     assert svc.diagnostics().level == 0
 
 
+def test_a_tuple_of_the_right_length_that_is_not_numbers_gets_the_reason(service):
+    # a message's legs arrive as a tuple (the fast path's input): values that do not divide or compare are
+    # named as such, not an internal error
+    for legs in ((0.5j, 0.06, 0.06), ("a", 0.06, 0.06)):
+        out = service.handle(legs, 0)
+        assert out.pose is None and out.reason == "leg lengths are not numbers", (legs, out.reason)
+
+
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(legs=st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=7))
 def test_handle_never_raises(service, legs):

@@ -106,9 +106,10 @@ class InputConverter:
             # NumPy calls
             try:
                 legs = [v / self.metres_per_unit for v in raw]
-            except (TypeError, ZeroDivisionError):
-                legs = None
-            if legs is not None and self._band[0] <= min(legs) and max(legs) <= self._band[1]:
+                usual = self._band[0] <= min(legs) and max(legs) <= self._band[1]
+            except TypeError:               # not numbers (or not comparable): the checks below name it
+                usual = False
+            if usual:
                 return model.legs_from_sensors(np.array(legs))      # the config's leg_offsets added
         try:
             legs_m = np.asarray(self.legs_m(raw), dtype=float).reshape(-1)
