@@ -642,7 +642,11 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
 def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end):
     """Tracks every row of ``starts`` (its own ``gammas[p]``) from the start system to the target along the
     parameter path ``(kind, K, P)`` (:class:`ParameterPath`): endpoints in ``ends``, ``F_z`` there in
-    ``jacobians``, outcome / steps / t reached per path."""
+    ``jacobians``, outcome / steps / t reached per path.  The 6-6's paths advance in lockstep
+    (:func:`_track_66_lanes`), every other kind's one after the other (:func:`_track_one`)."""
+    if kind == HEXAPOD_66:
+        _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end)
+        return
     n = starts.shape[1]
     m = K.shape[1] if kind == DENSE else n
     z = np.empty(n, np.complex128)
@@ -673,6 +677,630 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
             ends[p, k] = z[k]
             for j in range(n):
                 jacobians[p, k, j] = J[k, j]
+
+
+# ==========================================================================================================
+# the 6-6's paths in lockstep: LANES paths advanced together, the lanes innermost
+# ==========================================================================================================
+#: paths advanced together by :func:`_track_66_lanes`: every array holds one value per lane in consecutive
+#: memory (real and imaginary parts apart), so that the compiler vectorises the loops over the lanes (4 doubles
+#: per AVX2 register, two registers per loop pass); 8 lanes keep 7 of 8 busy on average over the 6-6's 40 paths.
+#: The offsets use LANES (a constant: the compiler sees that rows do not overlap) but the loops run to the lanes'
+#: count taken from an array's length: with a constant count of 8 the compiler unrolls a loop instead and does not
+#: vectorise it
+LANES = 8
+#: the unknowns of the 6-6 in Study parameters (the lanes' row count)
+N66 = 7
+#: an offset masked with this is known to be non-negative, so the compiler drops Numba's negative-index
+#: wraparound (which would keep it from vectorising a loop whose offsets come from arguments)
+_OFFSET_MASK = (1 << 40) - 1
+# a column of the per-leg table (HEX_*) in the lanes' layout: leg i's column c of lane l at (i HEX_WIDTH + c) LANES + l
+_LA, _LB, _LD, _LS, _LN, _LAB, _LK = (c * LANES for c in (HEX_A, HEX_B, HEX_D, HEX_S, HEX_BXA, HEX_AB, HEX_K))
+_LDA, _LDB, _LDD, _LDS, _LDN, _LDAB, _LDK = (c * LANES for c in (HEX_DA, HEX_DB, HEX_DD, HEX_DS, HEX_DBXA, HEX_DAB,
+                                                                 HEX_DK))
+_LEG = HEX_WIDTH * LANES
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _prepare_66_lanes(P, Tr, Ti, Sr, Si, taur, taui):
+    """:func:`_prepare_66` per lane at ``tau[l]``: the tau-dependent columns into ``S``, from ``p(tau)`` and the
+    tau-independent columns and coefficients of :func:`_prepare_66_path` in ``T`` (``T`` is read, ``S`` written:
+    two arrays, so the compiler need not prove that the columns do not overlap)."""
+    lanes = taur.shape[0]  # LANES, as a count known only at run time (see LANES)
+    for i in range(6):
+        o = i * _LEG
+        for k in range(3):
+            a0, b0 = P[3 * i + k], P[18 + 3 * i + k]
+            ok = o + k * LANES
+            for lane in range(lanes):
+                tau = complex(taur[lane], taui[lane])
+                a = a0 + tau * complex(Tr[ok + _LDA + lane], Ti[ok + _LDA + lane])
+                b = b0 + tau * complex(Tr[ok + _LDB + lane], Ti[ok + _LDB + lane])
+                Sr[ok + _LA + lane], Si[ok + _LA + lane] = a.real, a.imag
+                Sr[ok + _LB + lane], Si[ok + _LB + lane] = b.real, b.imag
+                Sr[ok + _LD + lane], Si[ok + _LD + lane] = b.real - a.real, b.imag - a.imag
+                Sr[ok + _LS + lane], Si[ok + _LS + lane] = b.real + a.real, b.imag + a.imag
+        for k in range(3):
+            _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, HEX_BXA_COEF + 3 * k, HEX_BXA + k, HEX_DBXA + k)
+        _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, HEX_AB_COEF, HEX_AB, HEX_DAB)
+        _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, HEX_K_COEF, HEX_K, HEX_DK)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, at, value, derivative):
+    """:func:`_quadratic` per lane: leg ``i``'s column ``value`` of ``S`` and its tau-derivative (column
+    ``derivative``) at ``tau[l]`` from the coefficients in columns ``at`` to ``at + 2`` of ``T``."""
+    lanes = taur.shape[0]  # LANES, as a count known only at run time (see LANES)
+    c = ((i * HEX_WIDTH + at) * LANES) & _OFFSET_MASK
+    v = ((i * HEX_WIDTH + value) * LANES) & _OFFSET_MASK
+    d = ((i * HEX_WIDTH + derivative) * LANES) & _OFFSET_MASK
+    for lane in range(lanes):
+        tau = complex(taur[lane], taui[lane])
+        c1 = complex(Tr[c + LANES + lane], Ti[c + LANES + lane])
+        c2 = complex(Tr[c + 2 * LANES + lane], Ti[c + 2 * LANES + lane])
+        q = complex(Tr[c + lane], Ti[c + lane]) + tau * (c1 + tau * c2)
+        dq = c1 + 2.0 * tau * c2
+        Sr[v + lane], Si[v + lane] = q.real, q.imag
+        Sr[d + lane], Si[d + lane] = dq.real, dq.imag
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _common_66_lanes(P, zr, zi, Cr, Ci):
+    """Per lane the leg-independent quantities of :func:`_evaluate_66` at ``z``: rows ``e_0``, ``e_0^2 - v.v``,
+    ``e_0^2 + v.v``, ``f.f`` and ``v x w`` (3) of ``C``."""
+    lanes = zr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
+    c0, c1, c2, c3 = P[2 * HEX_PARAMS], P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3]
+    for lane in range(lanes):
+        v1 = complex(zr[lane], zi[lane])
+        v2 = complex(zr[LANES + lane], zi[LANES + lane])
+        v3 = complex(zr[2 * LANES + lane], zi[2 * LANES + lane])
+        f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
+        w1 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane])
+        w2 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane])
+        w3 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane])
+        e0 = c0 + c1 * v1 + c2 * v2 + c3 * v3
+        vv = v1 * v1 + v2 * v2 + v3 * v3
+        q = e0 * e0 - vv
+        ee = e0 * e0 + vv
+        ff = f0 * f0 + w1 * w1 + w2 * w2 + w3 * w3
+        x1 = v2 * w3 - v3 * w2
+        x2 = v3 * w1 - v1 * w3
+        x3 = v1 * w2 - v2 * w1
+        Cr[lane], Ci[lane] = e0.real, e0.imag
+        Cr[LANES + lane], Ci[LANES + lane] = q.real, q.imag
+        Cr[2 * LANES + lane], Ci[2 * LANES + lane] = ee.real, ee.imag
+        Cr[3 * LANES + lane], Ci[3 * LANES + lane] = ff.real, ff.imag
+        Cr[4 * LANES + lane], Ci[4 * LANES + lane] = x1.real, x1.imag
+        Cr[5 * LANES + lane], Ci[5 * LANES + lane] = x2.real, x2.imag
+        Cr[6 * LANES + lane], Ci[6 * LANES + lane] = x3.real, x3.imag
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _jacobian_66_lanes(P, Sr, Si, zr, zi, Cr, Ci, Hr, Hi, Jr, Ji, with_h):
+    """:func:`_evaluate_66` per lane, the lanes innermost: ``J = F_z`` and when ``with_h`` ``H = F``, from ``S``
+    prepared at the lanes' tau and ``C`` (:func:`_common_66_lanes`) at ``z``."""
+    lanes = zr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
+    c1, c2, c3 = P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3]
+    for i in range(6):
+        o = i * _LEG
+        for lane in range(lanes):
+            v1 = complex(zr[lane], zi[lane])
+            v2 = complex(zr[LANES + lane], zi[LANES + lane])
+            v3 = complex(zr[2 * LANES + lane], zi[2 * LANES + lane])
+            f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
+            w1 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane])
+            w2 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane])
+            w3 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane])
+            e0 = complex(Cr[lane], Ci[lane])
+            ol = o + lane
+            a1 = complex(Sr[ol + _LA], Si[ol + _LA])
+            a2 = complex(Sr[ol + _LA + LANES], Si[ol + _LA + LANES])
+            a3 = complex(Sr[ol + _LA + 2 * LANES], Si[ol + _LA + 2 * LANES])
+            b1 = complex(Sr[ol + _LB], Si[ol + _LB])
+            b2 = complex(Sr[ol + _LB + LANES], Si[ol + _LB + LANES])
+            b3 = complex(Sr[ol + _LB + 2 * LANES], Si[ol + _LB + 2 * LANES])
+            d1 = complex(Sr[ol + _LD], Si[ol + _LD])
+            d2 = complex(Sr[ol + _LD + LANES], Si[ol + _LD + LANES])
+            d3 = complex(Sr[ol + _LD + 2 * LANES], Si[ol + _LD + 2 * LANES])
+            s1 = complex(Sr[ol + _LS], Si[ol + _LS])
+            s2 = complex(Sr[ol + _LS + LANES], Si[ol + _LS + LANES])
+            s3 = complex(Sr[ol + _LS + 2 * LANES], Si[ol + _LS + 2 * LANES])
+            n1 = complex(Sr[ol + _LN], Si[ol + _LN])
+            n2 = complex(Sr[ol + _LN + LANES], Si[ol + _LN + LANES])
+            n3 = complex(Sr[ol + _LN + 2 * LANES], Si[ol + _LN + 2 * LANES])
+            ab = complex(Sr[ol + _LAB], Si[ol + _LAB])
+            k = complex(Sr[ol + _LK], Si[ol + _LK])
+            va = v1 * a1 + v2 * a2 + v3 * a3
+            vb = v1 * b1 + v2 * b2 + v3 * b3
+            vn = v1 * n1 + v2 * n2 + v3 * n3
+            vd = v1 * d1 + v2 * d2 + v3 * d3
+            wd = w1 * d1 + w2 * d2 + w3 * d3
+            if with_h:
+                q = complex(Cr[LANES + lane], Ci[LANES + lane])
+                ee = complex(Cr[2 * LANES + lane], Ci[2 * LANES + lane])
+                ff = complex(Cr[3 * LANES + lane], Ci[3 * LANES + lane])
+                x1 = complex(Cr[4 * LANES + lane], Ci[4 * LANES + lane])
+                x2 = complex(Cr[5 * LANES + lane], Ci[5 * LANES + lane])
+                x3 = complex(Cr[6 * LANES + lane], Ci[6 * LANES + lane])
+                G = q * ab + 2.0 * (va * vb + e0 * vn)
+                C = e0 * wd - f0 * vd - (x1 * s1 + x2 * s2 + x3 * s3)
+                h = k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
+                Hr[i * LANES + lane], Hi[i * LANES + lane] = h.real, h.imag
+            g0 = 2.0 * k * e0 - 4.0 * (e0 * ab + vn) + 4.0 * wd
+            kv = 2.0 * k + 4.0 * ab
+            g1 = kv * v1 - 4.0 * (vb * a1 + va * b1 + e0 * n1 + f0 * d1 + w2 * s3 - w3 * s2)
+            g2 = kv * v2 - 4.0 * (vb * a2 + va * b2 + e0 * n2 + f0 * d2 + w3 * s1 - w1 * s3)
+            g3 = kv * v3 - 4.0 * (vb * a3 + va * b3 + e0 * n3 + f0 * d3 + w1 * s2 - w2 * s1)
+            j0 = g1 + c1 * g0
+            j1 = g2 + c2 * g0
+            j2 = g3 + c3 * g0
+            j3 = 8.0 * f0 - 4.0 * vd
+            j4 = 4.0 * (e0 * d1 - s2 * v3 + s3 * v2) + 8.0 * w1
+            j5 = 4.0 * (e0 * d2 - s3 * v1 + s1 * v3) + 8.0 * w2
+            j6 = 4.0 * (e0 * d3 - s1 * v2 + s2 * v1) + 8.0 * w3
+            r = i * N66 * LANES + lane
+            Jr[r], Ji[r] = j0.real, j0.imag
+            Jr[r + LANES], Ji[r + LANES] = j1.real, j1.imag
+            Jr[r + 2 * LANES], Ji[r + 2 * LANES] = j2.real, j2.imag
+            Jr[r + 3 * LANES], Ji[r + 3 * LANES] = j3.real, j3.imag
+            Jr[r + 4 * LANES], Ji[r + 4 * LANES] = j4.real, j4.imag
+            Jr[r + 5 * LANES], Ji[r + 5 * LANES] = j5.real, j5.imag
+            Jr[r + 6 * LANES], Ji[r + 6 * LANES] = j6.real, j6.imag
+    # Study's quadric e.f
+    for lane in range(lanes):
+        e0 = complex(Cr[lane], Ci[lane])
+        f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
+        if with_h:
+            h = e0 * f0
+            for k in range(3):
+                h += complex(zr[k * LANES + lane], zi[k * LANES + lane]) * complex(zr[(4 + k) * LANES + lane],
+                                                                                zi[(4 + k) * LANES + lane])
+            Hr[6 * LANES + lane], Hi[6 * LANES + lane] = h.real, h.imag
+        r = 6 * N66 * LANES + lane
+        j0 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane]) + c1 * f0
+        j1 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane]) + c2 * f0
+        j2 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane]) + c3 * f0
+        Jr[r], Ji[r] = j0.real, j0.imag
+        Jr[r + LANES], Ji[r + LANES] = j1.real, j1.imag
+        Jr[r + 2 * LANES], Ji[r + 2 * LANES] = j2.real, j2.imag
+        Jr[r + 3 * LANES], Ji[r + 3 * LANES] = e0.real, e0.imag
+        for k in range(3):
+            Jr[r + (4 + k) * LANES], Ji[r + (4 + k) * LANES] = zr[k * LANES + lane], zi[k * LANES + lane]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _velocity_rhs_66_lanes(P, Tr, Ti, Sr, Si, zr, zi, Cr, Ci, dtr, dti, Xr, Xi):
+    """Per lane the right-hand side ``X = -F_tau dtau/dt`` of a velocity (:func:`_evaluate_66`'s ``F_tau``), from
+    ``S`` and ``T`` prepared at the lanes' tau and ``C`` at ``z``."""
+    lanes = zr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
+    for i in range(6):
+        o = i * _LEG
+        for lane in range(lanes):
+            v1 = complex(zr[lane], zi[lane])
+            v2 = complex(zr[LANES + lane], zi[LANES + lane])
+            v3 = complex(zr[2 * LANES + lane], zi[2 * LANES + lane])
+            f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
+            w1 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane])
+            w2 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane])
+            w3 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane])
+            e0 = complex(Cr[lane], Ci[lane])
+            q = complex(Cr[LANES + lane], Ci[LANES + lane])
+            ee = complex(Cr[2 * LANES + lane], Ci[2 * LANES + lane])
+            x1 = complex(Cr[4 * LANES + lane], Ci[4 * LANES + lane])
+            x2 = complex(Cr[5 * LANES + lane], Ci[5 * LANES + lane])
+            x3 = complex(Cr[6 * LANES + lane], Ci[6 * LANES + lane])
+            ol = o + lane
+            va = (v1 * complex(Sr[ol + _LA], Si[ol + _LA]) + v2 * complex(Sr[ol + _LA + LANES], Si[ol + _LA + LANES])
+                  + v3 * complex(Sr[ol + _LA + 2 * LANES], Si[ol + _LA + 2 * LANES]))
+            vb = (v1 * complex(Sr[ol + _LB], Si[ol + _LB]) + v2 * complex(Sr[ol + _LB + LANES], Si[ol + _LB + LANES])
+                  + v3 * complex(Sr[ol + _LB + 2 * LANES], Si[ol + _LB + 2 * LANES]))
+            vda = (v1 * complex(Tr[ol + _LDA], Ti[ol + _LDA])
+                   + v2 * complex(Tr[ol + _LDA + LANES], Ti[ol + _LDA + LANES])
+                   + v3 * complex(Tr[ol + _LDA + 2 * LANES], Ti[ol + _LDA + 2 * LANES]))
+            vdb = (v1 * complex(Tr[ol + _LDB], Ti[ol + _LDB])
+                   + v2 * complex(Tr[ol + _LDB + LANES], Ti[ol + _LDB + LANES])
+                   + v3 * complex(Tr[ol + _LDB + 2 * LANES], Ti[ol + _LDB + 2 * LANES]))
+            vdn = (v1 * complex(Sr[ol + _LDN], Si[ol + _LDN])
+                   + v2 * complex(Sr[ol + _LDN + LANES], Si[ol + _LDN + LANES])
+                   + v3 * complex(Sr[ol + _LDN + 2 * LANES], Si[ol + _LDN + 2 * LANES]))
+            dd1 = complex(Tr[ol + _LDD], Ti[ol + _LDD])
+            dd2 = complex(Tr[ol + _LDD + LANES], Ti[ol + _LDD + LANES])
+            dd3 = complex(Tr[ol + _LDD + 2 * LANES], Ti[ol + _LDD + 2 * LANES])
+            vdd = v1 * dd1 + v2 * dd2 + v3 * dd3
+            wdd = w1 * dd1 + w2 * dd2 + w3 * dd3
+            xds = (x1 * complex(Tr[ol + _LDS], Ti[ol + _LDS])
+                   + x2 * complex(Tr[ol + _LDS + LANES], Ti[ol + _LDS + LANES])
+                   + x3 * complex(Tr[ol + _LDS + 2 * LANES], Ti[ol + _LDS + 2 * LANES]))
+            dG = q * complex(Sr[ol + _LDAB], Si[ol + _LDAB]) + 2.0 * (vda * vb + va * vdb + e0 * vdn)
+            dC = e0 * wdd - f0 * vdd - xds
+            x = -(complex(Sr[ol + _LDK], Si[ol + _LDK]) * ee - 2.0 * dG + 4.0 * dC) * complex(dtr[lane], dti[lane])
+            Xr[i * LANES + lane], Xi[i * LANES + lane] = x.real, x.imag
+    for lane in range(lanes):
+        Xr[6 * LANES + lane], Xi[6 * LANES + lane] = 0.0, 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_lanes(Ar, Ai, pivots, xr, xi, ok, best, inv_r, inv_i, m_r, m_i):
+    """:func:`_lu_factor_solve` per lane: ``x = A^{-1} x`` by Gaussian elimination with partial pivoting (the
+    largest ``|Re| + |Im|``), in place; ``A`` left holding the factors (the reciprocals of the pivots on the
+    diagonal) and ``pivots`` the rows taken; ``ok[l]`` False when lane ``l``'s pivot is exactly zero.  The row
+    exchanges differ between the lanes and are made lane by lane; the elimination runs over the lanes."""
+    n = N66
+    lanes = Ar.shape[0] // (N66 * N66)  # LANES, as a count known only at run time (see LANES)
+    for lane in range(lanes):
+        ok[lane] = True
+    for c in range(n):
+        for lane in range(lanes):
+            best[lane] = abs(Ar[(c * N66 + c) * LANES + lane]) + abs(Ai[(c * N66 + c) * LANES + lane])
+            pivots[c * LANES + lane] = c
+        for r in range(c + 1, n):
+            for lane in range(lanes):
+                a = abs(Ar[(r * N66 + c) * LANES + lane]) + abs(Ai[(r * N66 + c) * LANES + lane])
+                if a > best[lane]:
+                    best[lane] = a
+                    pivots[c * LANES + lane] = r
+        for lane in range(lanes):
+            p = pivots[c * LANES + lane]
+            if p != c:
+                for j in range(n):                      # whole rows: the multipliers follow their row
+                    u, v = (c * N66 + j) * LANES + lane, (p * N66 + j) * LANES + lane
+                    Ar[u], Ar[v] = Ar[v], Ar[u]
+                    Ai[u], Ai[v] = Ai[v], Ai[u]
+                u, v = c * LANES + lane, p * LANES + lane
+                xr[u], xr[v] = xr[v], xr[u]
+                xi[u], xi[v] = xi[v], xi[u]
+            if best[lane] == 0.0:
+                ok[lane] = False
+        for lane in range(lanes):
+            pr, pi = Ar[(c * N66 + c) * LANES + lane], Ai[(c * N66 + c) * LANES + lane]
+            d = 1.0 / (pr * pr + pi * pi)
+            inv_r[lane] = pr * d
+            inv_i[lane] = -pi * d
+            Ar[(c * N66 + c) * LANES + lane] = pr * d
+            Ai[(c * N66 + c) * LANES + lane] = -pi * d
+        for r in range(c + 1, n):
+            for lane in range(lanes):
+                ar, ai = Ar[(r * N66 + c) * LANES + lane], Ai[(r * N66 + c) * LANES + lane]
+                mr = ar * inv_r[lane] - ai * inv_i[lane]
+                mi = ar * inv_i[lane] + ai * inv_r[lane]
+                Ar[(r * N66 + c) * LANES + lane] = mr
+                Ai[(r * N66 + c) * LANES + lane] = mi
+                m_r[lane] = mr
+                m_i[lane] = mi
+                xr[r * LANES + lane] -= mr * xr[c * LANES + lane] - mi * xi[c * LANES + lane]
+                xi[r * LANES + lane] -= mr * xi[c * LANES + lane] + mi * xr[c * LANES + lane]
+            for j in range(c + 1, n):
+                for lane in range(lanes):
+                    ur, ui = Ar[(c * N66 + j) * LANES + lane], Ai[(c * N66 + j) * LANES + lane]
+                    Ar[(r * N66 + j) * LANES + lane] -= m_r[lane] * ur - m_i[lane] * ui
+                    Ai[(r * N66 + j) * LANES + lane] -= m_r[lane] * ui + m_i[lane] * ur
+    _back_substitute_lanes(Ar, Ai, xr, xi)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _back_substitute_lanes(Ar, Ai, xr, xi):
+    """:func:`_back_substitute` per lane."""
+    lanes = xr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
+    R = N66 * LANES
+    for c in range(N66 - 1, -1, -1):
+        for j in range(c + 1, N66):
+            for lane in range(lanes):
+                ur, ui = Ar[c * R + j * LANES + lane], Ai[c * R + j * LANES + lane]
+                xjr, xji = xr[j * LANES + lane], xi[j * LANES + lane]
+                xr[c * LANES + lane] -= ur * xjr - ui * xji
+                xi[c * LANES + lane] -= ur * xji + ui * xjr
+        for lane in range(lanes):
+            ur, ui = Ar[c * R + c * LANES + lane], Ai[c * R + c * LANES + lane]
+            a, b = xr[c * LANES + lane], xi[c * LANES + lane]
+            xr[c * LANES + lane], xi[c * LANES + lane] = a * ur - b * ui, a * ui + b * ur
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lu_solve_lanes(Ar, Ai, pivots, xr, xi):
+    """:func:`_lu_solve` per lane, from :func:`_lu_lanes`' factors."""
+    lanes = xr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
+    R = N66 * LANES
+    for c in range(N66):
+        for lane in range(lanes):
+            p = pivots[c * LANES + lane]
+            if p != c:
+                u, v = c * LANES + lane, p * LANES + lane
+                xr[u], xr[v] = xr[v], xr[u]
+                xi[u], xi[v] = xi[v], xi[u]
+    for c in range(N66):
+        for r in range(c + 1, N66):
+            for lane in range(lanes):
+                lr, li = Ar[r * R + c * LANES + lane], Ai[r * R + c * LANES + lane]
+                xcr, xci = xr[c * LANES + lane], xi[c * LANES + lane]
+                xr[r * LANES + lane] -= lr * xcr - li * xci
+                xi[r * LANES + lane] -= lr * xci + li * xcr
+    _back_substitute_lanes(Ar, Ai, xr, xi)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _tau_lanes(t, gr, gi, taur, taui, dtr, dti):
+    """:func:`_tau` per lane (``gamma`` of each lane's path)."""
+    lanes = t.shape[0]  # LANES, as a count known only at run time (see LANES)
+    for lane in range(lanes):
+        gamma = complex(gr[lane], gi[lane])
+        d = t[lane] + gamma * (1.0 - t[lane])
+        inv = d.conjugate() / (d.real * d.real + d.imag * d.imag)
+        tau = t[lane] * inv
+        dtau = gamma * inv * inv
+        taur[lane], taui[lane] = tau.real, tau.imag
+        dtr[lane], dti[lane] = dtau.real, dtau.imag
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _shift_lanes(zr, zi, share, h, kr, ki, outr, outi):
+    """Per lane ``out = z + share h[l] k`` (a Runge-Kutta stage's point)."""
+    lanes = h.shape[0]  # LANES, as a count known only at run time (see LANES)
+    for j in range(N66):
+        for lane in range(lanes):
+            s = share * h[lane]
+            outr[j * LANES + lane] = zr[j * LANES + lane] + s * kr[j * LANES + lane]
+            outi[j * LANES + lane] = zi[j * LANES + lane] + s * ki[j * LANES + lane]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _velocity_66_lanes(P, Tr, Ti, Sr, Si, zr, zi, Cr, Ci, dtr, dti, Xr, Xi, Jr, Ji, pivots, ok, work):
+    """:func:`_velocity` per lane: ``X = dz/dt = -F_z^{-1} F_t`` at ``z`` (``S`` prepared at the lanes' tau),
+    ``F_z`` factored into ``J``; ``ok[l]`` False where it is singular.  ``work``: 5 rows of ``LANES`` scratch."""
+    _common_66_lanes(P, zr, zi, Cr, Ci)
+    _velocity_rhs_66_lanes(P, Tr, Ti, Sr, Si, zr, zi, Cr, Ci, dtr, dti, Xr, Xi)
+    _jacobian_66_lanes(P, Sr, Si, zr, zi, Cr, Ci, Xr, Xi, Jr, Ji, False)
+    _lu_lanes(Jr, Ji, pivots, Xr, Xi, ok, work[0], work[1], work[2], work[3], work[4])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _end_path(P, S, prepared, zs, ws, Hs, Hts, Js, pivots, outcome, final_iterations, final_tol):
+    """A path's end at ``zs``: a regular endpoint (``outcome`` REGULAR) polished by Newton's method at t = 1 as in
+    :func:`_track_one`, ``F_z`` there in ``Js``; returns the outcome (SINGULAR when ``F_z`` is)."""
+    if outcome != REGULAR:
+        return outcome
+    K = np.zeros((3, 0, 0, 0), np.complex128)
+    for _ in range(final_iterations):
+        _evaluate(HEXAPOD_66, K, P, S, prepared, zs, 1.0 + 0j, 0j, ws, Hs, Js, Hts, True, True, False)
+        if not _lu_factor_solve(Js, pivots, Hs):
+            return SINGULAR
+        for k in range(zs.shape[0]):
+            zs[k] -= Hs[k]
+        if _norm(Hs) <= final_tol * (1.0 + _norm(zs)):
+            break
+    _evaluate(HEXAPOD_66, K, P, S, prepared, zs, 1.0 + 0j, 0j, ws, Hs, Js, Hts, True, True, False)
+    return REGULAR
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end):
+    """:func:`track_paths` for the 6-6 (``HEXAPOD_66``): the method of :func:`_track_one`, step for step, with
+    ``LANES`` paths advanced together.  Each lane holds a path's own ``z``, ``t``, step size and state; one round
+    forms every lane's Runge-Kutta stages and Newton iterations together (the evaluator, the LU and the stage
+    arithmetic run over the lanes, which the compiler vectorises), and each lane then accepts or rejects its step
+    by its own rule.  The corrector iterates while any lane's has not finished (a finished lane's results are
+    ignored).  A lane whose path ends polishes its endpoint (alone) and takes the next path; the kernel returns
+    when every path has ended."""
+    n = N66
+    count = starts.shape[0]
+    h_max, h_min = settings[1], settings[2]
+    iterations = int(settings[4])
+    tol, contraction, max_first = settings[5], settings[6], settings[7]
+    at_infinity, max_steps = settings[8], int(settings[9])
+    final_iterations, final_tol, endgame = int(settings[10]), settings[11], settings[12]
+    step_target = settings[13]
+    # per lane, the lanes innermost (real and imaginary parts apart): z, the stage point zt, k1..k3, a stage's
+    # velocity or the Newton update X, F_z (factored) J, the corrector's last factors F kept for the next k1
+    zr, zi, ztr, zti = np.zeros(n * LANES), np.zeros(n * LANES), np.zeros(n * LANES), np.zeros(n * LANES)
+    k1r, k1i, k2r, k2i = np.zeros(n * LANES), np.zeros(n * LANES), np.zeros(n * LANES), np.zeros(n * LANES)
+    k3r, k3i, Xr, Xi = np.zeros(n * LANES), np.zeros(n * LANES), np.zeros(n * LANES), np.zeros(n * LANES)
+    Jr, Ji, Fr, Fi = (np.zeros(n * n * LANES), np.zeros(n * n * LANES), np.zeros(n * n * LANES),
+                      np.zeros(n * n * LANES))
+    pivots, kept_pivots = np.zeros(n * LANES, np.int64), np.zeros(n * LANES, np.int64)
+    Cr, Ci = np.zeros(7 * LANES), np.zeros(7 * LANES)
+    Sr, Si = np.zeros(6 * _LEG), np.zeros(6 * _LEG)
+    Tr, Ti = np.zeros(6 * _LEG), np.zeros(6 * _LEG)
+    taur, taui, dtr, dti = np.zeros(LANES), np.zeros(LANES), np.zeros(LANES), np.zeros(LANES)
+    gr, gi = np.ones(LANES), np.zeros(LANES)
+    work = np.zeros((5, LANES))
+    t, t_mid, t1, h = np.zeros(LANES), np.zeros(LANES), np.zeros(LANES), np.zeros(LANES)
+    first, previous = np.zeros(LANES), np.zeros(LANES)
+    ok, stage_ok, live = np.zeros(LANES, np.bool_), np.zeros(LANES, np.bool_), np.zeros(LANES, np.bool_)
+    k1_current, factors_at_z = np.zeros(LANES, np.bool_), np.zeros(LANES, np.bool_)
+    path = np.full(LANES, -1, np.int64)
+    lane_steps, successes = np.zeros(LANES, np.int64), np.zeros(LANES, np.int64)
+    # the per-leg table's tau-independent columns (one path set: the same for every lane); a lane's first
+    # velocity and an endpoint's polish use the scalar evaluator on one path
+    S = np.zeros((6, HEX_WIDTH), np.complex128)
+    _prepare_66_path(P, S)
+    for i in range(6):
+        for c in range(HEX_WIDTH):
+            for lane in range(LANES):
+                Tr[i * _LEG + c * LANES + lane], Ti[i * _LEG + c * LANES + lane] = S[i, c].real, S[i, c].imag
+    prepared = np.zeros(3)
+    K = np.zeros((3, 0, 0, 0), np.complex128)
+    zs, ws, Hs, Hts = np.zeros(n, np.complex128), np.zeros(n + 1, np.complex128), np.zeros(n, np.complex128), \
+        np.zeros(n, np.complex128)
+    Js, pivots_s = np.zeros((n, n), np.complex128), np.zeros(n, np.int64)
+    following = 0
+    running = 0
+    for lane in range(LANES):
+        if following < count:
+            _take_path(lane, following, starts, gammas, settings[0], zr, zi, gr, gi, t, h, lane_steps, successes,
+                       k1_current, factors_at_z, path)
+            following += 1
+            running += 1
+    while running > 0:
+        need_k1 = False
+        for lane in range(LANES):
+            ok[lane] = True
+            need_k1 = need_k1 or (path[lane] >= 0 and not k1_current[lane])
+            if path[lane] >= 0:
+                lane_steps[lane] += 1
+                if h[lane] >= 1.0 - t[lane]:
+                    h[lane] = 1.0 - t[lane]
+                    t1[lane] = 1.0
+                else:
+                    t1[lane] = t[lane] + h[lane]
+            t_mid[lane] = t[lane] + 0.5 * h[lane]
+        # k1 at (z, t): kept after a rejected step; else with the corrector's last factors (F_t alone evaluated);
+        # a path's first one afresh
+        if need_k1:
+            _tau_lanes(t, gr, gi, taur, taui, dtr, dti)
+            _prepare_66_lanes(P, Tr, Ti, Sr, Si, taur, taui)
+            _common_66_lanes(P, zr, zi, Cr, Ci)
+            _velocity_rhs_66_lanes(P, Tr, Ti, Sr, Si, zr, zi, Cr, Ci, dtr, dti, Xr, Xi)
+            _lu_solve_lanes(Fr, Fi, kept_pivots, Xr, Xi)
+            for lane in range(LANES):
+                if path[lane] < 0 or k1_current[lane]:
+                    continue
+                if factors_at_z[lane]:
+                    for k in range(n):
+                        k1r[k * LANES + lane], k1i[k * LANES + lane] = Xr[k * LANES + lane], Xi[k * LANES + lane]
+                else:
+                    for k in range(n):
+                        zs[k] = complex(zr[k * LANES + lane], zi[k * LANES + lane])
+                    prepared[0] = 0.0
+                    _evaluate(HEXAPOD_66, K, P, S, prepared, zs, complex(taur[lane], taui[lane]),
+                              complex(dtr[lane], dti[lane]), ws, Hs, Js, Hts, False, True, True)
+                    for k in range(n):
+                        Hs[k] = -Hts[k]
+                    ok[lane] = _lu_factor_solve(Js, pivots_s, Hs)
+                    for k in range(n):
+                        k1r[k * LANES + lane], k1i[k * LANES + lane] = Hs[k].real, Hs[k].imag
+                k1_current[lane] = ok[lane]
+        # classical Runge-Kutta predictor: k2, k3 at t + h/2, k4 (into X) at t1
+        _tau_lanes(t_mid, gr, gi, taur, taui, dtr, dti)
+        _prepare_66_lanes(P, Tr, Ti, Sr, Si, taur, taui)
+        _shift_lanes(zr, zi, 0.5, h, k1r, k1i, ztr, zti)
+        _velocity_66_lanes(P, Tr, Ti, Sr, Si, ztr, zti, Cr, Ci, dtr, dti, k2r, k2i, Jr, Ji, pivots, stage_ok, work)
+        ok &= stage_ok
+        _shift_lanes(zr, zi, 0.5, h, k2r, k2i, ztr, zti)
+        _velocity_66_lanes(P, Tr, Ti, Sr, Si, ztr, zti, Cr, Ci, dtr, dti, k3r, k3i, Jr, Ji, pivots, stage_ok, work)
+        ok &= stage_ok
+        _shift_lanes(zr, zi, 1.0, h, k3r, k3i, ztr, zti)
+        _tau_lanes(t1, gr, gi, taur, taui, dtr, dti)
+        _prepare_66_lanes(P, Tr, Ti, Sr, Si, taur, taui)
+        _velocity_66_lanes(P, Tr, Ti, Sr, Si, ztr, zti, Cr, Ci, dtr, dti, Xr, Xi, Jr, Ji, pivots, stage_ok, work)
+        ok &= stage_ok
+        for k in range(n):
+            for lane in range(LANES):
+                u = k * LANES + lane
+                s = h[lane] / 6.0
+                ztr[u] = zr[u] + s * (k1r[u] + 2.0 * k2r[u] + 2.0 * k3r[u] + Xr[u])
+                zti[u] = zi[u] + s * (k1i[u] + 2.0 * k2i[u] + 2.0 * k3i[u] + Xi[u])
+        # Newton corrector at t1, every lane's iterations together until each has converged or failed
+        for lane in range(LANES):
+            live[lane] = ok[lane] and path[lane] >= 0
+            ok[lane] = False
+            factors_at_z[lane] = False
+        any_live = np.any(live)
+        for it in range(iterations):
+            if not any_live:
+                break
+            _common_66_lanes(P, ztr, zti, Cr, Ci)
+            _jacobian_66_lanes(P, Sr, Si, ztr, zti, Cr, Ci, Xr, Xi, Jr, Ji, True)
+            _lu_lanes(Jr, Ji, pivots, Xr, Xi, stage_ok, work[0], work[1], work[2], work[3], work[4])
+            any_live = False
+            for lane in range(LANES):
+                if not live[lane]:
+                    continue
+                live[lane] = False
+                if not stage_ok[lane]:
+                    continue
+                update = 0.0
+                size = 0.0
+                for k in range(n):
+                    u = k * LANES + lane
+                    ztr[u] -= Xr[u]
+                    zti[u] -= Xi[u]
+                    update = max(update, Xr[u] * Xr[u] + Xi[u] * Xi[u])
+                    size = max(size, ztr[u] * ztr[u] + zti[u] * zti[u])
+                step = math.sqrt(update)
+                scale = 1.0 + math.sqrt(size)
+                if it == 0:
+                    first[lane] = step / scale
+                if (it == 0 and step > max_first * scale) or (it > 0 and step > contraction * previous[lane]):
+                    continue
+                previous[lane] = step
+                if step <= tol * scale:
+                    ok[lane] = True
+                    factors_at_z[lane] = True
+                    for k in range(n):
+                        kept_pivots[k * LANES + lane] = pivots[k * LANES + lane]
+                    for u in range(lane, n * n * LANES, LANES):
+                        Fr[u], Fi[u] = Jr[u], Ji[u]
+                else:
+                    live[lane] = True
+                    any_live = True
+        # each lane's step control (_track_one's); a lane whose path ended takes the next path
+        for lane in range(LANES):
+            p = path[lane]
+            if p < 0:
+                continue
+            end = -1
+            if ok[lane]:
+                size = 0.0
+                for k in range(n):
+                    u = k * LANES + lane
+                    zr[u], zi[u] = ztr[u], zti[u]
+                    size = max(size, zr[u] * zr[u] + zi[u] * zi[u])
+                t[lane] = t1[lane]
+                k1_current[lane] = False
+                successes[lane] += 1
+                if step_target > 0.0:
+                    growth = STEP_GROWTH_MAX if successes[lane] > 1 or lane_steps[lane] == 1 else 1.0
+                    if first[lane] > 0.0:
+                        factor = STEP_SAFETY * (step_target / first[lane]) ** 0.2
+                        h[lane] = min(max(factor, 0.5), growth) * h[lane]
+                    else:
+                        h[lane] = growth * h[lane]
+                    h[lane] = min(h[lane], h_max)
+                if math.sqrt(size) > at_infinity:
+                    end = AT_INFINITY_REACHED
+                elif t[lane] >= 1.0:
+                    end = REGULAR
+            else:
+                h[lane] *= 0.5
+                successes[lane] = 0
+                if h[lane] < h_min:
+                    end = ENDGAME_SINGULAR if 1.0 - t[lane] < endgame else STEP_FAILED
+            if end < 0 and lane_steps[lane] >= max_steps:
+                end = STEPS_EXHAUSTED
+            if end < 0:
+                continue
+            for k in range(n):
+                zs[k] = complex(zr[k * LANES + lane], zi[k * LANES + lane])
+            prepared[0] = 0.0
+            outcome[p] = _end_path(P, S, prepared, zs, ws, Hs, Hts, Js, pivots_s, end, final_iterations, final_tol)
+            steps[p] = lane_steps[lane]
+            t_end[p] = t[lane]
+            for k in range(n):
+                ends[p, k] = zs[k]
+                for j in range(n):
+                    jacobians[p, k, j] = Js[k, j]
+            if following < count:
+                _take_path(lane, following, starts, gammas, settings[0], zr, zi, gr, gi, t, h, lane_steps,
+                           successes, k1_current, factors_at_z, path)
+                following += 1
+            else:
+                path[lane] = -1
+                running -= 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _take_path(lane, p, starts, gammas, h0, zr, zi, gr, gi, t, h, lane_steps, successes, k1_current,
+               factors_at_z, path):
+    """Lane ``lane`` takes path ``p``: its start, its gamma, t = 0 and the first step ``h0``."""
+    path[lane] = p
+    for k in range(N66):
+        zr[k * LANES + lane], zi[k * LANES + lane] = starts[p, k].real, starts[p, k].imag
+    gr[lane], gi[lane] = gammas[p].real, gammas[p].imag
+    t[lane] = 0.0
+    h[lane] = h0
+    lane_steps[lane] = 0
+    successes[lane] = 0
+    k1_current[lane] = False
+    factors_at_z[lane] = False
 
 
 def available_cores() -> int:
