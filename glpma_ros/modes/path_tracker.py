@@ -9,8 +9,12 @@ correction; after a success the next step is chosen from the size of the first c
 error, of order h^5), aiming at ``STEP_TARGET`` (and not longer than the last one right after a failed correction).
 A compiled call (:func:`track_paths`; complex LU with partial pivoting, in place, the corrector's last factors kept
 for the next step's first predictor stage) tracks a batch of paths; at ``t = 1`` Newton's method polishes the
-endpoint.  The paths are independent: :func:`track` splits them over threads, each running the compiled kernel
-(which releases the GIL) on a chunk of paths; the endpoints do not depend on the thread count.  The system along
+endpoint.  The 6-6's paths advance in lockstep (:func:`_track_66_lanes`): ``LANES`` paths at a time, each with its
+own point, step and state, their stages and Newton iterations formed together with the paths innermost (real and
+imaginary parts in separate arrays), so that the compiler vectorises the evaluator, the LU and the step arithmetic
+across them; the steps are those of one path alone.  The paths are independent: :func:`track` splits them over
+threads, each running the compiled kernel (which releases the GIL) on a chunk of paths; the endpoints do not depend
+on the thread count.  The system along
 the path is evaluated by the family's own evaluator from its parameters interpolated at ``tau`` (3-RPR, 6-6:
 residual, Jacobian and ``dF/dtau`` written out, the per-leg quantities prepared once per distinct ``tau``, the
 6-6's from their coefficients in ``tau`` formed once per path set), or for any family of quadrics from their
@@ -109,7 +113,8 @@ OUTCOMES = ("regular", "at_infinity", "step_failed", "max_steps", "singular", "s
 #: the paths left over the threads' count (a 6-6's 40 on two threads: 10, 8, 6, 4, 3, 3, 2, 1, 1, 1, 1).  The threads
 #: take the next chunk as they finish one, and paths differ in their steps (a 6-6 path takes 15 to 60): the large
 #: first chunks keep the kernel calls few (each costs a few microseconds against about 0.2 ms per 6-6 path), the
-#: single paths at the end leave a thread idle for one path at most while the other finishes
+#: single paths at the end leave a thread idle for one path at most while the other finishes.  The 6-6's lockstep
+#: kernel takes an equal share per thread instead (its lanes stay busy only on many paths)
 GUIDED_SHARE = 0.5
 #: by default a thread per this many paths at most: a thread hand-over costs tens of microseconds (more on a busy
 #: machine), about what a few 3-RPR paths take (50 us each): its 6 paths took 0.29 ms on one thread, 0.37 ms on two
@@ -1362,8 +1367,11 @@ def track(path: ParameterPath, starts, gammas, settings=SETTINGS, threads=None):
         return ends, jac, outcome, steps, t_end
     bounds, lo = [], 0
     while lo < count:
-        size = max(1, math.ceil(GUIDED_SHARE * (count - lo) / threads))
-        bounds.append((lo, lo + size))
+        if path.kind == HEXAPOD_66:                      # lockstep: an equal share per thread keeps its lanes busy
+            size = math.ceil(count / threads)
+        else:
+            size = max(1, math.ceil(GUIDED_SHARE * (count - lo) / threads))
+        bounds.append((lo, min(lo + size, count)))
         lo += size
     taken = itertools.count()                # next(...) is atomic under the GIL: each chunk is taken once
 
