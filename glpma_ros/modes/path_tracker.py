@@ -1060,8 +1060,10 @@ def _velocity_66_lanes(P, Tr, Ti, Sr, Si, zr, zi, Cr, Ci, dtr, dti, Xr, Xi, Jr, 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _end_path(P, S, prepared, zs, ws, Hs, Hts, Js, pivots, outcome, final_iterations, final_tol):
     """A path's end at ``zs``: a regular endpoint (``outcome`` REGULAR) polished by Newton's method at t = 1 as in
-    :func:`_track_one`, ``F_z`` there in ``Js``; returns the outcome (SINGULAR when ``F_z`` is)."""
+    :func:`_track_one`, ``F_z`` there in ``Js`` (zero for any other outcome); returns the outcome (SINGULAR when
+    ``F_z`` is)."""
     if outcome != REGULAR:
+        Js[:, :] = 0.0
         return outcome
     K = np.zeros((3, 0, 0, 0), np.complex128)
     for _ in range(final_iterations):
