@@ -58,3 +58,35 @@ def test_the_family_evaluator_tracks_to_the_dense_quadrics_endpoints(name):
         gap = np.max(np.abs(structured[:, None, :] - dense[None, :, :]), axis=2) / size[None, :]
         assert np.all(gap.min(axis=1) <= SAME_ENDPOINT), gap.min(axis=1)
         assert sorted(gap.argmin(axis=1)) == list(range(family.root_count))
+
+
+#: the lockstep kernel and the path-by-path one take the same steps up to round-off, which may move a step
+#: decision near its threshold: a path's step count may differ by a few (the A/B on 840 paths: 19 differed, by 1 or 2)
+STEP_SLACK = 4
+
+
+def test_the_6_6_lockstep_follows_each_path_as_alone():
+    """The 6-6's lockstep kernel (``LANES`` paths together) against the path-by-path one (``track_paths_alone``) on the
+    same parameter path: every path the same outcome and endpoint, about the same steps; a path count that is not a
+    multiple of the lanes (and fewer paths than lanes) leaves a path's endpoint as it was."""
+    start = monodromy.load_start_system("hexapod_66")
+    family, n = start.family, start.family.n_unknowns
+    rng = np.random.default_rng(343434)
+    path = family.parameter_path(start.params, family.random_params(rng))
+    gammas = np.full(len(start.solutions), pt.random_gammas(rng, 1)[0])
+    lockstep = pt.track(path, start.solutions, gammas, threads=1)
+    assert np.count_nonzero(lockstep[2] == pt.REGULAR) >= len(start.solutions) // 2     # real work
+    count = len(start.solutions)
+    alone = (np.empty((count, n), complex), np.empty((count, n, n), complex), np.empty(count, np.int64),
+             np.empty(count, np.int64), np.empty(count))
+    pt.track_paths_alone(path.kind, path.K, path.P, np.ascontiguousarray(start.solutions), gammas, pt.SETTINGS, *alone)
+    assert np.array_equal(alone[2], lockstep[2])
+    assert np.all(np.abs(alone[3] - lockstep[3]) <= STEP_SLACK)
+    regular = alone[2] == pt.REGULAR
+    size = 1.0 + np.max(np.abs(alone[0][regular]), axis=1)
+    assert np.all(np.max(np.abs(alone[0][regular] - lockstep[0][regular]), axis=1) <= SAME_ENDPOINT * size)
+    for few in (slice(0, 3), slice(5, 16)):
+        part = pt.track(path, start.solutions[few], gammas[few], threads=1)
+        assert np.array_equal(part[2], lockstep[2][few])
+        size = 1.0 + np.max(np.abs(part[0]), axis=1)
+        assert np.all(np.max(np.abs(part[0] - lockstep[0][few]), axis=1) <= SAME_ENDPOINT * size)

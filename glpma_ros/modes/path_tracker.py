@@ -651,7 +651,14 @@ def track_paths(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, 
     (:func:`_track_66_lanes`), every other kind's one after the other (:func:`_track_one`)."""
     if kind == HEXAPOD_66:
         _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end)
-        return
+    else:
+        track_paths_alone(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def track_paths_alone(kind, K, P, starts, gammas, settings, ends, jacobians, outcome, steps, t_end):
+    """:func:`track_paths` one path after the other (:func:`_track_one`), for any kind (the 6-6's lockstep kernel
+    is checked against it)."""
     n = starts.shape[1]
     m = K.shape[1] if kind == DENSE else n
     z = np.empty(n, np.complex128)
