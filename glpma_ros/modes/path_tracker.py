@@ -696,7 +696,7 @@ def track_paths_alone(kind, K, P, starts, gammas, settings, ends, jacobians, out
 # ==========================================================================================================
 #: paths advanced together by :func:`_track_66_lanes`: every array holds one value per lane in consecutive
 #: memory (real and imaginary parts apart), so that the compiler vectorises the loops over the lanes (4 doubles
-#: per AVX2 register, two registers per loop pass); 8 lanes keep 7 of 8 busy on average over the 6-6's 40 paths.
+#: per AVX2 register: two vector passes per loop); 8 lanes keep 7 of 8 busy on average over the 6-6's 40 paths.
 #: The offsets use LANES (a constant: the compiler sees that rows do not overlap) but the loops run to the lanes'
 #: count taken from an array's length: with a constant count of 8 the compiler unrolls a loop instead and does not
 #: vectorise it
