@@ -334,7 +334,9 @@ class FkEndpoints:
     def on_set_parameters(self, parameters) -> SetParametersResult:
         """The node's parameters callback: checked and applied by the service (before configure:
         checked only, applied at configure)."""
-        mine = [p for p in parameters if not p.name.startswith(qos.PREFIX)]    # QoS overrides: rclpy's, read-only
+        # the service's own; rclpy's (use_sim_time, which its TimeSource applies; the QoS overrides, read-only)
+        # are left to it
+        mine = [p for p in parameters if p.name in P.SPECS]
         if not mine:
             return SetParametersResult(successful=True)
         if self.service is None:        # not configured yet (lifecycle): checked now, applied at configure
