@@ -1,5 +1,7 @@
 """Estimator: tracking along smooth trajectories, round trips on random
 geometries, escalation to cold search, infeasible input, state kept."""
+import math
+
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings
@@ -120,3 +122,35 @@ def test_switch_solver_keeps_state(rpr, rpr_solutions):
         assert e.converged and e.solver == name and rpr.distance(e.x, rpr_solutions[0]) < 1e-6
     with pytest.raises(InputError, match="unknown solver"):
         est.set_solver("newton")
+
+
+def test_readings_in_one_call_give_what_the_long_way_gives(rpr, rpr_solutions):
+    """``estimate_readings`` (the node's everyday input: readings converted and solved warm in one compiled
+    call) returns the legs and the estimate that converting the readings and ``estimate`` give, and declines
+    (None, nothing done) where the long way must name the problem or search."""
+    mm = 1e-3                                   # readings in metres, the config in millimetres
+    offsets = np.array([0.5, -0.25, 1.0])       # leg_offsets: |B - A| = reading + offset
+    x0 = np.asarray(rpr_solutions[0], dtype=float)
+    one = Estimator(rpr, time_budget_s=BUDGET_S, initial_pose=x0, seed=0)
+    other = Estimator(rpr, time_budget_s=BUDGET_S, initial_pose=x0, seed=0)
+    band = (1.0, 1000.0)
+    for k, x in enumerate(variables_along(rpr, x0, 40)):
+        legs = rpr.inverse_kinematics(x)
+        readings = tuple(((legs - offsets) * mm).tolist())
+        got = one.estimate_readings(readings, mm, *band, offsets)
+        assert got is not None, k
+        got_legs, got_e = got
+        want_e = other.estimate(np.array(readings) / mm + offsets)
+        # the same numbers through the same compiled kernel: equal up to the last bit of the division
+        np.testing.assert_allclose(got_legs, legs, rtol=1e-12)
+        assert got_e.status == want_e.status and got_e.start == want_e.start == "warm", (k, got_e.message)
+        assert rpr.distance(got_e.x, want_e.x) < 1e-9 * rpr.scale, k
+        assert rpr.distance(one.last_x, other.last_x) < 1e-9 * rpr.scale, k
+    state = one.last_x.copy()
+    for bad in ((0.1, 0.1), (math.nan, 0.1, 0.1), (5.0, 0.1, 0.1), ("a", 0.1, 0.1)):
+        assert one.estimate_readings(bad, mm, *band, offsets) is None, bad
+    np.testing.assert_array_equal(one.last_x, state)          # declined: nothing done
+    cold = Estimator(rpr, time_budget_s=BUDGET_S, seed=0)      # no warm start yet
+    assert cold.estimate_readings(readings, mm, *band, offsets) is None
+    off = Estimator(rpr, time_budget_s=BUDGET_S, initial_pose=x0, seed=0, polish=False)
+    assert off.estimate_readings(readings, mm, *band, offsets) is None

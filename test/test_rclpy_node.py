@@ -410,3 +410,42 @@ def test_bench_part_4_pairs_every_pose_with_the_input_it_answers(dds_env, dds_do
     assert 0 < row["poses"] <= row["received"] <= row["sent"]
     assert row["received"] - row["dropped"] >= row["poses"]          # a pose per input solved, at most
     assert 0 <= row["client_late"] <= row["sent"] and row["p50"] <= row["p99"]
+
+
+def test_the_pose_is_stamped_by_the_ros_clock_simulated_or_not(ros):
+    """A pose's stamp is its input's arrival on the node's ROS clock: the /clock time with ``use_sim_time``
+    (at start and when switched on at runtime), the system time without."""
+    from rosgraph_msgs.msg import Clock
+
+    from glpma_ros.node.ros_node import FkNode
+    node = FkNode(parameter_overrides=[Parameter("manipulator_config", value=str(RPR_YAML)),
+                                       Parameter("initial_pose", value=SEED_X),
+                                       Parameter("time_budget_ms", value=GENEROUS_BUDGET_MS),
+                                       Parameter("use_sim_time", value=True)])
+    try:
+        with _client("glpma_fk_test_sim_time", node) as c:
+            clock_pub = c.node.create_publisher(Clock, "/clock", 10)
+            sim = Clock()
+            sim.clock.sec, sim.clock.nanosec = 1234, 500_000_000
+
+            def publish():
+                clock_pub.publish(sim)
+                c.publish([0.100, 0.120, 0.150])
+            # the node takes /clock in its executor: poses stamped 0 until the first one arrives
+            assert _spin_until(c.executor, lambda: any(p.header.stamp.sec == 1234 for p in c.poses),
+                               timeout_s=120.0, publish=publish), [p.header.stamp for p in c.poses]
+            assert any(p.header.stamp.nanosec == 500_000_000 for p in c.poses if p.header.stamp.sec == 1234)
+            assert node.set_parameters([Parameter("use_sim_time", value=False)])[0].successful
+            c.poses.clear()
+            before = time.time()
+            assert _spin_until(c.executor, lambda: bool(c.poses), timeout_s=120.0,
+                               publish=lambda: c.publish([0.100, 0.120, 0.150]))
+            stamp = c.poses[-1].header.stamp.sec + c.poses[-1].header.stamp.nanosec * 1e-9
+            # the system clock: at or after the first input was published (a bound, not a latency)
+            assert before - 1.0 <= stamp <= time.time() + 1.0, (before, stamp)
+            assert node.set_parameters([Parameter("use_sim_time", value=True)])[0].successful
+            c.poses.clear()
+            assert _spin_until(c.executor, lambda: any(p.header.stamp.sec == 1234 for p in c.poses),
+                               timeout_s=120.0, publish=publish)
+    finally:
+        node.destroy_node()

@@ -61,10 +61,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .. import solvers
 from ..errors import InputError
-from ..models.base import Pose
+from ..models.base import Pose, lengths_from_readings
 from ..models.reach import PairBounds
 from ..runtime.collector import HOLD
 from ..solvers import lm, local
@@ -223,6 +224,18 @@ class _Expected:
         self.s = max(seconds, (1.0 - EXPECTED_DECAY) * self.s)
 
 
+@njit(cache=True, error_model="numpy", nogil=True)
+def warm_readings_kernel(readings, divisor, lo, hi, offsets, buf, x0, legs_ref, legs, out) -> bool:
+    """:func:`~glpma_ros.models.base.lengths_from_readings` (sensor readings -> ``legs``, each reading inside
+    ``[lo, hi]``) and the warm stage (:func:`~glpma_ros.solvers.lm.warm_kernel` from ``x0``) in one compiled
+    call: the node's everyday input without a Python step between the two.  False (nothing solved) when a
+    reading is outside the band."""
+    if not lengths_from_readings(readings, divisor, lo, hi, offsets, legs):
+        return False
+    lm.warm_kernel(buf, legs, x0, legs_ref, out)
+    return True
+
+
 class Estimator:
     """Keeps the last solution and solves each new set of leg lengths from it.
 
@@ -371,19 +384,55 @@ class Estimator:
             arr = np.array(model.check_legs(arr), dtype=float)
         if self.time_budget_s <= 0.0:                   # no time for any work: straight to what the legs tell
             return self._search(np.array(model.check_legs(arr), dtype=float), t0, None)
-        # the warm stage: one compiled call (checks the legs, solves, measures); its output is read by the
-        # kernel's slot indices (the I_* layout, as LmOutput names them): one list of floats, no object per field
-        solver = self._lm
+        # the warm stage: one compiled call (checks the legs, solves, measures)
+        out = np.empty(self._lm.n_out)
+        lm.warm_kernel(self._warm_kernel_buffer(), arr, self.last_x, self.last_legs, out)
+        return self._after_warm(arr, out, t0)
+
+    def estimate_readings(self, readings, divisor: float, lo: float, hi: float, offsets):
+        """The everyday input in one compiled call (:func:`warm_readings_kernel`): sensor ``readings`` (one per
+        leg, a message's floats) divided by ``divisor``, each inside ``[lo, hi]`` (the plausible band, config
+        unit), plus ``offsets`` (:meth:`~glpma_ros.models.base.Manipulator.legs_from_sensors`), and the warm
+        stage of :meth:`estimate` on them.  ``(legs, estimate)``, the same estimate :meth:`estimate` gives
+        for those legs; None when this way does not apply (no warm start yet, the refinement off, no
+        budget, not one reading per leg, a reading outside the band or not a number): then nothing was
+        done, and the caller converts and checks the readings the long way and calls :meth:`estimate`."""
+        legs_ref = self.last_legs
+        if self.last_x is None or not self.polish or self.time_budget_s <= 0.0 or \
+                len(readings) != legs_ref.shape[0]:
+            return None
+        t0 = time.perf_counter()
+        HOLD.acquire()
+        try:
+            try:
+                values = np.array(readings, dtype=float)
+            except (TypeError, ValueError):
+                return None
+            legs, out = np.empty(legs_ref.shape[0]), np.empty(self._lm.n_out)
+            if not warm_readings_kernel(values, divisor, lo, hi, offsets, self._warm_kernel_buffer(),
+                                        self.last_x, legs_ref, legs, out):
+                return None
+            if self._redundant:
+                self.redundant.note_input()
+            return legs, self._after_warm(legs, out, t0)
+        finally:
+            HOLD.release()
+
+    def _warm_kernel_buffer(self) -> np.ndarray:
         buf = self._warm_buffer
-        if buf is None or self._warm_key != (model.leg_limits, self.leg_rtol):
-            buf = self._warm_buffer = solver.warm_buffer(
-                local.make_settings(model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol))
-            self._warm_key = (model.leg_limits, self.leg_rtol)
-        out = np.empty(solver.n_out)
-        lm.warm_kernel(buf, arr, self.last_x, self.last_legs, out)
+        if buf is None or self._warm_key != (self.model.leg_limits, self.leg_rtol):
+            buf = self._warm_buffer = self._lm.warm_buffer(
+                local.make_settings(self.model, max_iter=WARM_MAX_ITER, rtol=self.leg_rtol))
+            self._warm_key = (self.model.leg_limits, self.leg_rtol)
+        return buf
+
+    def _after_warm(self, arr, out, t0: float) -> Estimate:
+        """The warm stage's output ``out`` for legs ``arr``, read by the kernel's slot indices (the I_* layout,
+        as LmOutput names them: one list of floats, no object per field): the estimate when it converged
+        near the last pose, else the search."""
         info = out[self._info_at:].tolist()
         if info[lm.I_INPUT_OK] == 0.0:
-            model.check_legs(arr)                       # raises with the reason
+            self.model.check_legs(arr)                  # raises with the reason
         if info[lm.I_CONVERGED] == 1.0 and \
                 info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
             n = self._n
@@ -398,7 +447,7 @@ class Estimator:
                 self.last_x, self.last_legs = x, arr
                 return e
             return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
-        return self._search(arr, t0, solver.result(out))
+        return self._search(arr, t0, self._lm.result(out))
 
     def _advance(self, x, legs):
         """``x`` (for ``legs``) becomes the warm start of the next input."""

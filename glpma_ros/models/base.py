@@ -22,9 +22,24 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..errors import InputError
 from .kernels import population_fitness, population_residuals
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def lengths_from_readings(readings, divisor, lo, hi, offsets, out) -> bool:
+    """The usual measured input in one compiled pass: each reading divided by ``divisor`` (a topic's metres ->
+    the config's unit) must lie in ``[lo, hi]`` (the plausible band: finite, no unit mistake possible), then
+    ``out = readings / divisor + offsets`` (:meth:`Manipulator.legs_from_sensors`).  False, ``out`` partly
+    written, when a reading is outside the band or not a number (NaN): the caller's checks then name it."""
+    for i in range(readings.shape[0]):
+        x = readings[i] / divisor
+        if not (lo <= x <= hi):
+            return False
+        out[i] = x + offsets[i]
+    return True
 
 
 @dataclass(frozen=True)

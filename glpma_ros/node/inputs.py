@@ -11,6 +11,7 @@ import numpy as np
 
 from ..config import check_units, plausible_band
 from ..errors import InputError
+from ..models.base import lengths_from_readings
 from .input_topic import model_is_actuated
 
 
@@ -39,6 +40,12 @@ class InputConverter:
         self.metres_per_unit = float(model.metres_per_unit)
         self._band = plausible_band(model)          # config unit
         self._actuated = model_is_actuated(model)
+        #: how a leg-length reading becomes a leg length (:func:`~glpma_ros.models.base.lengths_from_readings`:
+        #: metres per config unit, the plausible band's ends, the config's ``leg_offsets``); None for an
+        #: actuated family, whose readings the model converts (:meth:`to_config_unit`)
+        self.readings = None if self._actuated else (
+            self.metres_per_unit, float(self._band[0]), float(self._band[1]),
+            np.zeros(model.n_legs) if model.leg_offsets is None else np.array(model.leg_offsets, dtype=float))
         self.joint_names = joint_names
 
     @property
@@ -100,17 +107,17 @@ class InputConverter:
         model = self.model
         if self._actuated:
             return model.legs_from_si(self.legs_m(raw))
-        if type(raw) is tuple and len(raw) == model.n_legs:
+        if type(raw) is tuple and len(raw) == model.n_legs and self.readings is not None:
             # the usual input (a message's floats), every leg within the plausible band (finite, no unit
-            # mistake possible): the checks below would pass; deciding it on the Python floats saves their
-            # NumPy calls
+            # mistake possible): converted in one compiled pass; otherwise the checks below name the problem
             try:
-                legs = [v / self.metres_per_unit for v in raw]
-                usual = self._band[0] <= min(legs) and max(legs) <= self._band[1]
-            except TypeError:               # not numbers (or not comparable): the checks below name it
-                usual = False
-            if usual:
-                return model.legs_from_sensors(np.array(legs))      # the config's leg_offsets added
+                values = np.array(raw, dtype=float)
+            except (TypeError, ValueError):
+                values = None
+            if values is not None:
+                legs = np.empty(model.n_legs)
+                if lengths_from_readings(values, *self.readings, legs):
+                    return legs
         try:
             legs_m = np.asarray(self.legs_m(raw), dtype=float).reshape(-1)
         except (TypeError, ValueError):

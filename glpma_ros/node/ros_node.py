@@ -50,6 +50,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSPolicyKind, QoSProfile
 from rclpy.qos_overriding_options import InvalidQosOverridesError, QoSOverridingOptions
 from rclpy.serialization import deserialize_message
 from rclpy.signals import SignalHandlerOptions
+from rclpy.time_source import USE_SIM_TIME_NAME as USE_SIM_TIME
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty, Float64MultiArray
 from tf2_msgs.msg import TFMessage
@@ -134,6 +135,13 @@ def parameter_values(node) -> dict:
     return values
 
 
+def _use_sim_time(node) -> bool:
+    """The node's ``use_sim_time`` (declared by rclpy for every node; False when not a bool, as rclpy's
+    TimeSource reads it)."""
+    parameter = node.get_parameter(USE_SIM_TIME)
+    return parameter.type_ == Parameter.Type.BOOL and bool(parameter.value)
+
+
 class FkEndpoints:
     """What both rclpy nodes hold as a member (:class:`FkNode`, :class:`FkLifecycleNode`), handed the
     node it serves and how that node creates and destroys its publishers (a lifecycle node's are
@@ -150,6 +158,11 @@ class FkEndpoints:
         self.service = None
         self._stopped = True
         self._clock = node.get_clock()
+        # whether the ROS clock runs on simulated time (use_sim_time, which rclpy's TimeSource follows):
+        # kept here from the parameter, read on every input at no cost (the clock's own flag is a call
+        # into rcl, a tenth of the input path when the caches are cold between inputs)
+        self._sim_time = _use_sim_time(node)
+        node.add_post_set_parameters_callback(self._note_use_sim_time)
 
     def open(self, values: dict) -> None:
         """Build the service (reads the config), warm up the solvers, create every endpoint and
@@ -252,8 +265,12 @@ class FkEndpoints:
     def _now_ns(self) -> int:
         """The node's ROS clock now (ns): the system clock read directly unless simulated time is active --
         what the ROS clock reads then, at a tenth of the cost of ``Clock.now()`` and its ``Time`` object."""
-        clock = self._clock
-        return clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
+        return self._clock.now().nanoseconds if self._sim_time else time.time_ns()
+
+    def _note_use_sim_time(self, parameters) -> None:
+        for parameter in parameters:
+            if parameter.name == USE_SIM_TIME and parameter.type_ == Parameter.Type.BOOL:
+                self._sim_time = parameter.value
 
     def _on_joint_state(self, data: bytes, passed_over: int) -> None:
         if not self._taking(passed_over):
@@ -317,7 +334,9 @@ class FkEndpoints:
     def on_set_parameters(self, parameters) -> SetParametersResult:
         """The node's parameters callback: checked and applied by the service (before configure:
         checked only, applied at configure)."""
-        mine = [p for p in parameters if not p.name.startswith(qos.PREFIX)]    # QoS overrides: rclpy's, read-only
+        # the service's own; rclpy's (use_sim_time, which its TimeSource applies; the QoS overrides, read-only)
+        # are left to it
+        mine = [p for p in parameters if p.name in P.SPECS]
         if not mine:
             return SetParametersResult(successful=True)
         if self.service is None:        # not configured yet (lifecycle): checked now, applied at configure

@@ -238,8 +238,15 @@ class FkService:
         arrival = time.perf_counter() if arrival is None else arrival
         with self._lock:
             try:
-                legs = self.inputs.to_config_unit(legs_m)
-                estimate = self.estimator.estimate(legs)
+                # a message's floats, when the everyday conditions hold: converted and solved warm in one
+                # compiled call (Estimator.estimate_readings), else (None) converted and checked the long way
+                done = self.estimator.estimate_readings(legs_m, *self.inputs.readings) \
+                    if type(legs_m) is tuple and self.inputs.readings is not None else None
+                if done is None:
+                    legs = self.inputs.to_config_unit(legs_m)
+                    estimate = self.estimator.estimate(legs)
+                else:
+                    legs, estimate = done
             except InputError as exc:
                 return self._reject(str(exc), str(exc), None, arrival)
             except Exception as exc:  # noqa: BLE001 - the node must survive anything

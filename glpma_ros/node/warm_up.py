@@ -9,7 +9,7 @@ import time
 import numpy as np
 
 from ..estimation.covariance import warm_up as warm_up_covariance
-from ..runtime.precompile import cache_counts, describe_cache_use, warm_up_pose
+from ..runtime.precompile import cache_counts, describe_cache_use, exercise_readings, warm_up_pose
 
 #: solvers warmed up at start (with the configured one): the papers' real-time solvers
 WARM_UP_SOLVERS = ("glpma", "g3pcx", "rcga")
@@ -64,7 +64,9 @@ class WarmUp:
                     for _ in range(max_tries):
                         t = time.perf_counter()
                         try:
-                            self._build_estimator(values, start).estimate(legs)
+                            estimator = self._build_estimator(values, start)
+                            estimator.estimate(legs)
+                            exercise_readings(estimator, legs)      # the everyday input's one compiled call
                         except Exception as exc:  # noqa: BLE001 - reported, not fatal
                             self.log.warning(f"warm-up with {name} failed: {exc}")
                             break

@@ -10,6 +10,7 @@ cache for every solver and both manipulator kinds ahead of time, printing a line
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -19,6 +20,7 @@ from numba.core.registry import CPUDispatcher
 from .. import solvers
 from ..config import load_manipulator, resolve_config
 from ..estimation.estimator import Estimator
+from ..models.base import lengths_from_readings
 from ..modes import homotopy
 from ..modes.monodromy import has_start_system
 from ..modes.multistart import solve_all
@@ -85,14 +87,29 @@ def exercise(model, solver: str) -> float:
     for legs in (feasible, infeasible):
         for start in (None, warm_up_pose(model)):
             for polish in (True, False):
-                Estimator(model, solver=solver, time_budget_s=WARM_UP_BUDGET_S, polish=polish,
-                          initial_pose=start, max_evals=WARM_UP_EVALS).estimate(legs)
+                estimator = Estimator(model, solver=solver, time_budget_s=WARM_UP_BUDGET_S, polish=polish,
+                                      initial_pose=start, max_evals=WARM_UP_EVALS)
+                estimator.estimate(legs)
+                exercise_readings(estimator, legs)
         # the solver called on its own (the papers' settings, as the bench and solve-all call it), which a model
         # with a closed form never reaches through the Estimator
         for polish in (True, False):
             solvers.solve(solver, model, legs, rng=0, budget_s=WARM_UP_BUDGET_S, max_evals=WARM_UP_EVALS,
                           polish=polish)
     return time.perf_counter() - t0
+
+
+def exercise_readings(estimator, legs) -> None:
+    """Load the node's everyday-input path for ``legs`` (leg lengths, config unit): a message's readings
+    converted on their own (:func:`~glpma_ros.models.base.lengths_from_readings`, what the node's input
+    conversion calls) and with the warm stage (:meth:`Estimator.estimate_readings
+    <glpma_ros.estimation.estimator.Estimator.estimate_readings>`, which does nothing without a warm start
+    or for an actuated family's leg vector).  The readings' unit, band and offsets are neutral ones: the
+    compiled code is the same whatever they are."""
+    values = np.array(legs, dtype=float).reshape(-1)
+    offsets = np.zeros(values.size)
+    lengths_from_readings(values, 1.0, -math.inf, math.inf, offsets, np.empty(values.size))
+    estimator.estimate_readings(tuple(values.tolist()), 1.0, -math.inf, math.inf, offsets)
 
 
 def exercise_solve_all(model, methods=("homotopy", "multistart", "g3pcx")) -> float:

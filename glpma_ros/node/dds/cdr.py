@@ -277,6 +277,9 @@ def _doubles(buf, offset: int) -> tuple[tuple, int]:
 def float64_multi_array_data(buf) -> tuple:
     """``data`` of a ``std_msgs/Float64MultiArray`` in CDR_LE (the layout is skipped)."""
     n_dims, offset = _count(buf, HEADER_SIZE)
+    if n_dims == 0:             # the usual message, no layout: data_offset, the data's count, its doubles
+        (n,) = _U32.unpack_from(buf, offset + 4)
+        return struct.unpack_from(f"<{n}d", buf, offset + 8 + (-(offset + 8 - HEADER_SIZE) % 8 if n else 0))
     for _ in range(n_dims):
         _, offset = _string(buf, offset)
         offset += -(offset - HEADER_SIZE) % 4 + 8                # size, stride
