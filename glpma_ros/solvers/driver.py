@@ -26,6 +26,10 @@ COST_DECAY = 0.5
 #: runs two to three times slower while the core's sibling is busy, and a tail longer than its reserve is time
 #: past the deadline, while a reserve longer than the tail only ends the search a few microseconds early
 TAIL_DECAY = 0.1
+#: ... and a compiled call's entry (from Python to the kernel's first clock read: unboxing its arguments, 12-50 us
+#: and up to 0.15 ms while the core's sibling is busy) this share per call: the last call of a solve starts only when
+#: its entry fits, and an entry longer than its estimate is time past the deadline
+ENTRY_DECAY = 0.02
 #: the first refinement's time per iteration, in evaluations of the fitness (one residual vector with its
 #: Jacobian costs a few evaluations of the fitness; measured on the next refinement)
 POLISH_ITERATION_EVALS = 8
@@ -289,7 +293,7 @@ class Costs:
 
     def note_entry(self, seconds: float) -> None:
         if seconds > 0.0:
-            self.entry_s = self._track(self.entry_s, seconds)
+            self.entry_s = self._track(self.entry_s, seconds, ENTRY_DECAY)
 
     def note_tail(self, seconds: float) -> None:
         self.tail_s = self._track(self.tail_s, seconds, TAIL_DECAY)
