@@ -402,3 +402,33 @@ def test_node_entry_chooses_the_transport(monkeypatch, capsys):
     assert node_entry.main(["--transport", "rclpy"]) == 2
     assert "rclpy is not importable" in capsys.readouterr().err
     assert node_entry.main(["--transport", "zmq"]) == 2
+
+
+def test_a_message_s_legs_get_the_config_s_leg_offsets(tmp_path):
+    """Readings from sensors that measure |B - A| less a fixed offset (the config's ``leg_offsets``, what
+    ``glpma-fk calibrate`` identifies) are answered with the pose whose legs are reading + offset, on the
+    everyday input's one-call way (a message's tuple of floats, warm, inside the band) and the long way (any
+    other sequence) alike."""
+    doc = yaml.safe_load(RPR_YAML.read_text())
+    offsets = [0.8, -0.5, 1.2]                       # mm, the config's unit
+    path = tmp_path / "offsets.yaml"
+    path.write_text(yaml.safe_dump({**doc, "leg_offsets": offsets}))
+    plain = FkService({"manipulator_config": str(RPR_YAML), **BUDGET})
+    svc = FkService({"manipulator_config": str(path), "initial_pose": SEED_X, **BUDGET})
+    model = svc.model
+    for k, dx in enumerate((0.0, 0.4, 0.8, 1.2)):
+        x = np.array(SEED_X) + np.array([dx, -dx, 0.002 * k])
+        legs_mm = model.inverse_kinematics(x)                       # |B - A|
+        readings_m = tuple(((legs_mm - offsets) * model.metres_per_unit).tolist())
+        out = svc.handle(readings_m, 0)
+        assert out.pose is not None, (k, out.reason)
+        position, orientation = pose_of(model, x)
+        # the pose is the one of the legs solved to round-off: a micrometre bounds it with room to spare
+        np.testing.assert_allclose(out.pose.position, position, atol=1e-6)
+        np.testing.assert_allclose(np.abs(np.dot(out.pose.orientation, orientation)), 1.0, atol=1e-9)
+        long_way = svc.handle(list(readings_m), 0)
+        assert long_way.pose is not None, (k, long_way.reason)
+        np.testing.assert_allclose(long_way.pose.position, position, atol=1e-6)
+        # without the offsets the same readings are other legs: not this pose
+        other = plain.handle(readings_m, 0)
+        assert other.pose is None or np.max(np.abs(np.asarray(other.pose.position) - position)) > 1e-4, k
