@@ -123,6 +123,10 @@ class FakeClock:
 @pytest.fixture
 def clock(monkeypatch):
     c = FakeClock()
+    # the costs a solve measured on the real clock (kept for the next solve of that solver and model, and the
+    # round-off search's round) are not this clock's: a test on it starts from none, whatever ran before it
+    monkeypatch.setattr(driver, "_LAST_COSTS", {})
+    monkeypatch.setattr(refine, "_ROUND_S", {})
     monkeypatch.setattr("time.perf_counter", c.read)
     monkeypatch.setattr("time.thread_time", c.read)
     for module, name in ((local, "lm_kernel"), (local, "multistart_kernel"), (lm, "lm_kernel"), (lm, "warm_kernel"),
