@@ -27,6 +27,7 @@ from glpma_ros import solvers
 from glpma_ros.cli import solve as cli
 from glpma_ros.config import load_manipulator, resolve_config
 from glpma_ros.estimation.estimator import Estimator
+from glpma_ros.node.dds import cdr
 from glpma_ros.node.input_topic import model_is_actuated
 from glpma_ros.node.service import FkService
 from glpma_ros.runtime import precompile
@@ -57,6 +58,14 @@ if path == "node":
         before, modules = signatures(), set(sys.modules)
         svc.handle([v * si for v in legs], stamp_ns=0)
         report(f"node input, {label}", before, modules)
+        # the same legs again as a leg_lengths message, from the warm state that input left (if it was solved):
+        # the one-call way (nothing, for an actuated family or without a warm state), its estimate after the write
+        message = cdr.Encoder().float64_multi_array([v * si for v in legs])
+        before, modules = signatures(), set(sys.modules)
+        outcome = svc.solve_message(message, 0)
+        if outcome is not None:
+            svc.account(outcome)
+        report(f"node message, {label}", before, modules)
     sys.exit(0)
 
 # glpma-fk solve: its exercise, then its solve (the estimator built and run)
@@ -111,13 +120,14 @@ CASES = {
 @pytest.mark.parametrize("path", ["node", "cli"])
 @pytest.mark.parametrize("config", list(CASES))
 def test_first_solve_after_warm_up_loads_nothing(config, path):
-    """``node``: the node's service after its warm-up, on each input; ``cli``: ``glpma-fk solve`` (its
+    """``node``: the node's service after its warm-up, on each input and on it again as a message; ``cli``:
+    ``glpma-fk solve`` (its
     exercise, then its solve), the Estimator's cold path and every solver on its own."""
     out = subprocess.run([sys.executable, "-c", CHILD, json.dumps([path, config, CASES[config], BUDGET_MS])],
                          capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert out.returncode == 0, out.stderr[-3000:]
     steps = [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
     # every path ran, on each case
-    assert len(steps) == len(CASES[config]) * (1 if path == "node" else 2 + len(SOLVERS)), out.stdout
+    assert len(steps) == len(CASES[config]) * (2 if path == "node" else 2 + len(SOLVERS)), out.stdout
     late = [s for s in steps if s["loaded"] or s["imported"]]
     assert not late, late

@@ -105,8 +105,8 @@ class InputConverter:
         return raw
 
     def to_config_unit(self, raw) -> np.ndarray:
-        """An input's leg lengths (metres, or a :class:`JointStateInput`) in the config's unit, with the
-        config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for; an actuated
+        """An input's leg lengths (metres, a :class:`JointStateInput` or a message's bytes) in the config's unit,
+        with the config's ``leg_offsets`` added: the lengths |B_i - A_i| the estimator solves for; an actuated
         family's actuator positions (radians, or metres for prismatic ones) as its leg vector."""
         model = self.model
         if self._actuated:
