@@ -273,11 +273,7 @@ class SolveLoop:
                 self._deliver(outcome)
             except Exception as exc:  # noqa: BLE001
                 self.service.log.error(f"internal error in the solve loop: {exc!r}")
-        with self._cond:
-            item, self._pending = self._pending, None
-            if item is None or self._closed:
-                self._busy = False
-                item = None
+        item = self._next_pending()
         if item is None:
             return outcome is not None
         if outcome is None:             # replaced, unsolved, by an input that arrived meanwhile
@@ -301,11 +297,17 @@ class SolveLoop:
                 self._solve(item)
             except Exception as exc:  # noqa: BLE001 - the loop must survive anything
                 self.service.log.error(f"internal error in the solve loop: {exc!r}")
-            with self._cond:
-                item, self._pending = self._pending, None
-                if item is None or self._closed:
-                    self._busy = False
-                    item = None
+            item = self._next_pending()
+
+    def _next_pending(self):
+        """The input that arrived during this thread's solve (taken: this thread solves it next), or None -- then
+        no solve is in progress any more."""
+        with self._cond:
+            item, self._pending = self._pending, None
+            if item is None or self._closed:
+                self._busy = False
+                return None
+            return item
 
     def _solve(self, item) -> None:
         self._deliver(self.service.solve(*item))
