@@ -55,8 +55,8 @@ import textwrap
 import time
 from pathlib import Path
 
-from glpma_ros.cli.api import OneLineParser
-from glpma_ros.errors import GlpmaError, InputError
+from glpma_ros.cli.api import OneLineParser, command_main
+from glpma_ros.errors import InputError
 from glpma_ros.node import params as P
 from glpma_ros.node.input_topic import config_is_actuated
 from glpma_ros.node.input_topic import input_topic as node_input_topic
@@ -66,7 +66,7 @@ from .bag_outcome import OFFLINE_BUDGET_MS, Summary
 from .bag_run import BagJob, make_logger, process_bag, topic_name
 from .extras import require
 from .parallel import EngineError, engine_name, run_tasks
-from .tables import fmt, table
+from .tables import add_summary_options, fmt, table
 
 PROG = "glpma-fk bag"
 STORAGES = ("mcap", "sqlite3")
@@ -147,29 +147,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="child frame of the transforms (default platform; the parent is parameter frame_id)")
     p.add_argument("--status-topic", default="~/status", metavar="TOPIC",
                    help="per-input status (default ~/status, i.e. /glpma_fk/status)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not "
-                                                               "a terminal)")
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    add_summary_options(p)
     return p
 
 
+@command_main(prog=PROG)
 def main(argv=None) -> int:
+    """Exit status: see the module's docstring (a failed worker's :class:`EngineError`: 1)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        require("bag", PROG)
-        ros = parse_ros_args(argv)
-        args = build_parser().parse_args(ros.other)
-        if args.scheduler:              # Dask comes with the map extra
-            require("map", PROG, modules=("dask", "distributed"))
-        return run(args, ros)
-    except EngineError as exc:
-        print(f"error: {PROG}: {exc}", file=sys.stderr)
-        return EXIT_NONE_CONVERGED
-    except GlpmaError as exc:
-        print(f"error: {PROG}: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
+    require("bag", PROG)
+    ros = parse_ros_args(argv)
+    args = build_parser().parse_args(ros.other)
+    if args.scheduler:              # Dask comes with the map extra
+        require("map", PROG, modules=("dask", "distributed"))
+    return run(args, ros)
 
 
 # -- inputs and outputs ---------------------------------------------------------------------------------

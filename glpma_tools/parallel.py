@@ -25,6 +25,9 @@ DASK_CONNECT_TIMEOUT = "5s"
 class EngineError(GlpmaError):
     """A worker failed (exit status 1: not the user's input)."""
 
+    #: the command's exit status (:func:`glpma_ros.cli.api.command_main`)
+    exit_status = 1
+
 
 def engine_name(workers: int, scheduler: str | None) -> str:
     return f"Dask {scheduler}" if scheduler else "this process" if workers == 1 else f"{workers} processes"

@@ -1,5 +1,6 @@
 """Numbers and tables as the tools print them: one cell formatter and one table formatter,
-Markdown (BENCHMARKS.md) or aligned plain text (terminal)."""
+Markdown (BENCHMARKS.md) or aligned plain text (terminal); and :func:`add_summary_options`, the options of a
+long run that ends with a summary (``glpma-fk bag``, ``glpma-fk map``)."""
 from __future__ import annotations
 
 import math
@@ -65,3 +66,11 @@ def table(head, rows, markdown: bool = True) -> str:
     widths = [max(len(r[i]) for r in lines if r is not None) for i in range(len(lines[0]))]
     return "\n".join("  ".join("-" * w for w in widths) if r is None else
                      "  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in lines)
+
+
+def add_summary_options(parser) -> None:
+    """``--no-progress`` (the run's progress bar on stderr, shown only where stderr is a terminal) and ``--json``
+    (the summary as one JSON object instead of the text) of a command's argparse ``parser``."""
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
+                                                                    "not a terminal)")
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")

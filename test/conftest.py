@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from glpma_ros.config import load_manipulator
+from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
 from glpma_tools.sim.domains import claim_domain
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,6 +30,19 @@ GENEROUS_BUDGET_MS = GENEROUS_BUDGET_S * 1e3
 #: measured by the benchmark (glpma-fk bench, Deadline honouring).
 OVERRUN_FACTOR = 10.0
 OVERRUN_SLACK_MS = 50.0
+
+
+def _have_msolve() -> bool:
+    try:
+        msolve_executable()
+    except ExactUnavailableError:
+        return False
+    return True
+
+
+#: whether the exact extra's msolve is installed (or on PATH); ``needs_msolve`` skips a test without it
+HAVE_MSOLVE = _have_msolve()
+needs_msolve = pytest.mark.skipif(not HAVE_MSOLVE, reason="the exact extra (msolve) is not installed")
 
 
 def overrun_bound_ms(budget_ms: float) -> float:

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import HEX_YAML, ROOT, RPR_YAML
+from conftest import HEX_YAML, ROOT, RPR_YAML, needs_msolve
 from glpma_ros.errors import GlpmaError
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS
@@ -34,13 +34,6 @@ REGENERATED_RELATIVE = 1e-12
 STORED_MODE_LEGS_RELATIVE = 1e-9
 #: hexapod cases whose exact solve is repeated here (msolve takes seconds each): the richest ones
 EXACT_HEXAPOD_CASES = 3
-
-try:
-    exact.msolve_executable()
-    HAVE_MSOLVE = True
-except exact.ExactUnavailableError:
-    HAVE_MSOLVE = False
-needs_msolve = pytest.mark.skipif(not HAVE_MSOLVE, reason="the exact extra (msolve) is not installed")
 
 
 def case_id(case):

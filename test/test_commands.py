@@ -11,6 +11,8 @@ import pytest
 
 from glpma_ros.cli import main as cli
 from glpma_ros.cli.api import Command
+from glpma_ros.errors import InputError
+from glpma_tools.parallel import EngineError
 
 
 def _python(code: str) -> str:
@@ -87,3 +89,13 @@ def test_a_command_main_turns_exits_and_errors_into_statuses(capsys):
     assert main(["--help"]) == 0
     assert main(["--bogus"]) == 2 and "error: x: unrecognized arguments: --bogus" in capsys.readouterr().err
     assert main(["fail"]) == 2 and capsys.readouterr().err == "error: no such thing\n"
+
+
+def test_a_command_main_names_its_command_and_keeps_an_errors_own_status(capsys):
+    """``command_main(prog=...)``: a GlpmaError's line names the command; a worker's failure
+    (glpma_tools.parallel.EngineError) ends with its own status 1, any other GlpmaError with 2."""
+    @cli.command_main(prog="glpma-fk x")
+    def main(argv):
+        raise (EngineError if argv == ["worker"] else InputError)("it went wrong")
+    assert main(["worker"]) == 1 and capsys.readouterr().err == "error: glpma-fk x: it went wrong\n"
+    assert main([]) == 2 and capsys.readouterr().err == "error: glpma-fk x: it went wrong\n"

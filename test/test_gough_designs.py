@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import CONFIG, GENEROUS_BUDGET_MS, GENEROUS_BUDGET_S
+from conftest import CONFIG, GENEROUS_BUDGET_MS, GENEROUS_BUDGET_S, needs_msolve
 from glpma_ros.config import load_manipulator, model_from_dict
 from glpma_ros.errors import ConfigError
 from glpma_ros.estimation.estimator import STATUS_CONVERGED, STATUS_INCONSISTENT, Estimator
@@ -110,17 +110,9 @@ def test_random_shared_joint_designs_track_to_round_off(generator):
         assert model.distance(e.x, target) <= 1e-9 * model.scale
 
 
-def _needs_msolve():
-    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
-    try:
-        msolve_executable()
-    except ExactUnavailableError:
-        pytest.skip("the exact extra (msolve) is not installed")
-
-
+@needs_msolve
 @pytest.mark.parametrize("case", ["reported 6-3", "random 3-3"])
 def test_exact_agrees_with_the_multistart_on_shared_joints(case):
-    _needs_msolve()
     if case == "reported 6-3":
         model = model_from_dict(ISSUE_63)
         legs = np.array([130.0, 148.0, 130.0, 148.0, 130.0, 148.0])
@@ -396,8 +388,8 @@ def test_cli_solve_redundant_json_names_the_faulty_leg(seven):
     assert out["consistency"] > out["consistency_limit"] and "left out" in out["message"]
 
 
+@needs_msolve
 def test_cli_solve_all_exact_refuses_redundant_legs(seven):
-    _needs_msolve()
     r = subprocess.run([sys.executable, "-m", "glpma_ros", "solve-all", "hexapod_7legs", "--exact", "--legs",
                         *map(repr, seven.example_leg_lengths.tolist())], capture_output=True, text=True)
     assert r.returncode == 2 and "redundant legs" in r.stderr and len(r.stderr.strip().splitlines()) == 1

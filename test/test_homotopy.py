@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, RPR_YAML
+from conftest import HAVE_MSOLVE, ROOT, RPR_YAML, needs_msolve
 from glpma_ros.config import load_manipulator, model_from_dict, resolve_config
 from glpma_ros.models import Hexapod66, Planar3RPR
 from glpma_ros.models.random_geometry import GENERATORS, random_hexapod_33, random_hexapod_63
-from glpma_ros.modes import exact, monodromy, path_tracker
 from glpma_ros.modes import homotopy as H
+from glpma_ros.modes import monodromy, path_tracker
 from glpma_ros.modes.homotopy_families import Planar3RPRFamily
 from glpma_ros.modes.multistart import default_method, solve_all
 
@@ -40,13 +40,6 @@ DIETMAIER = {"manipulator": "hexapod_66", "unit": "m",
 DIETMAIER_LEGS = [1.0, 0.645275, 1.086284, 1.503439, 1.281933, 0.771071]
 #: seeds (gammas and patches) tried on Dietmaier's case
 DIETMAIER_SEEDS = range(10)
-
-try:
-    exact.msolve_executable()
-    HAVE_MSOLVE = True
-except exact.ExactUnavailableError:
-    HAVE_MSOLVE = False
-needs_msolve = pytest.mark.skipif(not HAVE_MSOLVE, reason="the exact extra (msolve) is not installed")
 
 
 def assert_same_modes(model, found, certified):

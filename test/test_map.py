@@ -9,7 +9,7 @@ import pytest
 import yaml
 from matplotlib.colors import to_rgba
 
-from conftest import HEX_YAML, ROOT, RPR_YAML
+from conftest import HEX_YAML, ROOT, RPR_YAML, needs_msolve
 from glpma_ros.models.hexapod_66 import quaternion_from_matrix, rotation_from_vector
 from glpma_ros.modes.multistart import solve_all
 from glpma_tools import workspace_map as W
@@ -246,13 +246,9 @@ def test_a_mode_count_has_the_same_colour_in_every_map():
     assert np.allclose(to_rgba(count_colour(4)), to_rgba(count_colour(4 + 38)))
 
 
+@needs_msolve
 def test_exact_spot_check_certifies_a_sample(tmp_path):
     """--exact K: K points of the finished map certified by msolve; all agree on the seed 3-RPR."""
-    from glpma_ros.modes.exact import ExactUnavailableError, msolve_executable
-    try:
-        msolve_executable()
-    except ExactUnavailableError:
-        pytest.skip("glpma-fk map --exact needs the optional msolve (glpma_ros[exact])")
     p = _cli(RPR_YAML, "--out", tmp_path, "--resolution", 4, "--workers", 1, "--json", "--exact", 3)
     assert p.returncode == 0, p.stderr
     check = json.loads(p.stdout)["exact_check"]

@@ -9,20 +9,13 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT, RPR_YAML
-from glpma_ros.modes import exact
+from conftest import HAVE_MSOLVE, ROOT, RPR_YAML, needs_msolve
 from glpma_ros.modes import multistart_search as SA
 from glpma_ros.modes.multistart import solve_all
 from glpma_tools import workspace_map as W
 from glpma_tools.workspace_map.cli import DEFAULT_RESOLUTION, Z_DEFAULT, default_limits
 from glpma_tools.workspace_map.grid import point_seed
 from glpma_tools.workspace_map.plot import ON_SINGULARITY_LABEL, draw_map
-
-try:
-    exact.msolve_executable()
-    HAVE_MSOLVE = True
-except exact.ExactUnavailableError:
-    HAVE_MSOLVE = False
 
 #: modes match when their platform joints are within this share of the scale (as the certified-modes tests)
 MATCH_RELATIVE = 1e-6
@@ -62,7 +55,7 @@ def test_hexapod_map_point_gets_the_certified_count(hexapod, index):
     assert sum(found.hits) <= found.starts and found.partner_starts >= 0 and found.parity_starts <= found.starts
 
 
-@pytest.mark.skipif(not HAVE_MSOLVE, reason="the exact extra (msolve) is not installed")
+@needs_msolve
 def test_hexapod_map_point_modes_are_msolve_s(hexapod):
     """By meaning: each mode found is one msolve certifies (within MATCH_RELATIVE of the scale), one to one."""
     index = min(HEXAPOD_POINTS)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..cli.api import command_main, manipulator_parser, require, seed_type
 from ..config import load_document, model_from_dict, resolve_config
-from ..errors import GlpmaError, InputError
+from ..errors import InputError
 from ..estimation.estimator import STATIONARY
 from ..models.legs import REVOLUTE
 from ..models.rotations import matrix_from_quaternion, quaternion_from_matrix
@@ -101,17 +101,11 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-@command_main
+@command_main(prog=PROG)
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = build_parser().parse_args(argv)
-        report = run(args)
-    except GlpmaError as exc:
-        print(f"error: {PROG}: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        return 130
+    args = build_parser().parse_args(argv)
+    report = run(args)
     print(json.dumps(report) if args.json else text(report))
     return 0
 

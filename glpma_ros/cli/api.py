@@ -59,11 +59,17 @@ def fail(message: str) -> int:
     return EXIT_BAD_INPUT
 
 
-def command_main(main):
+def command_main(main=None, *, prog: str | None = None):
     """Decorator of a command's ``main(argv) -> exit status``, the one place where its outcomes
     become exit statuses: argparse's exit (``--help``: 0; a :class:`OneLineParser` usage error,
-    already printed: 2), a :class:`~glpma_ros.errors.GlpmaError` (one line on stderr, 2) and
-    Ctrl-C (130)."""
+    already printed: 2), a :class:`~glpma_ros.errors.GlpmaError` (one line on stderr, named ``prog``
+    where given -- ``error: PROG: message``; status 2, or the error's own ``exit_status`` where its class
+    has one, e.g. a failed worker's 1: not the user's input) and Ctrl-C (130).  ``@command_main`` or
+    ``@command_main(prog="glpma-fk bag")``."""
+    if main is None:
+        return functools.partial(command_main, prog=prog)
+    prefix = f"{prog}: " if prog else ""
+
     @functools.wraps(main)
     def run(argv=None) -> int:
         try:
@@ -71,7 +77,8 @@ def command_main(main):
         except SystemExit as exc:
             return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else fail(str(exc.code)))
         except GlpmaError as exc:
-            return fail(str(exc))
+            status = fail(prefix + str(exc))
+            return getattr(exc, "exit_status", status)
         except KeyboardInterrupt:
             return 130
     return run

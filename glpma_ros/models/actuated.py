@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from .base import Manipulator, Pose
+from .base import Manipulator, Pose, number_vector
 from .hexapod_66 import Hexapod66
 from .legs import (
     LENGTH,
@@ -114,10 +114,7 @@ class ActuatedLegs:
 
     def check_actuators(self, q) -> np.ndarray:
         """Validated actuator positions (one per leg, radians or config unit, as read), or :class:`InputError`."""
-        try:
-            arr = np.asarray(q, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"actuator positions are not numbers: {exc}") from None
+        arr = number_vector(q, "actuator positions")
         if arr.size != self.n_legs:
             raise InputError(f"expected {self.n_legs} actuator positions for {self.kind}, got {arr.size}")
         if not np.all(np.isfinite(arr)):
@@ -184,10 +181,7 @@ class ActuatedLegs:
 
     def check_legs(self, legs) -> np.ndarray:
         """A leg vector (validated), or actuator readings turned into one (:meth:`legs_from_sensors`)."""
-        try:
-            arr = np.asarray(legs, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"actuator positions are not numbers: {exc}") from None
+        arr = number_vector(legs, "actuator positions")
         if arr.size != self.leg_vector_size:
             return self.legs_from_sensors(arr)
         if not np.all(np.isfinite(arr)):
@@ -224,10 +218,7 @@ class ActuatedLegs:
     def readings_from_si(self, values) -> np.ndarray:
         """Actuator readings in SI (radians; metres for prismatic actuators, as on the topics) in the
         config's units (radians; the config unit)."""
-        try:
-            arr = np.array(values, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"actuator positions are not numbers: {exc}") from None
+        arr = number_vector(values, "actuator positions", copy=True)     # scaled in place below
         if arr.size == self.n_legs:
             prismatic = self.actuators == PRISMATIC
             with np.errstate(over="ignore", invalid="ignore"):

@@ -28,6 +28,15 @@ from ..errors import InputError
 from .kernels import population_fitness, population_residuals
 
 
+def number_vector(values, what: str, copy: bool = False) -> np.ndarray:
+    """``values`` (the ``what`` a caller hands a model, e.g. "leg lengths") as a flat float array -- a copy of
+    its own with ``copy`` -- or :class:`InputError` naming them: the first check of every such vector."""
+    try:
+        return (np.array if copy else np.asarray)(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what} are not numbers: {exc}") from None
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def lengths_from_readings(readings, divisor, lo, hi, offsets, out) -> bool:
     """The usual measured input in one compiled pass: each reading divided by ``divisor`` (a topic's metres ->
@@ -155,10 +164,7 @@ class Manipulator:
     # -- validation --------------------------------------------------------
     def check_legs(self, legs) -> np.ndarray:
         """Validated leg lengths as a float array, or :class:`InputError`."""
-        try:
-            arr = np.asarray(legs, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"leg lengths are not numbers: {exc}") from None
+        arr = number_vector(legs, "leg lengths")
         if arr.size != self.n_legs:
             raise InputError(f"expected {self.n_legs} leg lengths for {self.kind}, got {arr.size}")
         if not np.all(np.isfinite(arr)):
@@ -173,10 +179,7 @@ class Manipulator:
         return arr
 
     def check_variables(self, x) -> np.ndarray:
-        try:
-            arr = np.asarray(x, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"solver variables are not numbers: {exc}") from None
+        arr = number_vector(x, "solver variables")
         if arr.size != self.n_vars:
             raise InputError(
                 f"expected {self.n_vars} solver variables ({' '.join(self.variable_names)}), got {arr.size}")

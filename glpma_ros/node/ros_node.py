@@ -353,14 +353,8 @@ class FkEndpoints:
     def stop(self) -> None:
         """Stop the solver and assembly-modes threads and log the summary (the context must
         still be valid: the log goes to /rosout too).  Idempotent."""
-        if self._stopped:
-            return
-        self._stopped = True
-        self.input_thread.stop()
-        self.reports.stop()
-        self.loop.stop()
-        self.modes.stop()
-        self.node.get_logger().info(f"stopped: {self.service.summary()}")
+        if self._stop_threads():
+            self.node.get_logger().info(f"stopped: {self.service.summary()}")
 
     def destroy(self) -> None:
         """Before the node is destroyed: stop the threads (with the summary while the context is valid)."""
@@ -368,15 +362,44 @@ class FkEndpoints:
             return
         if rclpy.ok(context=self.node.context):
             self.stop()
-        elif not self._stopped:     # the context is gone: no logging through rosout any more
-            self._stopped = True
-            self.input_thread.stop()
-            self.reports.stop()
-            self.loop.stop()
-            self.modes.stop()
+        else:                       # the context is gone: no logging through rosout any more
+            self._stop_threads()
+
+    def _stop_threads(self) -> bool:
+        """Stop the input, diagnostics, solve and assembly-modes threads; False when they were stopped already."""
+        if self._stopped:
+            return False
+        self._stopped = True
+        self.input_thread.stop()
+        self.reports.stop()
+        self.loop.stop()
+        self.modes.stop()
+        return True
 
 
-class FkNode(Node):
+class EndpointsMixin:
+    """What :class:`FkNode` and :class:`FkLifecycleNode` do alike around their :class:`FkEndpoints` member
+    ``endpoints``: the service, :meth:`stop` and ``destroy_node`` (listed before the rclpy node class, whose
+    ``destroy_node`` it extends)."""
+
+    endpoints: FkEndpoints
+
+    @property
+    def service(self):
+        """The node's :class:`~glpma_ros.node.service.FkService` (None while a lifecycle node is unconfigured)."""
+        return self.endpoints.service
+
+    def stop(self) -> None:
+        """Stop the node's threads and log the summary (:meth:`FkEndpoints.stop`)."""
+        self.endpoints.stop()
+
+    def destroy_node(self):
+        """Stop the node's threads (:meth:`FkEndpoints.destroy`), then destroy the node."""
+        self.endpoints.destroy()
+        return super().destroy_node()
+
+
+class FkNode(EndpointsMixin, Node):
     """``ros2 run glpma_ros fk_node``: configured and publishing from the start."""
 
     def __init__(self, **node_kwargs):
@@ -386,21 +409,8 @@ class FkNode(Node):
         self.endpoints.open(parameter_values(self))
         self.get_logger().info("ready")
 
-    @property
-    def service(self):
-        """The node's :class:`~glpma_ros.node.service.FkService`."""
-        return self.endpoints.service
 
-    def stop(self) -> None:
-        """Stop the node's threads and log the summary (:meth:`FkEndpoints.stop`)."""
-        self.endpoints.stop()
-
-    def destroy_node(self):
-        self.endpoints.destroy()
-        return super().destroy_node()
-
-
-class FkLifecycleNode(LifecycleNode):
+class FkLifecycleNode(EndpointsMixin, LifecycleNode):
     """``ros2 run glpma_ros fk_lifecycle_node``: the same node, managed (ROS 2 design, *Managed nodes*).
 
     * unconfigured: parameters declared (and checked when set), nothing else;
@@ -419,19 +429,6 @@ class FkLifecycleNode(LifecycleNode):
                                      active=False)
         declare_parameters(self, self.endpoints.on_set_parameters)
         self.get_logger().info("unconfigured: waiting for configure (ros2 lifecycle set /glpma_fk configure)")
-
-    @property
-    def service(self):
-        """The node's :class:`~glpma_ros.node.service.FkService` (None while unconfigured)."""
-        return self.endpoints.service
-
-    def stop(self) -> None:
-        """Stop the node's threads and log the summary (:meth:`FkEndpoints.stop`)."""
-        self.endpoints.stop()
-
-    def destroy_node(self):
-        self.endpoints.destroy()
-        return super().destroy_node()
 
     def on_configure(self, state) -> TransitionCallbackReturn:
         try:

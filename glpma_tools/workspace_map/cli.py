@@ -12,12 +12,13 @@ from pathlib import Path
 
 import yaml
 
-from glpma_ros.cli.api import manipulator_parser
+from glpma_ros.cli.api import command_main, manipulator_parser
 from glpma_ros.config import load_document, model_from_dict, resolve_config
-from glpma_ros.errors import GlpmaError, InputError
+from glpma_ros.errors import InputError
 
 from ..extras import require
-from .engines import EngineError, compute_map
+from ..tables import add_summary_options
+from .engines import compute_map
 from .exact_check import exact_check, require_exact
 from .grid import ANGLES, CLOSED_FORM, DEFAULT_RUNS, METHODS, MapSpec, coordinates_of, default_method
 
@@ -148,48 +149,41 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the chunks on this Dask distributed scheduler instead (workers need glpma_ros)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="grid points per chunk, the unit of work and of resumption (default: one grid row)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is not "
-                                                               "a terminal)")
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    add_summary_options(p)
     return p
 
 
+@command_main(prog=PROG)
 def main(argv=None) -> int:
+    """Exit status: 0 done, 1 when a worker failed or the --exact check disagrees, 2 bad input, 130 interrupted."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        args = build_parser().parse_args(argv)
-        require("map", PROG, modules=("matplotlib", "tqdm") + (("dask", "distributed") if args.scheduler else ()))
-        path = resolve_config(args.config)
-        doc = load_document(path)
-        model = model_from_dict(doc, str(path))
-        config_text = yaml.safe_dump(doc, sort_keys=True)
-        spec = make_spec(model, args)
-        workers = (os.cpu_count() or 1) if args.workers is None else args.workers
-        if workers < 1:
-            raise InputError("--workers must be at least 1")
-        if args.chunk_size is not None and args.chunk_size < 1:
-            raise InputError("--chunk-size must be at least 1")
-        if args.exact is not None:
-            if args.exact < 1:
-                raise InputError("--exact needs at least 1 point")
-            if getattr(model, "actuated", False):
-                raise InputError(f"--exact: msolve has no formulation of the actuated family {model.kind}")
-            require_exact()
-        result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
-                             chunk_size=args.chunk_size, progress=not args.no_progress)
-        check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact, result.double,
-                                                            result.certified)
-    except GlpmaError as exc:
-        print(f"error: {PROG}: {exc}", file=sys.stderr)
-        return 1 if isinstance(exc, EngineError) else 2
-    except KeyboardInterrupt:
-        return 130
+    args = build_parser().parse_args(argv)
+    require("map", PROG, modules=("matplotlib", "tqdm") + (("dask", "distributed") if args.scheduler else ()))
+    path = resolve_config(args.config)
+    doc = load_document(path)
+    model = model_from_dict(doc, str(path))
+    config_text = yaml.safe_dump(doc, sort_keys=True)
+    spec = make_spec(model, args)
+    workers = (os.cpu_count() or 1) if args.workers is None else args.workers
+    if workers < 1:
+        raise InputError("--workers must be at least 1")
+    if args.chunk_size is not None and args.chunk_size < 1:
+        raise InputError("--chunk-size must be at least 1")
+    if args.exact is not None:
+        if args.exact < 1:
+            raise InputError("--exact needs at least 1 point")
+        if getattr(model, "actuated", False):
+            raise InputError(f"--exact: msolve has no formulation of the actuated family {model.kind}")
+        require_exact()
+    result = compute_map(config_text, str(path), spec, Path(args.out), workers=workers, scheduler=args.scheduler,
+                         chunk_size=args.chunk_size, progress=not args.no_progress)
+    check = None if args.exact is None else exact_check(model, spec, result.counts, args.exact, result.double,
+                                                        result.certified)
     if args.json:
         print(json.dumps({**result.as_dict(), **({} if check is None else {"exact_check": check.as_dict()})}))
     else:
         print(result.text() + ("" if check is None else "\n" + check.text()))
     return 1 if check is not None and check.disagree else 0
-
 
 if __name__ == "__main__":
     sys.exit(main())
