@@ -385,9 +385,9 @@ def _common_66(c0, c, v, f0, w):
     patch), ``e_0^2 - v.v``, ``e_0^2 + v.v``, ``f.f`` and ``v x w``."""
     v1, v2, v3 = v
     w1, w2, w3 = w
-    e0 = c0 + _dot3(c, v)
+    e0 = c0 + c[0] * v1 + c[1] * v2 + c[2] * v3
     vv = _dot3(v, v)
-    return (e0, e0 * e0 - vv, e0 * e0 + vv, f0 * f0 + _dot3(w, w),
+    return (e0, e0 * e0 - vv, e0 * e0 + vv, f0 * f0 + w1 * w1 + w2 * w2 + w3 * w3,
             (v2 * w3 - v3 * w2, v3 * w1 - v1 * w3, v1 * w2 - v2 * w1))
 
 
@@ -436,7 +436,8 @@ def _leg_rate_66(dk, dab, e0, q, ee, f0, va, vb, vda, vdb, vdn, vdd, wdd, xds):
 def _study_66(e0, f0, v, w, c):
     """Study's quadric ``e.f = e_0 f_0 + v.w`` and its row of ``F_z`` through the patch (``w + c f_0``, ``e_0``,
     ``v``)."""
-    return (e0 * f0 + _dot3(v, w), w[0] + c[0] * f0, w[1] + c[1] * f0, w[2] + c[2] * f0, e0, v[0], v[1], v[2])
+    return (e0 * f0 + v[0] * w[0] + v[1] * w[1] + v[2] * w[2],
+            w[0] + c[0] * f0, w[1] + c[1] * f0, w[2] + c[2] * f0, e0, v[0], v[1], v[2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
