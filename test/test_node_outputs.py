@@ -222,6 +222,9 @@ def test_decoders_read_what_cyclone_dds_writes():
             data = [float(v) for v in rng.normal(size=n)]
             raw = M.Float64MultiArray(M.MultiArrayLayout(dims, 7), data).serialize()
             assert cdr.float64_multi_array_data(raw) == tuple(data)
+            if not dims:        # what a controller sends: the encoder writes it as the binding does
+                plain = M.Float64MultiArray(M.MultiArrayLayout([], 0), data).serialize()
+                assert cdr.Encoder().float64_multi_array(data) == padded(plain)
     for names in ([], ["leg_1"], ["a", "bb", "ccc", "leg_4"]):
         n = len(names)
         positions = [float(v) for v in rng.normal(size=n)]

@@ -236,6 +236,17 @@ def warm_readings_kernel(readings, divisor, lo, hi, offsets, buf, x0, legs_ref, 
     return True
 
 
+@njit(cache=True, error_model="numpy", nogil=True)
+def warm_accepted(out, n_vars, near_floor) -> bool:
+    """Whether the warm stage's output ``out`` (:func:`~glpma_ros.solvers.lm.warm_kernel`, ``n_vars`` solver
+    variables) is the estimate: the legs were accepted, it converged, and its platform joints moved at most
+    :data:`CONTINUITY_FACTOR` times the legs' largest change (at least ``near_floor``) from the last pose's;
+    otherwise the search looks for the branch nearest the last pose."""
+    info = n_vars + local.POSE_OUT
+    return out[info + lm.I_INPUT_OK] != 0.0 and out[info + lm.I_CONVERGED] == 1.0 and \
+        out[info + lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * out[info + lm.I_MOVEMENT], near_floor)
+
+
 class Estimator:
     """Keeps the last solution and solves each new set of leg lengths from it.
 
@@ -308,6 +319,11 @@ class Estimator:
     @property
     def has_warm_state(self) -> bool:
         return self.last_x is not None
+
+    @property
+    def warm_output_size(self) -> int:
+        """The size of the warm stage's output (:func:`~glpma_ros.solvers.lm.warm_kernel`'s ``out``)."""
+        return self._lm.n_out
 
     @property
     def warm_x(self):
@@ -426,27 +442,53 @@ class Estimator:
             self._warm_key = (self.model.leg_limits, self.leg_rtol)
         return buf
 
-    def _after_warm(self, arr, out, t0: float) -> Estimate:
-        """The warm stage's output ``out`` for legs ``arr``, read by the kernel's slot indices (the I_* layout,
-        as LmOutput names them: one list of floats, no object per field): the estimate when it converged
-        near the last pose, else the search."""
+    def warm_lane(self):
+        """``(buf, x0, legs_ref, near_floor)`` for a compiled caller that runs the warm stage and its decision
+        itself (:func:`warm_readings_kernel`, :func:`warm_accepted`: the node's message lane,
+        :mod:`glpma_ros.node.pose_lane`) when the everyday one-call way applies -- a warm start, the
+        refinement on, a budget, no redundant legs (whose consistency test is Python) -- else None.  After an
+        accepted warm stage the caller calls :meth:`advance` (before the next input) and, when it needs the
+        estimate, :meth:`warm_estimate`; after a declined one, :meth:`finish_warm`."""
+        if self.last_x is None or not self.polish or self.time_budget_s <= 0.0 or self._redundant:
+            return None
+        return self._warm_kernel_buffer(), self.last_x, self.last_legs, self._near_floor
+
+    def advance(self, legs, out) -> None:
+        """The warm state after an accepted warm stage: its variables (a view of ``out``) and ``legs``."""
+        self.last_x, self.last_legs = out[:self._n], legs
+
+    def warm_estimate(self, out, elapsed_s: float) -> Estimate:
+        """The estimate of an accepted warm stage's output ``out``, which took ``elapsed_s``; read by the
+        kernel's slot indices (the I_* layout, as LmOutput names them: one list of floats, no object per field)."""
+        n = self._n
         info = out[self._info_at:].tolist()
-        if info[lm.I_INPUT_OK] == 0.0:
+        cond = info[lm.I_CONDITIONING]
+        message = self._warm_message if cond >= NEAR_SINGULAR else \
+            f"{self._warm_message}, near a singularity (conditioning {cond:.2g})"
+        return Estimate(STATUS_CONVERGED, "warm", out[:n], Pose(out[n:n + 3], out[n + 3:n + local.POSE_OUT]),
+                        info[lm.I_FITNESS], int(info[lm.I_NFEV]), elapsed_s, cond, self.solver, message,
+                        info[lm.I_MAX_RESIDUAL])
+
+    def finish_warm(self, legs, out, t0: float) -> Estimate:
+        """:meth:`estimate` after a warm stage run by the caller (:meth:`warm_lane`) that :func:`warm_accepted`
+        declined, ``t0`` = ``time.perf_counter()`` at its start: the search, or the legs' reason (raises)."""
+        HOLD.acquire()
+        try:
+            return self._after_warm(legs, out, t0)
+        finally:
+            HOLD.release()
+
+    def _after_warm(self, arr, out, t0: float) -> Estimate:
+        """The warm stage's output ``out`` for legs ``arr``: the estimate when it converged near the last
+        pose (:func:`warm_accepted`), else the search."""
+        if out[self._info_at + lm.I_INPUT_OK] == 0.0:
             self.model.check_legs(arr)                  # raises with the reason
-        if info[lm.I_CONVERGED] == 1.0 and \
-                info[lm.I_DISTANCE] <= max(CONTINUITY_FACTOR * info[lm.I_MOVEMENT], self._near_floor):
-            n = self._n
-            x = out[:n]
-            cond = info[lm.I_CONDITIONING]
-            message = self._warm_message if cond >= NEAR_SINGULAR else \
-                f"{self._warm_message}, near a singularity (conditioning {cond:.2g})"
-            e = Estimate(STATUS_CONVERGED, "warm", x, Pose(out[n:n + 3], out[n + 3:n + local.POSE_OUT]),
-                         info[lm.I_FITNESS], int(info[lm.I_NFEV]), time.perf_counter() - t0, cond, self.solver,
-                         message, info[lm.I_MAX_RESIDUAL])
+        if warm_accepted(out, self._n, self._near_floor):
+            e = self.warm_estimate(out, time.perf_counter() - t0)
             if not self._redundant:             # the everyday case, no call more than needed
-                self.last_x, self.last_legs = x, arr
+                self.advance(arr, out)
                 return e
-            return self._accept(e, arr, info[lm.I_LEG_FITNESS], t0)
+            return self._accept(e, arr, float(out[self._info_at + lm.I_LEG_FITNESS]), t0)
         return self._search(arr, t0, self._lm.result(out))
 
     def _advance(self, x, legs):

@@ -12,6 +12,7 @@ import numpy as np
 from ..config import check_units, plausible_band
 from ..errors import InputError
 from ..models.base import lengths_from_readings
+from .dds import cdr
 from .input_topic import model_is_actuated
 
 
@@ -95,9 +96,12 @@ class InputConverter:
         return rates if np.all(np.isfinite(rates)) else None
 
     def legs_m(self, raw):
-        """An input (leg lengths in metres, or a :class:`JointStateInput`) as leg lengths in metres."""
+        """An input (leg lengths in metres, a :class:`JointStateInput`, or a ``Float64MultiArray`` message's
+        CDR_LE bytes: what the one-call way keeps of its input) as leg lengths in metres."""
         if isinstance(raw, JointStateInput):
             return self.legs_from_joint_state(raw.names, raw.positions)
+        if type(raw) is bytes:
+            return cdr.float64_multi_array_data(raw)
         return raw
 
     def to_config_unit(self, raw) -> np.ndarray:
@@ -107,7 +111,7 @@ class InputConverter:
         model = self.model
         if self._actuated:
             return model.legs_from_si(self.legs_m(raw))
-        if type(raw) is tuple and len(raw) == model.n_legs and self.readings is not None:
+        if type(raw) is tuple and len(raw) == model.n_legs:
             # the usual input (a message's floats), every leg within the plausible band (finite, no unit
             # mistake possible): converted in one compiled pass; otherwise the checks below name the problem
             try:

@@ -252,6 +252,39 @@ class SolveLoop:
         self._drain(item)
         return True
 
+    def offer_message(self, data, stamp_ns: int, arrival: float | None = None) -> bool:
+        """:meth:`offer` for a ``leg_lengths`` message's bytes, solved and its pose published in one compiled call
+        (:meth:`FkService.solve_message <glpma_ros.node.service.FkService.solve_message>`) in this thread when
+        no other solve is in progress.  False when that does not apply (a solve in progress, or not the one-call
+        way's input: nothing done): the caller decodes the message and offers its legs."""
+        with self._cond:
+            if self._busy or self._pending is not None or self._closed:
+                return False
+            self._busy = True
+        self.realtime.enter()
+        try:
+            outcome = self.service.solve_message(data, stamp_ns, arrival)
+        except Exception as exc:  # noqa: BLE001 - the loop must survive anything
+            self.service.log.error(f"internal error in the solve loop: {exc!r}")
+            outcome = None
+        if outcome is not None:
+            self.modes.note_input(data, stamp_ns)
+            try:
+                self._deliver(outcome)
+            except Exception as exc:  # noqa: BLE001
+                self.service.log.error(f"internal error in the solve loop: {exc!r}")
+        with self._cond:
+            item, self._pending = self._pending, None
+            if item is None or self._closed:
+                self._busy = False
+                item = None
+        if item is None:
+            return outcome is not None
+        if outcome is None:             # replaced, unsolved, by an input that arrived meanwhile
+            self.stats.record_dropped(1)
+        self._drain(item)
+        return True
+
     def _wait_or_replace(self, item) -> None:
         with self._cond:
             replaced = self._pending is not None
@@ -275,8 +308,11 @@ class SolveLoop:
                     item = None
 
     def _solve(self, item) -> None:
-        """Solve, publish the pose, then account for it (the statistics wait until the pose is out)."""
-        outcome = self.service.solve(*item)
+        self._deliver(self.service.solve(*item))
+
+    def _deliver(self, outcome) -> None:
+        """Publish an outcome's pose, then account for it (the statistics wait until the pose is out) and hand
+        it to the extras."""
         if outcome.pose is None:
             return
         try:

@@ -254,6 +254,8 @@ class FkEndpoints:
         if not self._taking(passed_over):
             return
         stamp_ns = self._now_ns()       # the pose's stamp: the arrival of its input
+        if self.loop.offer_message(data, stamp_ns):     # solved and published in one compiled call
+            return
         try:
             legs = (cdr.float64_multi_array_data(data) if cdr.little_endian_cdr(data)
                     else tuple(deserialize_message(data, Float64MultiArray).data))
@@ -303,8 +305,7 @@ class FkEndpoints:
         self.modes_pub.publish(msg)
 
     def _publish_pose(self, pose) -> None:
-        self.pose_writer.publish(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
-                                                           pose.orientation))
+        self.pose_writer.publish(self._encode.pose(pose))
 
     def _subscribed(self) -> set:
         """The extra outputs some subscription is matched with (the others are not built), counted

@@ -12,9 +12,11 @@ report built from their snapshots (``reporter``, :mod:`.diagnostics`) and the as
 transports share are in :mod:`.loops`.
 
 A transport (``dds/node.py``, ``ros_node.py``) only converts messages:
-``SolveLoop.offer(legs_m, arrival_ns)`` (``input_type`` float64_multi_array) or
-``SolveLoop.offer(JointStateInput(...), msg.header.stamp)`` (``joint_state``) in,
-``publish(PoseOutput)`` out -- then, from the extras thread,
+``SolveLoop.offer_message(data, arrival_ns)`` (a ``leg_lengths`` message's bytes: solved and its pose's message
+written in one compiled call, :mod:`.pose_lane`, where that applies) or ``SolveLoop.offer(legs_m, arrival_ns)``
+(``input_type`` float64_multi_array) or ``SolveLoop.offer(JointStateInput(...), msg.header.stamp)``
+(``joint_state``) in, ``publish(PoseOutput)`` (or an :class:`EncodedPose`: the message's bytes) out -- then, from
+the extras thread,
 ``publish_extras(service.extras(outcome, ...))``: TF, covariance, twist and markers
 (:mod:`.outputs`) -- ``service.diagnostics()`` every ``diagnostics_period_s`` from a
 :class:`~glpma_ros.node.loops.ReportLoop`, and ``AssemblyModesLoop.request(arrival_ns)`` on
@@ -45,6 +47,7 @@ from .input_topic import input_topic, model_is_actuated
 from .inputs import InputConverter, JointStateInput, default_joint_names
 from .leg_health import LegHealth
 from .outputs import OUTPUT_PARAMS, OutputBuilder
+from .pose_lane import ACCEPTED, NOT_APPLICABLE, PoseLane
 from .stats import LogThrottle, Statistics
 from .warm_up import WarmUp, warm_up_variables
 
@@ -59,17 +62,29 @@ class PoseOutput:
     orientation: tuple
 
 
+@dataclass(frozen=True)
+class EncodedPose:
+    """A pose to publish as its ``geometry_msgs/PoseStamped`` message's bytes (CDR_LE), written by the
+    one-call way (:mod:`.pose_lane`); its :class:`PoseOutput` is built after the write
+    (:meth:`FkService.account`)."""
+
+    message: bytes
+
+
 @dataclass
 class Outcome:
     """What became of one input: a pose to publish, or the reason there is none."""
 
-    pose: PoseOutput | None
+    pose: PoseOutput | EncodedPose | None
     reason: str | None = None
-    estimate: object = None     # the estimator's Estimate, when it ran
+    estimate: object = None     # the estimator's Estimate, when it ran (the one-call way: built by account)
     latency_s: float = 0.0
     legs: np.ndarray | None = None         # the input's leg lengths, config unit
     leg_rates_m: np.ndarray | None = None  # their rates (m/s) from a JointState's velocities, if any
     arrival: float | None = None           # perf_counter() at arrival, until FkService.account took it
+    #: the one-call way's warm-stage output, elapsed seconds, stamp, frame id and metres per unit, from which
+    #: account builds the estimate and the PoseOutput once the EncodedPose is out (None otherwise)
+    warm: tuple | None = None
 
 
 class FkService:
@@ -99,6 +114,9 @@ class FkService:
         self._check_joint_names(values["joint_names"])
         self._check_frames(values)
         self.inputs = InputConverter(self.model, values["joint_names"])
+        # a leg_lengths message in one compiled call (pose_lane); not for an actuated family's readings
+        self._lane = None if self.inputs.readings is None else PoseLane(self.model.n_legs,
+                                                                        self.estimator.warm_output_size)
         self.leg_health = LegHealth(self.model)
         self.outputs = OutputBuilder(self.model, values["urdf_prefix"])
         self.log_throttle = LogThrottle()    # one log line a second per rejection reason
@@ -237,29 +255,72 @@ class FkService:
         solve loop: :class:`~glpma_ros.node.loops.SolveLoop`).  Never raises."""
         arrival = time.perf_counter() if arrival is None else arrival
         with self._lock:
-            try:
-                # a message's floats, when the everyday conditions hold: converted and solved warm in one
-                # compiled call (Estimator.estimate_readings), else (None) converted and checked the long way
-                done = self.estimator.estimate_readings(legs_m, *self.inputs.readings) \
-                    if type(legs_m) is tuple and self.inputs.readings is not None else None
-                if done is None:
-                    legs = self.inputs.to_config_unit(legs_m)
-                    estimate = self.estimator.estimate(legs)
-                else:
-                    legs, estimate = done
-            except InputError as exc:
-                return self._reject(str(exc), str(exc), None, arrival)
-            except Exception as exc:  # noqa: BLE001 - the node must survive anything
-                self.log.error(f"internal error while solving: {exc!r}")
-                return self._reject(f"internal error: {exc}", "internal error", None, arrival)
-            if not estimate.publishable:
-                return self._reject(f"{estimate.status}: {estimate.message}", estimate.status, estimate, arrival)
-            pose = estimate.pose
-            out = PoseOutput(int(stamp_ns), self.frame_id,
-                             tuple((np.asarray(pose.position, dtype=float) * self.metres_per_unit).tolist()),
-                             tuple(np.asarray(pose.orientation, dtype=float).tolist()))
-            rates = self.inputs.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
-            return Outcome(out, None, estimate, 0.0, legs, rates, arrival)
+            return self._settle(self._estimate_input, (legs_m,), legs_m, stamp_ns, arrival)
+
+    def solve_message(self, data, stamp_ns: int, arrival: float | None = None) -> Outcome | None:
+        """:meth:`solve` for a ``std_msgs/Float64MultiArray`` message's bytes (``data``, as taken) in one compiled
+        call (:mod:`.pose_lane`): when the warm stage is the estimate, the outcome's pose is an
+        :class:`EncodedPose`, written before anything else is built (:meth:`account` builds the rest); a
+        declined warm stage goes on to the search as in :meth:`solve`.  None when the one-call way does not apply
+        (an actuated family, no warm start, redundant legs, another layout or encoding, a reading outside the
+        plausible band): nothing was done, and the caller decodes the message and calls :meth:`solve`."""
+        lane = self._lane
+        if lane is None:
+            return None
+        arrival = time.perf_counter() if arrival is None else arrival
+        with self._lock:
+            estimator = self.estimator
+            warm = estimator.warm_lane()
+            if warm is None:
+                return None
+            t0 = time.perf_counter()
+            frame_id, metres_per_unit = self.params["frame_id"], self.metres_per_unit
+            code, legs, out = lane.run(data, stamp_ns, self.inputs.readings, warm, frame_id, metres_per_unit)
+            if code == ACCEPTED:
+                estimator.advance(legs, out)
+                return Outcome(EncodedPose(lane.message(frame_id).tobytes()), legs=legs, arrival=arrival,
+                               warm=(out, time.perf_counter() - t0, int(stamp_ns), frame_id, metres_per_unit))
+            if code == NOT_APPLICABLE:
+                return None
+            return self._settle(self._finish_warm, (legs, out, t0), None, stamp_ns, arrival)
+
+    def _estimate_input(self, legs_m):
+        """``(legs, estimate)`` of an input (raises :class:`InputError`)."""
+        # a message's floats, when the everyday conditions hold: converted and solved warm in one
+        # compiled call (Estimator.estimate_readings), else (None) converted and checked the long way
+        done = self.estimator.estimate_readings(legs_m, *self.inputs.readings) \
+            if type(legs_m) is tuple and self.inputs.readings is not None else None
+        if done is not None:
+            return done
+        legs = self.inputs.to_config_unit(legs_m)
+        return legs, self.estimator.estimate(legs)
+
+    def _finish_warm(self, legs, out, t0: float):
+        """``(legs, estimate)`` after a warm stage the one-call way ran and its rule declined."""
+        return legs, self.estimator.finish_warm(legs, out, t0)
+
+    def _settle(self, work, args, legs_m, stamp_ns: int, arrival: float) -> Outcome:
+        """The outcome of ``work(*args)`` -> ``(legs, estimate)`` for input ``legs_m`` (None: a message's bytes):
+        the publish decision and the pose, or the rejection (accounted for).  Called with the lock held."""
+        try:
+            legs, estimate = work(*args)
+        except InputError as exc:
+            return self._reject(str(exc), str(exc), None, arrival)
+        except Exception as exc:  # noqa: BLE001 - the node must survive anything
+            self.log.error(f"internal error while solving: {exc!r}")
+            return self._reject(f"internal error: {exc}", "internal error", None, arrival)
+        if not estimate.publishable:
+            return self._reject(f"{estimate.status}: {estimate.message}", estimate.status, estimate, arrival)
+        out = self._pose_output(estimate, int(stamp_ns), self.frame_id, self.metres_per_unit)
+        rates = self.inputs.leg_rates_from_joint_state(legs_m) if isinstance(legs_m, JointStateInput) else None
+        return Outcome(out, None, estimate, 0.0, legs, rates, arrival)
+
+    @staticmethod
+    def _pose_output(estimate, stamp_ns: int, frame_id: str, metres_per_unit: float) -> PoseOutput:
+        pose = estimate.pose
+        position = np.asarray(pose.position, dtype=float) * metres_per_unit
+        return PoseOutput(stamp_ns, frame_id, tuple(position.tolist()),
+                          tuple(np.asarray(pose.orientation, dtype=float).tolist()))
 
     def account(self, outcome: Outcome) -> None:
         """The statistics of a pose :meth:`solve` returned (once; a rejection's were recorded by :meth:`solve`):
@@ -267,6 +328,11 @@ class FkService:
         if outcome.arrival is None:
             return
         arrival, outcome.arrival = outcome.arrival, None
+        if outcome.warm is not None:        # the one-call way's pose is out: its estimate and PoseOutput now
+            out, elapsed_s, stamp_ns, frame_id, metres_per_unit = outcome.warm
+            outcome.warm = None
+            outcome.estimate = self.estimator.warm_estimate(out, elapsed_s)
+            outcome.pose = self._pose_output(outcome.estimate, stamp_ns, frame_id, metres_per_unit)
         estimate, st = outcome.estimate, self.stats
         st.record_handled()
         st.record_estimate(estimate)

@@ -24,6 +24,8 @@ from ..models.base import lengths_from_readings
 from ..modes import homotopy
 from ..modes.monodromy import has_start_system
 from ..modes.multistart import solve_all
+from ..node.dds.cdr import Encoder
+from ..node.pose_lane import PoseLane
 
 #: the package whose compiled functions :func:`cache_counts` counts
 PACKAGE = __name__.partition(".")[0]
@@ -104,12 +106,18 @@ def exercise_readings(estimator, legs) -> None:
     converted on their own (:func:`~glpma_ros.models.base.lengths_from_readings`, what the node's input
     conversion calls) and with the warm stage (:meth:`Estimator.estimate_readings
     <glpma_ros.estimation.estimator.Estimator.estimate_readings>`, which does nothing without a warm start
-    or for an actuated family's leg vector).  The readings' unit, band and offsets are neutral ones: the
+    or for an actuated family's leg vector), and a ``leg_lengths`` message to its pose's in one compiled call
+    (:class:`~glpma_ros.node.pose_lane.PoseLane`).  The readings' unit, band and offsets are neutral ones: the
     compiled code is the same whatever they are."""
     values = np.array(legs, dtype=float).reshape(-1)
     offsets = np.zeros(values.size)
     lengths_from_readings(values, 1.0, -math.inf, math.inf, offsets, np.empty(values.size))
     estimator.estimate_readings(tuple(values.tolist()), 1.0, -math.inf, math.inf, offsets)
+    # ... and the node's leg_lengths message in one compiled call (its result thrown away: no state changes)
+    warm = estimator.warm_lane()
+    if warm is not None:
+        PoseLane(values.size, estimator.warm_output_size).run(
+            Encoder().float64_multi_array(values), 0, (1.0, -math.inf, math.inf, offsets), warm, "exercise", 1.0)
 
 
 def exercise_solve_all(model, methods=("homotopy", "multistart", "g3pcx")) -> float:

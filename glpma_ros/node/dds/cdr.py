@@ -87,6 +87,21 @@ class Encoder:
             st = self._cache[key] = build()
         return st
 
+    def float64_multi_array(self, data) -> bytes:
+        """``std_msgs/Float64MultiArray`` without a layout (no dimension, data_offset 0): what a controller
+        sends on ``leg_lengths``."""
+        data = tuple(float(v) for v in data)
+        st = self._layout(("Float64MultiArray", len(data)), lambda: Layout().prim("I", 3).prim("d", len(data)).struct())
+        return CDR_LE + st.pack(0, 0, len(data), *data)
+
+    def pose(self, pose) -> bytes:
+        """The ``PoseStamped`` of a pose to publish: a :class:`~glpma_ros.node.service.PoseOutput` packed, or an
+        :class:`~glpma_ros.node.service.EncodedPose`'s message as it is."""
+        message = getattr(pose, "message", None)
+        if message is not None:
+            return message
+        return self.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position, pose.orientation)
+
     def pose_stamped(self, stamp_ns: int, frame_id: str, position, orientation) -> bytes:
         """``geometry_msgs/PoseStamped``."""
         frame = frame_id.encode()

@@ -163,14 +163,14 @@ class DdsNode:
                 if self._stop.is_set():
                     return
                 self._waitset.wait(duration(milliseconds=200))
-                item = self._take_input()
+                taken = self._take_input()
                 self._take_requests()
-            if item is not None:
-                self.loop.offer(*item)
+            if taken is not None:
+                self._offer(*taken)
 
     def _take_input(self):
-        """The newest input taken, as ``(legs or JointStateInput, stamp_ns, arrival)``, or None;
-        the others taken with it count as dropped."""
+        """The newest input taken, as ``(bytes, arrival_ns, arrival)``, or None; the others taken with it
+        count as dropped."""
         try:
             samples = cdr.take_raw(self.input_reader, TAKE_BATCH)
         except Exception as exc:  # noqa: BLE001
@@ -182,11 +182,19 @@ class DdsNode:
             return None
         if len(valid) > 1:
             self.service.note_dropped(len(valid) - 1)
+        return valid[-1], arrival_ns, arrival
+
+    def _offer(self, data: bytes, arrival_ns: int, arrival: float) -> None:
+        """An input taken, to the solve loop: a leg_lengths message in one compiled call where that applies,
+        else decoded (a sample that does not deserialize: one warning)."""
+        if not self.joint_state and self.loop.offer_message(data, arrival_ns, arrival):
+            return
         try:
-            return self._decode(valid[-1], arrival_ns) + (arrival,)
+            decoded = self._decode(data, arrival_ns)
         except Exception as exc:  # noqa: BLE001 - a sample that does not deserialize
             self.service.log.warning(f"could not read {self.input_name}: {exc}")
-            return None
+            return
+        self.loop.offer(*decoded, arrival)
 
     def _decode(self, data: bytes, arrival_ns: int) -> tuple:
         fast = cdr.little_endian_cdr(data)
@@ -213,8 +221,7 @@ class DdsNode:
             self.modes.request(time.time_ns())
 
     def _publish_pose(self, pose) -> None:
-        self._raw_pose.write(self._encode.pose_stamped(pose.stamp_ns, pose.frame_id, pose.position,
-                                                       pose.orientation))
+        self._raw_pose.write(self._encode.pose(pose))
 
     def _subscribed(self) -> set:
         """The extra outputs some reader is matched with (the others are not built)."""
