@@ -322,8 +322,13 @@ def _prepare_66(P, tau, S):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _quadratic(S, i, at, tau):
     """The value and the derivative at ``tau`` of ``S[i, at] + S[i, at + 1] tau + S[i, at + 2] tau^2``."""
-    c1, c2 = S[i, at + 1], S[i, at + 2]
-    return S[i, at] + tau * (c1 + tau * c2), c1 + 2.0 * tau * c2
+    return _quadratic_at(S[i, at], S[i, at + 1], S[i, at + 2], tau)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _quadratic_at(c0, c1, c2, tau):
+    """The value and the derivative at ``tau`` of ``c0 + c1 tau + c2 tau^2``."""
+    return c0 + tau * (c1 + tau * c2), c1 + 2.0 * tau * c2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -334,73 +339,105 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_h, with_j, with_t):
     (``v`` the vector part of ``e``) and ``C = f.(e b - a e) = e_0 w.d - f_0 v.d - (v x w).s`` (``w`` that of ``f``,
     ``d = b - a``, ``s = b + a``); their gradients by hand, through the patch by the chain rule; ``F_tau`` by the
     product rule from the prepared tau-derivatives.  Study's quadric ``e.f``."""
-    c0, c1, c2, c3 = P[2 * HEX_PARAMS], P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3]
-    v1, v2, v3 = z[0], z[1], z[2]
-    f0, w1, w2, w3 = z[3], z[4], z[5], z[6]
-    e0 = c0 + c1 * v1 + c2 * v2 + c3 * v3
-    vv = v1 * v1 + v2 * v2 + v3 * v3
-    q = e0 * e0 - vv
-    ee = e0 * e0 + vv
-    ff = f0 * f0 + w1 * w1 + w2 * w2 + w3 * w3
-    x1 = v2 * w3 - v3 * w2                               # v x w
-    x2 = v3 * w1 - v1 * w3
-    x3 = v1 * w2 - v2 * w1
+    c = (P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3])
+    v, f0, w = (z[0], z[1], z[2]), z[3], (z[4], z[5], z[6])
+    e0, q, ee, ff, x = _common_66(P[2 * HEX_PARAMS], c, v, f0, w)
     for i in range(6):
-        a1, a2, a3 = S[i, HEX_A], S[i, HEX_A + 1], S[i, HEX_A + 2]
-        b1, b2, b3 = S[i, HEX_B], S[i, HEX_B + 1], S[i, HEX_B + 2]
-        d1, d2, d3 = S[i, HEX_D], S[i, HEX_D + 1], S[i, HEX_D + 2]
-        s1, s2, s3 = S[i, HEX_S], S[i, HEX_S + 1], S[i, HEX_S + 2]
-        n1, n2, n3 = S[i, HEX_BXA], S[i, HEX_BXA + 1], S[i, HEX_BXA + 2]
-        ab = S[i, HEX_AB]
-        k = S[i, HEX_K]
-        va = v1 * a1 + v2 * a2 + v3 * a3
-        vb = v1 * b1 + v2 * b2 + v3 * b3
-        vn = v1 * n1 + v2 * n2 + v3 * n3
-        vd = v1 * d1 + v2 * d2 + v3 * d3
-        wd = w1 * d1 + w2 * d2 + w3 * d3
+        a = (S[i, HEX_A], S[i, HEX_A + 1], S[i, HEX_A + 2])
+        b = (S[i, HEX_B], S[i, HEX_B + 1], S[i, HEX_B + 2])
+        d = (S[i, HEX_D], S[i, HEX_D + 1], S[i, HEX_D + 2])
+        s = (S[i, HEX_S], S[i, HEX_S + 1], S[i, HEX_S + 2])
+        n = (S[i, HEX_BXA], S[i, HEX_BXA + 1], S[i, HEX_BXA + 2])
+        ab, k = S[i, HEX_AB], S[i, HEX_K]
+        va, vb, vn, vd, wd = _dot3(v, a), _dot3(v, b), _dot3(v, n), _dot3(v, d), _dot3(w, d)
         if with_h:
-            G = q * ab + 2.0 * (va * vb + e0 * vn)
-            C = e0 * wd - f0 * vd - (x1 * s1 + x2 * s2 + x3 * s3)
-            H[i] = k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
+            H[i] = _leg_residual_66(k, ab, e0, q, ee, ff, f0, va, vb, vn, vd, wd, _dot3(x, s))
         if with_j:
-            # dF/de_0 and dF/dv
-            g0 = 2.0 * k * e0 - 4.0 * (e0 * ab + vn) + 4.0 * wd
-            kv = 2.0 * k + 4.0 * ab
-            g1 = kv * v1 - 4.0 * (vb * a1 + va * b1 + e0 * n1 + f0 * d1 + w2 * s3 - w3 * s2)
-            g2 = kv * v2 - 4.0 * (vb * a2 + va * b2 + e0 * n2 + f0 * d2 + w3 * s1 - w1 * s3)
-            g3 = kv * v3 - 4.0 * (vb * a3 + va * b3 + e0 * n3 + f0 * d3 + w1 * s2 - w2 * s1)
-            J[i, 0] = g1 + c1 * g0
-            J[i, 1] = g2 + c2 * g0
-            J[i, 2] = g3 + c3 * g0
-            # dF/df_0 and dF/dw = 4 (e_0 d - s x v) + 8 w
-            J[i, 3] = 8.0 * f0 - 4.0 * vd
-            J[i, 4] = 4.0 * (e0 * d1 - s2 * v3 + s3 * v2) + 8.0 * w1
-            J[i, 5] = 4.0 * (e0 * d2 - s3 * v1 + s1 * v3) + 8.0 * w2
-            J[i, 6] = 4.0 * (e0 * d3 - s1 * v2 + s2 * v1) + 8.0 * w3
+            J[i, 0], J[i, 1], J[i, 2], J[i, 3], J[i, 4], J[i, 5], J[i, 6] = _leg_gradient_66(
+                k, ab, e0, f0, v, w, c, a, b, d, s, n, va, vb, vn, vd, wd)
         if with_t:
-            vda = v1 * S[i, HEX_DA] + v2 * S[i, HEX_DA + 1] + v3 * S[i, HEX_DA + 2]
-            vdb = v1 * S[i, HEX_DB] + v2 * S[i, HEX_DB + 1] + v3 * S[i, HEX_DB + 2]
-            vdn = v1 * S[i, HEX_DBXA] + v2 * S[i, HEX_DBXA + 1] + v3 * S[i, HEX_DBXA + 2]
-            vdd = v1 * S[i, HEX_DD] + v2 * S[i, HEX_DD + 1] + v3 * S[i, HEX_DD + 2]
-            wdd = w1 * S[i, HEX_DD] + w2 * S[i, HEX_DD + 1] + w3 * S[i, HEX_DD + 2]
-            xds = x1 * S[i, HEX_DS] + x2 * S[i, HEX_DS + 1] + x3 * S[i, HEX_DS + 2]
-            dG = q * S[i, HEX_DAB] + 2.0 * (vda * vb + va * vdb + e0 * vdn)
-            dC = e0 * wdd - f0 * vdd - xds
-            Ht[i] = (S[i, HEX_DK] * ee - 2.0 * dG + 4.0 * dC) * dtau
+            da = (S[i, HEX_DA], S[i, HEX_DA + 1], S[i, HEX_DA + 2])
+            db = (S[i, HEX_DB], S[i, HEX_DB + 1], S[i, HEX_DB + 2])
+            dn = (S[i, HEX_DBXA], S[i, HEX_DBXA + 1], S[i, HEX_DBXA + 2])
+            dd = (S[i, HEX_DD], S[i, HEX_DD + 1], S[i, HEX_DD + 2])
+            ds = (S[i, HEX_DS], S[i, HEX_DS + 1], S[i, HEX_DS + 2])
+            Ht[i] = _leg_rate_66(S[i, HEX_DK], S[i, HEX_DAB], e0, q, ee, f0, va, vb, _dot3(v, da), _dot3(v, db),
+                                 _dot3(v, dn), _dot3(v, dd), _dot3(w, dd), _dot3(x, ds)) * dtau
         else:
             Ht[i] = 0j
-    # Study's quadric e.f
+    h, j0, j1, j2, j3, j4, j5, j6 = _study_66(e0, f0, v, w, c)
     if with_h:
-        H[6] = e0 * f0 + v1 * w1 + v2 * w2 + v3 * w3
+        H[6] = h
     if with_j:
-        J[6, 0] = w1 + c1 * f0
-        J[6, 1] = w2 + c2 * f0
-        J[6, 2] = w3 + c3 * f0
-        J[6, 3] = e0
-        J[6, 4] = v1
-        J[6, 5] = v2
-        J[6, 6] = v3
+        J[6, 0], J[6, 1], J[6, 2], J[6, 3], J[6, 4], J[6, 5], J[6, 6] = j0, j1, j2, j3, j4, j5, j6
     Ht[6] = 0j
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _dot3(x, y):
+    """``x . y`` of two 3-vectors (tuples)."""
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _common_66(c0, c, v, f0, w):
+    """The leg-independent quantities of :func:`_evaluate_66` at ``z = (v, f_0, w)``: ``e_0 = c_0 + c . v`` (the
+    patch), ``e_0^2 - v.v``, ``e_0^2 + v.v``, ``f.f`` and ``v x w``."""
+    v1, v2, v3 = v
+    w1, w2, w3 = w
+    e0 = c0 + c[0] * v1 + c[1] * v2 + c[2] * v3
+    vv = _dot3(v, v)
+    return (e0, e0 * e0 - vv, e0 * e0 + vv, f0 * f0 + w1 * w1 + w2 * w2 + w3 * w3,
+            (v2 * w3 - v3 * w2, v3 * w1 - v1 * w3, v1 * w2 - v2 * w1))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _leg_residual_66(k, ab, e0, q, ee, ff, f0, va, vb, vn, vd, wd, xs):
+    """Leg ``i``'s ``F_i = k e.e - 2 G + 4 C + 4 f.f`` of :func:`_evaluate_66` with ``G = q a.b + 2 ((v.a)(v.b) +
+    e_0 v.n)`` (``q = e_0^2 - v.v``, ``n = b x a``) and ``C = e_0 w.d - f_0 v.d - (v x w).s`` (``xs``)."""
+    G = q * ab + 2.0 * (va * vb + e0 * vn)
+    C = e0 * wd - f0 * vd - xs
+    return k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _leg_gradient_66(k, ab, e0, f0, v, w, c, a, b, d, s, n, va, vb, vn, vd, wd):
+    """Leg ``i``'s row of ``F_z`` (:func:`_evaluate_66`): ``dF/dv`` through the patch ``e_0 = c_0 + c . v``
+    (``dF/dv + c dF/de_0``), ``dF/df_0`` and ``dF/dw = 4 (e_0 d - s x v) + 8 w``."""
+    v1, v2, v3 = v
+    w1, w2, w3 = w
+    a1, a2, a3 = a
+    b1, b2, b3 = b
+    d1, d2, d3 = d
+    s1, s2, s3 = s
+    n1, n2, n3 = n
+    g0 = 2.0 * k * e0 - 4.0 * (e0 * ab + vn) + 4.0 * wd            # dF/de_0
+    kv = 2.0 * k + 4.0 * ab
+    g1 = kv * v1 - 4.0 * (vb * a1 + va * b1 + e0 * n1 + f0 * d1 + w2 * s3 - w3 * s2)
+    g2 = kv * v2 - 4.0 * (vb * a2 + va * b2 + e0 * n2 + f0 * d2 + w3 * s1 - w1 * s3)
+    g3 = kv * v3 - 4.0 * (vb * a3 + va * b3 + e0 * n3 + f0 * d3 + w1 * s2 - w2 * s1)
+    return (g1 + c[0] * g0, g2 + c[1] * g0, g3 + c[2] * g0, 8.0 * f0 - 4.0 * vd,
+            4.0 * (e0 * d1 - s2 * v3 + s3 * v2) + 8.0 * w1,
+            4.0 * (e0 * d2 - s3 * v1 + s1 * v3) + 8.0 * w2,
+            4.0 * (e0 * d3 - s1 * v2 + s2 * v1) + 8.0 * w3)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _leg_rate_66(dk, dab, e0, q, ee, f0, va, vb, vda, vdb, vdn, vdd, wdd, xds):
+    """Leg ``i``'s ``F_tau`` (:func:`_evaluate_66`) by the product rule: ``k' e.e - 2 G' + 4 C'`` with
+    ``G' = q (a.b)' + 2 ((v.a')(v.b) + (v.a)(v.b') + e_0 v.n')`` and ``C' = e_0 w.d' - f_0 v.d' - (v x w).s'``
+    (the dotted products given: ``vda = v.a'``, ...)."""
+    dG = q * dab + 2.0 * (vda * vb + va * vdb + e0 * vdn)
+    dC = e0 * wdd - f0 * vdd - xds
+    return dk * ee - 2.0 * dG + 4.0 * dC
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _study_66(e0, f0, v, w, c):
+    """Study's quadric ``e.f = e_0 f_0 + v.w`` and its row of ``F_z`` through the patch (``w + c f_0``, ``e_0``,
+    ``v``)."""
+    return (e0 * f0 + v[0] * w[0] + v[1] * w[1] + v[2] * w[2],
+            w[0] + c[0] * f0, w[1] + c[1] * f0, w[2] + c[2] * f0, e0, v[0], v[1], v[2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -491,7 +528,7 @@ def _lu_solve(LU, pivots, x):
     _back_substitute(LU, x)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
 def _tau(t, gamma):
     """``tau(t) = t / (t + gamma (1 - t))`` and ``dtau/dt = gamma / (t + gamma (1 - t))^2``."""
     d = t + gamma * (1.0 - t)
@@ -608,16 +645,7 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
             k1_current = False
             successes += 1
             if step_target > 0.0:
-                # the predictor's error, measured by the first corrector update, grows like h^5: the next step
-                # aims at step_target, within [1/2, STEP_GROWTH_MAX] times this one, and at most this one right
-                # after a rejected step (the model has just overestimated a step: the usual rule of step control)
-                growth = STEP_GROWTH_MAX if successes > 1 or steps == 1 else 1.0
-                if first > 0.0:
-                    factor = STEP_SAFETY * (step_target / first) ** 0.2
-                    h = min(max(factor, 0.5), growth) * h
-                else:
-                    h = growth * h
-                h = min(h, h_max)
+                h = _next_step(h, first, successes, steps, step_target, h_max)
             elif successes >= expand_after:
                 h = min(2.0 * h, h_max)
                 successes = 0
@@ -630,17 +658,39 @@ def _track_one(kind, K, P, S, prepared, start, gamma, settings, z, J, w, H, Ht, 
                 if 1.0 - t < endgame:
                     return ENDGAME_SINGULAR, steps, t
                 return STEP_FAILED, steps, t
-    # final polish at t = 1 (tau = 1)
+    return _polish(kind, K, P, S, prepared, z, w, H, J, Ht, pivots, final_iterations, final_tol), steps, t
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _next_step(h, first, successes, steps, step_target, h_max):
+    """The step after an accepted step ``h`` (``successes`` in a row, ``steps`` taken) whose first corrector update
+    was ``first`` (share of 1 + |z|): that update measures the predictor's error, which grows like h^5, so the next
+    step aims at ``step_target``, within [1/2, STEP_GROWTH_MAX] times this one and at most this one right after a
+    rejected step (the model has just overestimated a step: the usual rule of step control); at most ``h_max``."""
+    growth = STEP_GROWTH_MAX if successes > 1 or steps == 1 else 1.0
+    if first > 0.0:
+        factor = STEP_SAFETY * (step_target / first) ** 0.2
+        h = min(max(factor, 0.5), growth) * h
+    else:
+        h = growth * h
+    return min(h, h_max)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _polish(kind, K, P, S, prepared, z, w, H, J, Ht, pivots, final_iterations, final_tol):
+    """The final polish of an endpoint ``z`` at t = 1 (tau = 1): Newton's method until its update is below
+    ``final_tol`` (share of 1 + |z|) or ``final_iterations``, ``F_z`` there left in ``J``; REGULAR, or SINGULAR
+    when ``F_z`` is."""
     for _ in range(final_iterations):
         _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
         if not _lu_factor_solve(J, pivots, H):
-            return SINGULAR, steps, t
-        for k in range(n):
+            return SINGULAR
+        for k in range(z.shape[0]):
             z[k] -= H[k]
         if _norm(H) <= final_tol * (1.0 + _norm(z)):
             break
     _evaluate(kind, K, P, S, prepared, z, 1.0 + 0j, 0j, w, H, J, Ht, True, True, False)
-    return REGULAR, steps, t
+    return REGULAR
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -682,13 +732,20 @@ def track_paths_alone(kind, K, P, starts, gammas, settings, ends, jacobians, out
     for p in range(starts.shape[0]):
         o, s, t = _track_one(kind, K, P, S, prepared, starts[p], gammas[p], settings, z, J, w, H, Ht, pivots, k1,
                              k2, k3, k4, zt)
-        outcome[p] = o
-        steps[p] = s
-        t_end[p] = t
-        for k in range(n):
-            ends[p, k] = z[k]
-            for j in range(n):
-                jacobians[p, k, j] = J[k, j]
+        _record_path(p, o, s, t, z, J, ends, jacobians, outcome, steps, t_end)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _record_path(p, o, s, t, z, J, ends, jacobians, outcome, steps, t_end):
+    """Path ``p``'s results in :func:`track_paths`' arrays: outcome ``o``, ``s`` steps, ``t`` reached, the endpoint
+    ``z`` and ``F_z`` there (``J``)."""
+    outcome[p] = o
+    steps[p] = s
+    t_end[p] = t
+    for k in range(z.shape[0]):
+        ends[p, k] = z[k]
+        for j in range(z.shape[0]):
+            jacobians[p, k, j] = J[k, j]
 
 
 # ==========================================================================================================
@@ -713,6 +770,54 @@ _LDA, _LDB, _LDD, _LDS, _LDN, _LDAB, _LDK = (c * LANES for c in (HEX_DA, HEX_DB,
 _LEG = HEX_WIDTH * LANES
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _lane(Ar, Ai, u):
+    """The complex value at ``u`` of a lanes' array (real parts in ``Ar``, imaginary parts in ``Ai``)."""
+    return complex(Ar[u], Ai[u])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _set_lane(Ar, Ai, u, x):
+    """``A[u] = x`` in a lanes' array (real and imaginary parts apart)."""
+    Ar[u], Ai[u] = x.real, x.imag
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _vector_lanes(Ar, Ai, u):
+    """One lane's 3-vector (a tuple) from a lanes' array: the values at ``u``, ``u + LANES`` and ``u + 2 LANES``
+    (a per-leg column of ``HEX_*`` and the next two)."""
+    return _lane(Ar, Ai, u), _lane(Ar, Ai, u + LANES), _lane(Ar, Ai, u + 2 * LANES)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _unknowns_lanes(zr, zi, lane):
+    """Lane ``lane``'s ``z = (v, f_0, w)`` (the 6-6's unknowns in Study parameters, rows ``LANES`` apart):
+    ``v`` and ``w`` as 3-vectors (tuples)."""
+    return _vector_lanes(zr, zi, lane), _lane(zr, zi, 3 * LANES + lane), _vector_lanes(zr, zi, 4 * LANES + lane)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _set_row_lanes(Ar, Ai, u, x0, x1, x2, x3, x4, x5, x6):
+    """Lane's ``N66`` values ``x0 .. x6`` into a lanes' array at ``u``, ``u + LANES``, ..., ``u + 6 LANES`` (a row
+    of ``F_z``, or the rows of :func:`_common_66_lanes`)."""
+    _set_lane(Ar, Ai, u, x0)
+    _set_lane(Ar, Ai, u + LANES, x1)
+    _set_lane(Ar, Ai, u + 2 * LANES, x2)
+    _set_lane(Ar, Ai, u + 3 * LANES, x3)
+    _set_lane(Ar, Ai, u + 4 * LANES, x4)
+    _set_lane(Ar, Ai, u + 5 * LANES, x5)
+    _set_lane(Ar, Ai, u + 6 * LANES, x6)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _point_lanes(zr, zi, Cr, Ci, lane):
+    """Lane ``lane``'s point and its leg-independent quantities (:func:`_common_66_lanes`): ``v``, ``f_0``, ``w``,
+    ``e_0``, ``e_0^2 - v.v``, ``e_0^2 + v.v``, ``f.f`` and ``v x w`` (the 3-vectors as tuples)."""
+    v, f0, w = _unknowns_lanes(zr, zi, lane)
+    return (v, f0, w, _lane(Cr, Ci, lane), _lane(Cr, Ci, LANES + lane), _lane(Cr, Ci, 2 * LANES + lane),
+            _lane(Cr, Ci, 3 * LANES + lane), _vector_lanes(Cr, Ci, 4 * LANES + lane))
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _prepare_66_lanes(P, Tr, Ti, Sr, Si, taur, taui):
     """:func:`_prepare_66` per lane at ``tau[l]``: the tau-dependent columns into ``S``, from ``p(tau)`` and the
@@ -726,12 +831,12 @@ def _prepare_66_lanes(P, Tr, Ti, Sr, Si, taur, taui):
             ok = o + k * LANES
             for lane in range(lanes):
                 tau = complex(taur[lane], taui[lane])
-                a = a0 + tau * complex(Tr[ok + _LDA + lane], Ti[ok + _LDA + lane])
-                b = b0 + tau * complex(Tr[ok + _LDB + lane], Ti[ok + _LDB + lane])
-                Sr[ok + _LA + lane], Si[ok + _LA + lane] = a.real, a.imag
-                Sr[ok + _LB + lane], Si[ok + _LB + lane] = b.real, b.imag
-                Sr[ok + _LD + lane], Si[ok + _LD + lane] = b.real - a.real, b.imag - a.imag
-                Sr[ok + _LS + lane], Si[ok + _LS + lane] = b.real + a.real, b.imag + a.imag
+                a = a0 + tau * _lane(Tr, Ti, ok + _LDA + lane)
+                b = b0 + tau * _lane(Tr, Ti, ok + _LDB + lane)
+                _set_lane(Sr, Si, ok + _LA + lane, a)
+                _set_lane(Sr, Si, ok + _LB + lane, b)
+                _set_lane(Sr, Si, ok + _LD + lane, b - a)
+                _set_lane(Sr, Si, ok + _LS + lane, b + a)
         for k in range(3):
             _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, HEX_BXA_COEF + 3 * k, HEX_BXA + k, HEX_DBXA + k)
         _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, HEX_AB_COEF, HEX_AB, HEX_DAB)
@@ -747,44 +852,22 @@ def _quadratic_lanes(Tr, Ti, Sr, Si, taur, taui, i, at, value, derivative):
     v = ((i * HEX_WIDTH + value) * LANES) & _OFFSET_MASK
     d = ((i * HEX_WIDTH + derivative) * LANES) & _OFFSET_MASK
     for lane in range(lanes):
-        tau = complex(taur[lane], taui[lane])
-        c1 = complex(Tr[c + LANES + lane], Ti[c + LANES + lane])
-        c2 = complex(Tr[c + 2 * LANES + lane], Ti[c + 2 * LANES + lane])
-        q = complex(Tr[c + lane], Ti[c + lane]) + tau * (c1 + tau * c2)
-        dq = c1 + 2.0 * tau * c2
-        Sr[v + lane], Si[v + lane] = q.real, q.imag
-        Sr[d + lane], Si[d + lane] = dq.real, dq.imag
+        c0, c1, c2 = _vector_lanes(Tr, Ti, c + lane)
+        q, dq = _quadratic_at(c0, c1, c2, complex(taur[lane], taui[lane]))
+        _set_lane(Sr, Si, v + lane, q)
+        _set_lane(Sr, Si, d + lane, dq)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
 def _common_66_lanes(P, zr, zi, Cr, Ci):
-    """Per lane the leg-independent quantities of :func:`_evaluate_66` at ``z``: rows ``e_0``, ``e_0^2 - v.v``,
-    ``e_0^2 + v.v``, ``f.f`` and ``v x w`` (3) of ``C``."""
+    """Per lane the leg-independent quantities of :func:`_evaluate_66` at ``z`` (:func:`_common_66`): rows
+    ``e_0``, ``e_0^2 - v.v``, ``e_0^2 + v.v``, ``f.f`` and ``v x w`` (3) of ``C``."""
     lanes = zr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
-    c0, c1, c2, c3 = P[2 * HEX_PARAMS], P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3]
+    c = (P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3])
     for lane in range(lanes):
-        v1 = complex(zr[lane], zi[lane])
-        v2 = complex(zr[LANES + lane], zi[LANES + lane])
-        v3 = complex(zr[2 * LANES + lane], zi[2 * LANES + lane])
-        f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
-        w1 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane])
-        w2 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane])
-        w3 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane])
-        e0 = c0 + c1 * v1 + c2 * v2 + c3 * v3
-        vv = v1 * v1 + v2 * v2 + v3 * v3
-        q = e0 * e0 - vv
-        ee = e0 * e0 + vv
-        ff = f0 * f0 + w1 * w1 + w2 * w2 + w3 * w3
-        x1 = v2 * w3 - v3 * w2
-        x2 = v3 * w1 - v1 * w3
-        x3 = v1 * w2 - v2 * w1
-        Cr[lane], Ci[lane] = e0.real, e0.imag
-        Cr[LANES + lane], Ci[LANES + lane] = q.real, q.imag
-        Cr[2 * LANES + lane], Ci[2 * LANES + lane] = ee.real, ee.imag
-        Cr[3 * LANES + lane], Ci[3 * LANES + lane] = ff.real, ff.imag
-        Cr[4 * LANES + lane], Ci[4 * LANES + lane] = x1.real, x1.imag
-        Cr[5 * LANES + lane], Ci[5 * LANES + lane] = x2.real, x2.imag
-        Cr[6 * LANES + lane], Ci[6 * LANES + lane] = x3.real, x3.imag
+        v, f0, w = _unknowns_lanes(zr, zi, lane)
+        e0, q, ee, ff, x = _common_66(P[2 * HEX_PARAMS], c, v, f0, w)
+        _set_row_lanes(Cr, Ci, lane, e0, q, ee, ff, x[0], x[1], x[2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -792,92 +875,29 @@ def _jacobian_66_lanes(P, Sr, Si, zr, zi, Cr, Ci, Hr, Hi, Jr, Ji, with_h):
     """:func:`_evaluate_66` per lane, the lanes innermost: ``J = F_z`` and when ``with_h`` ``H = F``, from ``S``
     prepared at the lanes' tau and ``C`` (:func:`_common_66_lanes`) at ``z``."""
     lanes = zr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
-    c1, c2, c3 = P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3]
+    c = (P[2 * HEX_PARAMS + 1], P[2 * HEX_PARAMS + 2], P[2 * HEX_PARAMS + 3])
     for i in range(6):
-        o = i * _LEG
         for lane in range(lanes):
-            v1 = complex(zr[lane], zi[lane])
-            v2 = complex(zr[LANES + lane], zi[LANES + lane])
-            v3 = complex(zr[2 * LANES + lane], zi[2 * LANES + lane])
-            f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
-            w1 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane])
-            w2 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane])
-            w3 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane])
-            e0 = complex(Cr[lane], Ci[lane])
-            ol = o + lane
-            a1 = complex(Sr[ol + _LA], Si[ol + _LA])
-            a2 = complex(Sr[ol + _LA + LANES], Si[ol + _LA + LANES])
-            a3 = complex(Sr[ol + _LA + 2 * LANES], Si[ol + _LA + 2 * LANES])
-            b1 = complex(Sr[ol + _LB], Si[ol + _LB])
-            b2 = complex(Sr[ol + _LB + LANES], Si[ol + _LB + LANES])
-            b3 = complex(Sr[ol + _LB + 2 * LANES], Si[ol + _LB + 2 * LANES])
-            d1 = complex(Sr[ol + _LD], Si[ol + _LD])
-            d2 = complex(Sr[ol + _LD + LANES], Si[ol + _LD + LANES])
-            d3 = complex(Sr[ol + _LD + 2 * LANES], Si[ol + _LD + 2 * LANES])
-            s1 = complex(Sr[ol + _LS], Si[ol + _LS])
-            s2 = complex(Sr[ol + _LS + LANES], Si[ol + _LS + LANES])
-            s3 = complex(Sr[ol + _LS + 2 * LANES], Si[ol + _LS + 2 * LANES])
-            n1 = complex(Sr[ol + _LN], Si[ol + _LN])
-            n2 = complex(Sr[ol + _LN + LANES], Si[ol + _LN + LANES])
-            n3 = complex(Sr[ol + _LN + 2 * LANES], Si[ol + _LN + 2 * LANES])
-            ab = complex(Sr[ol + _LAB], Si[ol + _LAB])
-            k = complex(Sr[ol + _LK], Si[ol + _LK])
-            va = v1 * a1 + v2 * a2 + v3 * a3
-            vb = v1 * b1 + v2 * b2 + v3 * b3
-            vn = v1 * n1 + v2 * n2 + v3 * n3
-            vd = v1 * d1 + v2 * d2 + v3 * d3
-            wd = w1 * d1 + w2 * d2 + w3 * d3
+            v, f0, w, e0, q, ee, ff, x = _point_lanes(zr, zi, Cr, Ci, lane)
+            ol = i * _LEG + lane
+            a = _vector_lanes(Sr, Si, ol + _LA)
+            b = _vector_lanes(Sr, Si, ol + _LB)
+            d = _vector_lanes(Sr, Si, ol + _LD)
+            s = _vector_lanes(Sr, Si, ol + _LS)
+            n = _vector_lanes(Sr, Si, ol + _LN)
+            ab, k = _lane(Sr, Si, ol + _LAB), _lane(Sr, Si, ol + _LK)
+            va, vb, vn, vd, wd = _dot3(v, a), _dot3(v, b), _dot3(v, n), _dot3(v, d), _dot3(w, d)
             if with_h:
-                q = complex(Cr[LANES + lane], Ci[LANES + lane])
-                ee = complex(Cr[2 * LANES + lane], Ci[2 * LANES + lane])
-                ff = complex(Cr[3 * LANES + lane], Ci[3 * LANES + lane])
-                x1 = complex(Cr[4 * LANES + lane], Ci[4 * LANES + lane])
-                x2 = complex(Cr[5 * LANES + lane], Ci[5 * LANES + lane])
-                x3 = complex(Cr[6 * LANES + lane], Ci[6 * LANES + lane])
-                G = q * ab + 2.0 * (va * vb + e0 * vn)
-                C = e0 * wd - f0 * vd - (x1 * s1 + x2 * s2 + x3 * s3)
-                h = k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
-                Hr[i * LANES + lane], Hi[i * LANES + lane] = h.real, h.imag
-            g0 = 2.0 * k * e0 - 4.0 * (e0 * ab + vn) + 4.0 * wd
-            kv = 2.0 * k + 4.0 * ab
-            g1 = kv * v1 - 4.0 * (vb * a1 + va * b1 + e0 * n1 + f0 * d1 + w2 * s3 - w3 * s2)
-            g2 = kv * v2 - 4.0 * (vb * a2 + va * b2 + e0 * n2 + f0 * d2 + w3 * s1 - w1 * s3)
-            g3 = kv * v3 - 4.0 * (vb * a3 + va * b3 + e0 * n3 + f0 * d3 + w1 * s2 - w2 * s1)
-            j0 = g1 + c1 * g0
-            j1 = g2 + c2 * g0
-            j2 = g3 + c3 * g0
-            j3 = 8.0 * f0 - 4.0 * vd
-            j4 = 4.0 * (e0 * d1 - s2 * v3 + s3 * v2) + 8.0 * w1
-            j5 = 4.0 * (e0 * d2 - s3 * v1 + s1 * v3) + 8.0 * w2
-            j6 = 4.0 * (e0 * d3 - s1 * v2 + s2 * v1) + 8.0 * w3
-            r = i * N66 * LANES + lane
-            Jr[r], Ji[r] = j0.real, j0.imag
-            Jr[r + LANES], Ji[r + LANES] = j1.real, j1.imag
-            Jr[r + 2 * LANES], Ji[r + 2 * LANES] = j2.real, j2.imag
-            Jr[r + 3 * LANES], Ji[r + 3 * LANES] = j3.real, j3.imag
-            Jr[r + 4 * LANES], Ji[r + 4 * LANES] = j4.real, j4.imag
-            Jr[r + 5 * LANES], Ji[r + 5 * LANES] = j5.real, j5.imag
-            Jr[r + 6 * LANES], Ji[r + 6 * LANES] = j6.real, j6.imag
-    # Study's quadric e.f
+                _set_lane(Hr, Hi, i * LANES + lane,
+                          _leg_residual_66(k, ab, e0, q, ee, ff, f0, va, vb, vn, vd, wd, _dot3(x, s)))
+            j0, j1, j2, j3, j4, j5, j6 = _leg_gradient_66(k, ab, e0, f0, v, w, c, a, b, d, s, n, va, vb, vn, vd, wd)
+            _set_row_lanes(Jr, Ji, i * N66 * LANES + lane, j0, j1, j2, j3, j4, j5, j6)
     for lane in range(lanes):
-        e0 = complex(Cr[lane], Ci[lane])
-        f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
+        v, f0, w = _unknowns_lanes(zr, zi, lane)
+        h, j0, j1, j2, j3, j4, j5, j6 = _study_66(_lane(Cr, Ci, lane), f0, v, w, c)
         if with_h:
-            h = e0 * f0
-            for k in range(3):
-                h += complex(zr[k * LANES + lane], zi[k * LANES + lane]) * complex(zr[(4 + k) * LANES + lane],
-                                                                                zi[(4 + k) * LANES + lane])
-            Hr[6 * LANES + lane], Hi[6 * LANES + lane] = h.real, h.imag
-        r = 6 * N66 * LANES + lane
-        j0 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane]) + c1 * f0
-        j1 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane]) + c2 * f0
-        j2 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane]) + c3 * f0
-        Jr[r], Ji[r] = j0.real, j0.imag
-        Jr[r + LANES], Ji[r + LANES] = j1.real, j1.imag
-        Jr[r + 2 * LANES], Ji[r + 2 * LANES] = j2.real, j2.imag
-        Jr[r + 3 * LANES], Ji[r + 3 * LANES] = e0.real, e0.imag
-        for k in range(3):
-            Jr[r + (4 + k) * LANES], Ji[r + (4 + k) * LANES] = zr[k * LANES + lane], zi[k * LANES + lane]
+            _set_lane(Hr, Hi, 6 * LANES + lane, h)
+        _set_row_lanes(Jr, Ji, 6 * N66 * LANES + lane, j0, j1, j2, j3, j4, j5, j6)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -886,47 +906,16 @@ def _velocity_rhs_66_lanes(P, Tr, Ti, Sr, Si, zr, zi, Cr, Ci, dtr, dti, Xr, Xi):
     ``S`` and ``T`` prepared at the lanes' tau and ``C`` at ``z``."""
     lanes = zr.shape[0] // N66  # LANES, as a count known only at run time (see LANES)
     for i in range(6):
-        o = i * _LEG
         for lane in range(lanes):
-            v1 = complex(zr[lane], zi[lane])
-            v2 = complex(zr[LANES + lane], zi[LANES + lane])
-            v3 = complex(zr[2 * LANES + lane], zi[2 * LANES + lane])
-            f0 = complex(zr[3 * LANES + lane], zi[3 * LANES + lane])
-            w1 = complex(zr[4 * LANES + lane], zi[4 * LANES + lane])
-            w2 = complex(zr[5 * LANES + lane], zi[5 * LANES + lane])
-            w3 = complex(zr[6 * LANES + lane], zi[6 * LANES + lane])
-            e0 = complex(Cr[lane], Ci[lane])
-            q = complex(Cr[LANES + lane], Ci[LANES + lane])
-            ee = complex(Cr[2 * LANES + lane], Ci[2 * LANES + lane])
-            x1 = complex(Cr[4 * LANES + lane], Ci[4 * LANES + lane])
-            x2 = complex(Cr[5 * LANES + lane], Ci[5 * LANES + lane])
-            x3 = complex(Cr[6 * LANES + lane], Ci[6 * LANES + lane])
-            ol = o + lane
-            va = (v1 * complex(Sr[ol + _LA], Si[ol + _LA]) + v2 * complex(Sr[ol + _LA + LANES], Si[ol + _LA + LANES])
-                  + v3 * complex(Sr[ol + _LA + 2 * LANES], Si[ol + _LA + 2 * LANES]))
-            vb = (v1 * complex(Sr[ol + _LB], Si[ol + _LB]) + v2 * complex(Sr[ol + _LB + LANES], Si[ol + _LB + LANES])
-                  + v3 * complex(Sr[ol + _LB + 2 * LANES], Si[ol + _LB + 2 * LANES]))
-            vda = (v1 * complex(Tr[ol + _LDA], Ti[ol + _LDA])
-                   + v2 * complex(Tr[ol + _LDA + LANES], Ti[ol + _LDA + LANES])
-                   + v3 * complex(Tr[ol + _LDA + 2 * LANES], Ti[ol + _LDA + 2 * LANES]))
-            vdb = (v1 * complex(Tr[ol + _LDB], Ti[ol + _LDB])
-                   + v2 * complex(Tr[ol + _LDB + LANES], Ti[ol + _LDB + LANES])
-                   + v3 * complex(Tr[ol + _LDB + 2 * LANES], Ti[ol + _LDB + 2 * LANES]))
-            vdn = (v1 * complex(Sr[ol + _LDN], Si[ol + _LDN])
-                   + v2 * complex(Sr[ol + _LDN + LANES], Si[ol + _LDN + LANES])
-                   + v3 * complex(Sr[ol + _LDN + 2 * LANES], Si[ol + _LDN + 2 * LANES]))
-            dd1 = complex(Tr[ol + _LDD], Ti[ol + _LDD])
-            dd2 = complex(Tr[ol + _LDD + LANES], Ti[ol + _LDD + LANES])
-            dd3 = complex(Tr[ol + _LDD + 2 * LANES], Ti[ol + _LDD + 2 * LANES])
-            vdd = v1 * dd1 + v2 * dd2 + v3 * dd3
-            wdd = w1 * dd1 + w2 * dd2 + w3 * dd3
-            xds = (x1 * complex(Tr[ol + _LDS], Ti[ol + _LDS])
-                   + x2 * complex(Tr[ol + _LDS + LANES], Ti[ol + _LDS + LANES])
-                   + x3 * complex(Tr[ol + _LDS + 2 * LANES], Ti[ol + _LDS + 2 * LANES]))
-            dG = q * complex(Sr[ol + _LDAB], Si[ol + _LDAB]) + 2.0 * (vda * vb + va * vdb + e0 * vdn)
-            dC = e0 * wdd - f0 * vdd - xds
-            x = -(complex(Sr[ol + _LDK], Si[ol + _LDK]) * ee - 2.0 * dG + 4.0 * dC) * complex(dtr[lane], dti[lane])
-            Xr[i * LANES + lane], Xi[i * LANES + lane] = x.real, x.imag
+            v, f0, w, e0, q, ee, ff, x = _point_lanes(zr, zi, Cr, Ci, lane)
+            ol = i * _LEG + lane
+            dd = _vector_lanes(Tr, Ti, ol + _LDD)
+            rate = _leg_rate_66(_lane(Sr, Si, ol + _LDK), _lane(Sr, Si, ol + _LDAB), e0, q, ee, f0,
+                                _dot3(v, _vector_lanes(Sr, Si, ol + _LA)), _dot3(v, _vector_lanes(Sr, Si, ol + _LB)),
+                                _dot3(v, _vector_lanes(Tr, Ti, ol + _LDA)), _dot3(v, _vector_lanes(Tr, Ti, ol + _LDB)),
+                                _dot3(v, _vector_lanes(Sr, Si, ol + _LDN)), _dot3(v, dd), _dot3(w, dd),
+                                _dot3(x, _vector_lanes(Tr, Ti, ol + _LDS)))
+            _set_lane(Xr, Xi, i * LANES + lane, -rate * _lane(dtr, dti, lane))
     for lane in range(lanes):
         Xr[6 * LANES + lane], Xi[6 * LANES + lane] = 0.0, 0.0
 
@@ -936,7 +925,9 @@ def _lu_lanes(Ar, Ai, pivots, xr, xi, ok, best, inv_r, inv_i, m_r, m_i):
     """:func:`_lu_factor_solve` per lane: ``x = A^{-1} x`` by Gaussian elimination with partial pivoting (the
     largest ``|Re| + |Im|``), in place; ``A`` left holding the factors (the reciprocals of the pivots on the
     diagonal) and ``pivots`` the rows taken; ``ok[l]`` False when lane ``l``'s pivot is exactly zero.  The row
-    exchanges differ between the lanes and are made lane by lane; the elimination runs over the lanes."""
+    exchanges differ between the lanes and are made lane by lane; the elimination runs over the lanes.  Its updates
+    ``x -= m u`` (here and in the substitutions) are written out in real and imaginary parts: the same update as an
+    inlined helper (storing, or returning the product) took 13 % more CPU per 6-6 path set."""
     n = N66
     lanes = Ar.shape[0] // (N66 * N66)  # LANES, as a count known only at run time (see LANES)
     for lane in range(lanes):
@@ -955,12 +946,8 @@ def _lu_lanes(Ar, Ai, pivots, xr, xi, ok, best, inv_r, inv_i, m_r, m_i):
             p = pivots[c * LANES + lane]
             if p != c:
                 for j in range(n):                      # whole rows: the multipliers follow their row
-                    u, v = (c * N66 + j) * LANES + lane, (p * N66 + j) * LANES + lane
-                    Ar[u], Ar[v] = Ar[v], Ar[u]
-                    Ai[u], Ai[v] = Ai[v], Ai[u]
-                u, v = c * LANES + lane, p * LANES + lane
-                xr[u], xr[v] = xr[v], xr[u]
-                xi[u], xi[v] = xi[v], xi[u]
+                    _swap_lanes(Ar, Ai, (c * N66 + j) * LANES + lane, (p * N66 + j) * LANES + lane)
+                _swap_lanes(xr, xi, c * LANES + lane, p * LANES + lane)
             if best[lane] == 0.0:
                 ok[lane] = False
         for lane in range(lanes):
@@ -987,6 +974,13 @@ def _lu_lanes(Ar, Ai, pivots, xr, xi, ok, best, inv_r, inv_i, m_r, m_i):
                     Ar[(r * N66 + j) * LANES + lane] -= m_r[lane] * ur - m_i[lane] * ui
                     Ai[(r * N66 + j) * LANES + lane] -= m_r[lane] * ui + m_i[lane] * ur
     _back_substitute_lanes(Ar, Ai, xr, xi)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+def _swap_lanes(Ar, Ai, u, v):
+    """Exchanges ``A[u]`` and ``A[v]`` in a lanes' array (a row exchange of the LU, one lane's entry)."""
+    Ar[u], Ar[v] = Ar[v], Ar[u]
+    Ai[u], Ai[v] = Ai[v], Ai[u]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -1016,9 +1010,7 @@ def _lu_solve_lanes(Ar, Ai, pivots, xr, xi):
         for lane in range(lanes):
             p = pivots[c * LANES + lane]
             if p != c:
-                u, v = c * LANES + lane, p * LANES + lane
-                xr[u], xr[v] = xr[v], xr[u]
-                xi[u], xi[v] = xi[v], xi[u]
+                _swap_lanes(xr, xi, c * LANES + lane, p * LANES + lane)
     for c in range(N66):
         for r in range(c + 1, N66):
             for lane in range(lanes):
@@ -1034,13 +1026,9 @@ def _tau_lanes(t, gr, gi, taur, taui, dtr, dti):
     """:func:`_tau` per lane (``gamma`` of each lane's path)."""
     lanes = t.shape[0]  # LANES, as a count known only at run time (see LANES)
     for lane in range(lanes):
-        gamma = complex(gr[lane], gi[lane])
-        d = t[lane] + gamma * (1.0 - t[lane])
-        inv = d.conjugate() / (d.real * d.real + d.imag * d.imag)
-        tau = t[lane] * inv
-        dtau = gamma * inv * inv
-        taur[lane], taui[lane] = tau.real, tau.imag
-        dtr[lane], dti[lane] = dtau.real, dtau.imag
+        tau, dtau = _tau(t[lane], complex(gr[lane], gi[lane]))
+        _set_lane(taur, taui, lane, tau)
+        _set_lane(dtr, dti, lane, dtau)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -1072,17 +1060,8 @@ def _end_path(P, S, prepared, zs, ws, Hs, Hts, Js, pivots, outcome, final_iterat
     if outcome != REGULAR:
         Js[:, :] = 0.0
         return outcome
-    K = np.zeros((3, 0, 0, 0), np.complex128)
-    for _ in range(final_iterations):
-        _evaluate(HEXAPOD_66, K, P, S, prepared, zs, 1.0 + 0j, 0j, ws, Hs, Js, Hts, True, True, False)
-        if not _lu_factor_solve(Js, pivots, Hs):
-            return SINGULAR
-        for k in range(zs.shape[0]):
-            zs[k] -= Hs[k]
-        if _norm(Hs) <= final_tol * (1.0 + _norm(zs)):
-            break
-    _evaluate(HEXAPOD_66, K, P, S, prepared, zs, 1.0 + 0j, 0j, ws, Hs, Js, Hts, True, True, False)
-    return REGULAR
+    return _polish(HEXAPOD_66, np.zeros((3, 0, 0, 0), np.complex128), P, S, prepared, zs, ws, Hs, Js, Hts, pivots,
+                   final_iterations, final_tol)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
@@ -1134,7 +1113,7 @@ def _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps
     K = np.zeros((3, 0, 0, 0), np.complex128)
     zs, ws, Hs, Hts = np.zeros(n, np.complex128), np.zeros(n + 1, np.complex128), np.zeros(n, np.complex128), \
         np.zeros(n, np.complex128)
-    Js, pivots_s = np.zeros((n, n), np.complex128), np.zeros(n, np.int64)
+    Js, pivots_s, ks = np.zeros((n, n), np.complex128), np.zeros(n, np.int64), np.zeros(n, np.complex128)
     following = 0
     running = 0
     for lane in range(LANES):
@@ -1171,16 +1150,12 @@ def _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps
                     for k in range(n):
                         k1r[k * LANES + lane], k1i[k * LANES + lane] = Xr[k * LANES + lane], Xi[k * LANES + lane]
                 else:
-                    for k in range(n):
-                        zs[k] = complex(zr[k * LANES + lane], zi[k * LANES + lane])
+                    _lane_point(zr, zi, lane, zs)
                     prepared[0] = 0.0
-                    _evaluate(HEXAPOD_66, K, P, S, prepared, zs, complex(taur[lane], taui[lane]),
-                              complex(dtr[lane], dti[lane]), ws, Hs, Js, Hts, False, True, True)
+                    ok[lane] = _velocity(HEXAPOD_66, K, P, S, prepared, zs, t[lane], complex(gr[lane], gi[lane]), ks,
+                                         ws, Hs, Js, Hts, pivots_s, False)
                     for k in range(n):
-                        Hs[k] = -Hts[k]
-                    ok[lane] = _lu_factor_solve(Js, pivots_s, Hs)
-                    for k in range(n):
-                        k1r[k * LANES + lane], k1i[k * LANES + lane] = Hs[k].real, Hs[k].imag
+                        _set_lane(k1r, k1i, k * LANES + lane, ks[k])
                 k1_current[lane] = ok[lane]
         # classical Runge-Kutta predictor: k2, k3 at t + h/2, k4 (into X) at t1
         _tau_lanes(t_mid, gr, gi, taur, taui, dtr, dti)
@@ -1262,13 +1237,7 @@ def _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps
                 k1_current[lane] = False
                 successes[lane] += 1
                 if step_target > 0.0:
-                    growth = STEP_GROWTH_MAX if successes[lane] > 1 or lane_steps[lane] == 1 else 1.0
-                    if first[lane] > 0.0:
-                        factor = STEP_SAFETY * (step_target / first[lane]) ** 0.2
-                        h[lane] = min(max(factor, 0.5), growth) * h[lane]
-                    else:
-                        h[lane] = growth * h[lane]
-                    h[lane] = min(h[lane], h_max)
+                    h[lane] = _next_step(h[lane], first[lane], successes[lane], lane_steps[lane], step_target, h_max)
                 if math.sqrt(size) > at_infinity:
                     end = AT_INFINITY_REACHED
                 elif t[lane] >= 1.0:
@@ -1282,16 +1251,10 @@ def _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps
                 end = STEPS_EXHAUSTED
             if end < 0:
                 continue
-            for k in range(n):
-                zs[k] = complex(zr[k * LANES + lane], zi[k * LANES + lane])
+            _lane_point(zr, zi, lane, zs)
             prepared[0] = 0.0
-            outcome[p] = _end_path(P, S, prepared, zs, ws, Hs, Hts, Js, pivots_s, end, final_iterations, final_tol)
-            steps[p] = lane_steps[lane]
-            t_end[p] = t[lane]
-            for k in range(n):
-                ends[p, k] = zs[k]
-                for j in range(n):
-                    jacobians[p, k, j] = Js[k, j]
+            o = _end_path(P, S, prepared, zs, ws, Hs, Hts, Js, pivots_s, end, final_iterations, final_tol)
+            _record_path(p, o, lane_steps[lane], t[lane], zs, Js, ends, jacobians, outcome, steps, t_end)
             if following < count:
                 _take_path(lane, following, starts, gammas, settings[0], zr, zi, gr, gi, t, h, lane_steps,
                            successes, k1_current, factors_at_z, path)
@@ -1299,6 +1262,13 @@ def _track_66_lanes(P, starts, gammas, settings, ends, jacobians, outcome, steps
             else:
                 path[lane] = -1
                 running -= 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
+def _lane_point(zr, zi, lane, z):
+    """Lane ``lane``'s point of a lanes' array (``N66`` rows) into the complex vector ``z``."""
+    for k in range(N66):
+        z[k] = complex(zr[k * LANES + lane], zi[k * LANES + lane])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH)
