@@ -34,6 +34,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from ..runtime.compat import NUMBA_INLINE
+
 #: the compiled tracker may reassociate and contract (fused multiply-add) its sums and use reciprocals: it follows
 #: a path to a loose tolerance and polishes the endpoint, so the last bits do not matter; not the flags that
 #: assume no NaN or infinity (a path may run off to infinity, and is classified by its norm)
@@ -325,7 +327,7 @@ def _quadratic(S, i, at, tau):
     return _quadratic_at(S[i, at], S[i, at + 1], S[i, at + 2], tau)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _quadratic_at(c0, c1, c2, tau):
     """The value and the derivative at ``tau`` of ``c0 + c1 tau + c2 tau^2``."""
     return c0 + tau * (c1 + tau * c2), c1 + 2.0 * tau * c2
@@ -373,13 +375,13 @@ def _evaluate_66(P, S, z, dtau, H, J, Ht, with_h, with_j, with_t):
     Ht[6] = 0j
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _dot3(x, y):
     """``x . y`` of two 3-vectors (tuples)."""
     return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _common_66(c0, c, v, f0, w):
     """The leg-independent quantities of :func:`_evaluate_66` at ``z = (v, f_0, w)``: ``e_0 = c_0 + c . v`` (the
     patch), ``e_0^2 - v.v``, ``e_0^2 + v.v``, ``f.f`` and ``v x w``."""
@@ -391,7 +393,7 @@ def _common_66(c0, c, v, f0, w):
             (v2 * w3 - v3 * w2, v3 * w1 - v1 * w3, v1 * w2 - v2 * w1))
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _leg_residual_66(k, ab, e0, q, ee, ff, f0, va, vb, vn, vd, wd, xs):
     """Leg ``i``'s ``F_i = k e.e - 2 G + 4 C + 4 f.f`` of :func:`_evaluate_66` with ``G = q a.b + 2 ((v.a)(v.b) +
     e_0 v.n)`` (``q = e_0^2 - v.v``, ``n = b x a``) and ``C = e_0 w.d - f_0 v.d - (v x w).s`` (``xs``)."""
@@ -400,7 +402,7 @@ def _leg_residual_66(k, ab, e0, q, ee, ff, f0, va, vb, vn, vd, wd, xs):
     return k * ee - 2.0 * G + 4.0 * C + 4.0 * ff
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _leg_gradient_66(k, ab, e0, f0, v, w, c, a, b, d, s, n, va, vb, vn, vd, wd):
     """Leg ``i``'s row of ``F_z`` (:func:`_evaluate_66`): ``dF/dv`` through the patch ``e_0 = c_0 + c . v``
     (``dF/dv + c dF/de_0``), ``dF/df_0`` and ``dF/dw = 4 (e_0 d - s x v) + 8 w``."""
@@ -422,7 +424,7 @@ def _leg_gradient_66(k, ab, e0, f0, v, w, c, a, b, d, s, n, va, vb, vn, vd, wd):
             4.0 * (e0 * d3 - s1 * v2 + s2 * v1) + 8.0 * w3)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _leg_rate_66(dk, dab, e0, q, ee, f0, va, vb, vda, vdb, vdn, vdd, wdd, xds):
     """Leg ``i``'s ``F_tau`` (:func:`_evaluate_66`) by the product rule: ``k' e.e - 2 G' + 4 C'`` with
     ``G' = q (a.b)' + 2 ((v.a')(v.b) + (v.a)(v.b') + e_0 v.n')`` and ``C' = e_0 w.d' - f_0 v.d' - (v x w).s'``
@@ -432,7 +434,7 @@ def _leg_rate_66(dk, dab, e0, q, ee, f0, va, vb, vda, vdb, vdn, vdd, wdd, xds):
     return dk * ee - 2.0 * dG + 4.0 * dC
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _study_66(e0, f0, v, w, c):
     """Study's quadric ``e.f = e_0 f_0 + v.w`` and its row of ``F_z`` through the patch (``w + c f_0``, ``e_0``,
     ``v``)."""
@@ -528,7 +530,7 @@ def _lu_solve(LU, pivots, x):
     _back_substitute(LU, x)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _tau(t, gamma):
     """``tau(t) = t / (t + gamma (1 - t))`` and ``dtau/dt = gamma / (t + gamma (1 - t))^2``."""
     d = t + gamma * (1.0 - t)
@@ -770,33 +772,33 @@ _LDA, _LDB, _LDD, _LDS, _LDN, _LDAB, _LDK = (c * LANES for c in (HEX_DA, HEX_DB,
 _LEG = HEX_WIDTH * LANES
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _lane(Ar, Ai, u):
     """The complex value at ``u`` of a lanes' array (real parts in ``Ar``, imaginary parts in ``Ai``)."""
     return complex(Ar[u], Ai[u])
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _set_lane(Ar, Ai, u, x):
     """``A[u] = x`` in a lanes' array (real and imaginary parts apart)."""
     Ar[u], Ai[u] = x.real, x.imag
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _vector_lanes(Ar, Ai, u):
     """One lane's 3-vector (a tuple) from a lanes' array: the values at ``u``, ``u + LANES`` and ``u + 2 LANES``
     (a per-leg column of ``HEX_*`` and the next two)."""
     return _lane(Ar, Ai, u), _lane(Ar, Ai, u + LANES), _lane(Ar, Ai, u + 2 * LANES)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _unknowns_lanes(zr, zi, lane):
     """Lane ``lane``'s ``z = (v, f_0, w)`` (the 6-6's unknowns in Study parameters, rows ``LANES`` apart):
     ``v`` and ``w`` as 3-vectors (tuples)."""
     return _vector_lanes(zr, zi, lane), _lane(zr, zi, 3 * LANES + lane), _vector_lanes(zr, zi, 4 * LANES + lane)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _set_row_lanes(Ar, Ai, u, x0, x1, x2, x3, x4, x5, x6):
     """Lane's ``N66`` values ``x0 .. x6`` into a lanes' array at ``u``, ``u + LANES``, ..., ``u + 6 LANES`` (a row
     of ``F_z``, or the rows of :func:`_common_66_lanes`)."""
@@ -809,7 +811,7 @@ def _set_row_lanes(Ar, Ai, u, x0, x1, x2, x3, x4, x5, x6):
     _set_lane(Ar, Ai, u + 6 * LANES, x6)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _point_lanes(zr, zi, Cr, Ci, lane):
     """Lane ``lane``'s point and its leg-independent quantities (:func:`_common_66_lanes`): ``v``, ``f_0``, ``w``,
     ``e_0``, ``e_0^2 - v.v``, ``e_0^2 + v.v``, ``f.f`` and ``v x w`` (the 3-vectors as tuples)."""
@@ -976,7 +978,7 @@ def _lu_lanes(Ar, Ai, pivots, xr, xi, ok, best, inv_r, inv_i, m_r, m_i):
     _back_substitute_lanes(Ar, Ai, xr, xi)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=FAST_MATH, inline=NUMBA_INLINE)
 def _swap_lanes(Ar, Ai, u, v):
     """Exchanges ``A[u]`` and ``A[v]`` in a lanes' array (a row exchange of the LU, one lane's entry)."""
     Ar[u], Ar[v] = Ar[v], Ar[u]
