@@ -414,8 +414,7 @@ class Estimator:
         budget, not one reading per leg, a reading outside the band or not a number): then nothing was
         done, and the caller converts and checks the readings the long way and calls :meth:`estimate`."""
         legs_ref = self.last_legs
-        if self.last_x is None or not self.polish or self.time_budget_s <= 0.0 or \
-                len(readings) != legs_ref.shape[0]:
+        if not self._warm_in_one_call or len(readings) != legs_ref.shape[0]:
             return None
         t0 = time.perf_counter()
         HOLD.acquire()
@@ -449,9 +448,15 @@ class Estimator:
         refinement on, a budget, no redundant legs (whose consistency test is Python) -- else None.  After an
         accepted warm stage the caller calls :meth:`advance` (before the next input) and, when it needs the
         estimate, :meth:`warm_estimate`; after a declined one, :meth:`finish_warm`."""
-        if self.last_x is None or not self.polish or self.time_budget_s <= 0.0 or self._redundant:
+        if not self._warm_in_one_call or self._redundant:
             return None
         return self._warm_kernel_buffer(), self.last_x, self.last_legs, self._near_floor
+
+    @property
+    def _warm_in_one_call(self) -> bool:
+        """Whether the next input's warm stage can run as one compiled call with its conversion: a warm start,
+        the refinement on, a budget for any work (:meth:`estimate_readings`, :meth:`warm_lane`)."""
+        return self.last_x is not None and self.polish and self.time_budget_s > 0.0
 
     def advance(self, legs, out) -> None:
         """The warm state after an accepted warm stage: its variables (a view of ``out``) and ``legs``."""

@@ -2,9 +2,9 @@
 
 Between an input's bytes and its pose's bytes the node's work is small (a warm Levenberg-Marquardt of a few
 microseconds), but done in Python step by step -- the message read, the readings converted and checked, the
-estimator's decision, an ``Estimate`` and a ``PoseOutput`` built, the pose packed -- it cost about five times
-the compiled work, and more when the caches are cold between two inputs at 1 kHz (BENCHMARKS.md, "Extra
-outputs and the transport path", part 4).  :func:`pose_message_kernel` does it all in one compiled call: it
+estimator's decision, an ``Estimate`` and a ``PoseOutput`` built, the pose packed -- it cost several times the
+compiled work, the more so when the caches are cold between two inputs at 1 kHz (measured: BENCHMARKS.md,
+"Extra outputs and the transport path", part 4).  :func:`pose_message_kernel` does it all in one compiled call: it
 reads the ``std_msgs/Float64MultiArray`` (CDR_LE, no layout: what a controller sends), converts the readings
 (:func:`~glpma_ros.models.base.lengths_from_readings`), runs the warm stage
 (:func:`~glpma_ros.estimation.estimator.warm_readings_kernel`), decides whether it is the estimate

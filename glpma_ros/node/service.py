@@ -274,7 +274,7 @@ class FkService:
             if warm is None:
                 return None
             t0 = time.perf_counter()
-            frame_id, metres_per_unit = self.params["frame_id"], self.metres_per_unit
+            frame_id, metres_per_unit = self.frame_id, self.metres_per_unit
             code, legs, out = lane.run(data, stamp_ns, self.inputs.readings, warm, frame_id, metres_per_unit)
             if code == ACCEPTED:
                 estimator.advance(legs, out)
