@@ -20,7 +20,7 @@ def report(tmp_path_factory):
     md = out / "BENCH.md"
     rc = main(["--", "--quick", "--only", "3rpr", "--runs", "2", "--peer-runs", "1", "--gap-runs", "2",
                "--track-steps", "30", "--deadline-solves", "2", "--budgets-ms", "1", "--deadline-solvers", "glpma",
-               "--solve-all-runs", "20",
+               "--deadline-stall-seconds", "0.2", "--solve-all-runs", "20",
                "--dds-steps", "20", "--outputs-inputs", "5", "--outputs-seconds", "0.3", "--outputs-profile", "20",
                "--outputs-rclpy-seconds", "0", "--outputs-rclpy-runs", "1",
                "--waits-rounds", "1", "--waits-inputs", "300",
@@ -70,6 +70,8 @@ def test_markdown_has_every_table(report):
         assert f"| {told} | Estimator | 1 | {load} | 2 |" in text, load
         assert f"| planar_3rpr | {load} | 3 |" in text, load      # its smallest deciding budget, 3 Estimators
     assert "p99.9 / max of end − deadline, ms" in text
+    for load in ("no load added", "every core busy"):          # the machine's stalls probed under each load
+        assert f"| {load} | 0.2 |" in text, load
     waits = text.split("## Waits of an input")[1].split("\n## ")[0]
     for setup in ("handle", "handle + reports", "node at 1 kHz"):
         assert f"| {setup} | 300 |" in waits, setup

@@ -32,23 +32,30 @@ CLOCK_ID = time.CLOCK_MONOTONIC
 NS_PER_S = 1e9
 
 
-@intrinsic
-def _monotonic_s(typingctx):
-    """``clock_gettime(CLOCK_ID)`` in seconds, as a float."""
+def clock_reader(clock_id: int):
+    """A compiled ``clock_gettime(clock_id)`` in seconds, as a float: an intrinsic for kernels (``CLOCK_ID``
+    here; a tool's probe also reads the thread's CPU clock, ``time.CLOCK_THREAD_CPUTIME_ID``)."""
 
-    def codegen(context, builder, signature, args):
-        i32, i64, f64 = ir.IntType(32), ir.IntType(64), ir.DoubleType()
-        timespec = ir.LiteralStructType([i64, i64])           # tv_sec, tv_nsec (64-bit Linux and macOS)
-        clock_gettime = cgutils.get_or_insert_function(builder.module,
-                                                       ir.FunctionType(i32, [i32, timespec.as_pointer()]),
-                                                       "clock_gettime")
-        ts = cgutils.alloca_once(builder, timespec)
-        builder.call(clock_gettime, [ir.Constant(i32, CLOCK_ID), ts])
-        sec = builder.sitofp(builder.load(cgutils.gep_inbounds(builder, ts, 0, 0)), f64)
-        nsec = builder.sitofp(builder.load(cgutils.gep_inbounds(builder, ts, 0, 1)), f64)
-        return builder.fadd(sec, builder.fdiv(nsec, ir.Constant(f64, NS_PER_S)))
+    @intrinsic
+    def read_s(typingctx):
+        def codegen(context, builder, signature, args):
+            i32, i64, f64 = ir.IntType(32), ir.IntType(64), ir.DoubleType()
+            timespec = ir.LiteralStructType([i64, i64])           # tv_sec, tv_nsec (64-bit Linux and macOS)
+            clock_gettime = cgutils.get_or_insert_function(builder.module,
+                                                           ir.FunctionType(i32, [i32, timespec.as_pointer()]),
+                                                           "clock_gettime")
+            ts = cgutils.alloca_once(builder, timespec)
+            builder.call(clock_gettime, [ir.Constant(i32, clock_id), ts])
+            sec = builder.sitofp(builder.load(cgutils.gep_inbounds(builder, ts, 0, 0)), f64)
+            nsec = builder.sitofp(builder.load(cgutils.gep_inbounds(builder, ts, 0, 1)), f64)
+            return builder.fadd(sec, builder.fdiv(nsec, ir.Constant(f64, NS_PER_S)))
 
-    return types.float64(), codegen
+        return types.float64(), codegen
+    return read_s
+
+
+#: ``clock_gettime(CLOCK_ID)`` in seconds, compiled into the kernels
+_monotonic_s = clock_reader(CLOCK_ID)
 
 
 @njit(cache=True)

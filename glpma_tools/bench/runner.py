@@ -34,6 +34,8 @@ DEFAULTS = {
     "gap_runs": (100, 10, int, "runs of the larger-cap G3-PCX diagnostics"),
     "track_steps": (1000, 300, int, "steps of each tracking trajectory"),
     "deadline_solves": (100, 20, int, "solves per deadline cell"),
+    "deadline_stall_seconds": (30.0, 2.0, float, "seconds per load of the deadline section's probe of the machine's "
+                               "own stalls (a loop that only reads the clock, a share after each cell)"),
     "solve_all_repeats": (5, 1, int, "solve_all repetitions with seeds 0.."),
     "modes_cases": (None, 2, int, "random cases per manipulator of the multistart/msolve/G3-PCX comparison "
                     "(default all stored)"),
@@ -189,7 +191,7 @@ def main(argv=None) -> int:
     if "deadline" in sections:
         say("deadline honouring", "deadline")
         res["deadline"] = timing.deadlines(listed, args.budgets_ms, max(1, counts["deadline_solves"]), progress,
-                                           args.deadline_solvers)
+                                           args.deadline_solvers, stall_seconds=counts["deadline_stall_seconds"])
     if "baselines" in sections:
         say("baselines: 004 Table II, DE on 001's protocols", "baselines")
         res["baselines"] = ex.baselines(scenarios, counts["table2_runs"], runs, hex_runs, progress)

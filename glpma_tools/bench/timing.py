@@ -22,7 +22,7 @@ from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.node import realtime
 from glpma_ros.runtime import precompile
 from glpma_ros.solvers.lm import LEG_RTOL
-from glpma_tools import timing
+from glpma_tools import stalls, timing
 from glpma_tools.sim import trajectories as traj
 from glpma_tools.stats import distribution
 from glpma_tools.tables import MISSING, fmt, ratio, table
@@ -226,11 +226,14 @@ RAN_PAST = "on its core past the deadline"
 OFF_CORE = "off its core (the OS took it)"
 
 
-def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> list[SimpleNamespace]:
+def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS, stall_seconds=0.0) -> list[SimpleNamespace]:
     """The bench's deadline experiment, under each of ``loads``: every registered solver (evaluation cap
     10^9: only the deadline or convergence stops it) on feasible legs and on legs without a real assembly, and
     the Estimator as the node runs it, cold, on feasible legs, on legs without an assembly that its probe must
-    tell, and on legs the loop bounds of a pair of legs tell at once.  A row per cell, with the statuses."""
+    tell, and on legs the loop bounds of a pair of legs tell at once.  A row per cell, with the statuses; per
+    load, a row of the smallest deciding budgets and (``stall_seconds`` > 0) one of the machine's own stalls
+    (:mod:`glpma_tools.stalls`), probed that long in all, a share after each cell so that it samples the
+    cells' time, in bursts of the largest budget with the cells' rest between them."""
 
     def search(name, model, legs, budget_ms):
         def call(seed):
@@ -272,6 +275,7 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
                 continue                    # not allowed here: the report says so
             for _, est in estimators:       # measured again under this load
                 est.calibrate()
+            probed = []
             for case, short, solver, b, call in cells:
                 warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
                 calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms, {load}", progress,
@@ -280,6 +284,11 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS) -> li
                                             solver=solver, load=load, statuses=Counter(calls.results),
                                             label=f"{short} | {solver}" + {LOADS[1]: " | busy",
                                                                            LOADS[2]: " | busy, FIFO"}.get(load, "")))
+                if stall_seconds > 0:
+                    probed.append(stalls.probe(stall_seconds / len(cells), max(budgets_ms) / 1e3,
+                                               FIFO_REST_S if fifo else 0.0))
+        if probed:
+            rows.append(SimpleNamespace(stalls=stalls.Stalls.joined(probed), load=load))
         for kind in dict.fromkeys(k for k, _ in estimators):
             floors = [1e3 * est.smallest_deciding_budget_s for k, est in estimators if k == kind]
             rows.append(SimpleNamespace(floor=True, kind=kind, load=load, floor_ms=floors))
@@ -372,11 +381,33 @@ DISTURBED = "preempted / off core / collector"
 CPU_PAST = "p99.9 / max of CPU − budget, ms"
 
 
+#: the columns of the machine's stalls, per load (:func:`stalls_cells`)
+STALLS_HEAD = ["load", "probed s", f"stalls > {LATE_MS:g} ms (per s)", f"> {DEADLINE_MARGIN_MS:g} ms (per s)",
+               "longest off its core ms", "longest on its core ms", "solves' time s",
+               f"stalls > {DEADLINE_MARGIN_MS:g} ms expected in it", f"solves > {DEADLINE_MARGIN_MS:g} ms late"]
+
+
+def stalls_cells(probe, rows) -> list:
+    """A row of the stalls table: the load's probe (``probe.stalls``) and its cells' ``rows``; the stalls longer
+    than the margin expected in the time the solves ran (their rate on the probe times that time) beside the
+    solves that ended later than the margin."""
+    st = probe.stalls
+    solving_s = float(sum(np.sum(r.elapsed_s) for r in rows))
+    late = int(sum(np.sum(r.overrun_ms > DEADLINE_MARGIN_MS) for r in rows))
+
+    def counted(ms):
+        return f"{st.over(ms)} ({st.rate_per_s(ms):.2g})"
+    return [probe.load, f"{st.seconds:.3g}", counted(LATE_MS), counted(DEADLINE_MARGIN_MS),
+            fmt(st.longest_ms(on_core=False)), fmt(st.longest_ms(on_core=True)), f"{solving_s:.3g}",
+            f"{st.rate_per_s(DEADLINE_MARGIN_MS) * solving_s:.2g}", late]
+
+
 def deadline_section(res, md_path) -> list[str]:
     """Per solver and load, p99.9 and max of (end - deadline) over every cell, with and without the disturbed
     solves; then each cell's, with its statuses."""
     floors = [r for r in res["deadline"] if getattr(r, "floor", False)]
-    rows = [r for r in res["deadline"] if not getattr(r, "floor", False)]
+    probes = [r for r in res["deadline"] if hasattr(r, "stalls")]
+    rows = [r for r in res["deadline"] if hasattr(r, "overrun_ms")]
 
     def on_time(over):
         return pct(share_on_time(over), 4) if over.size else MISSING
@@ -402,6 +433,10 @@ def deadline_section(res, md_path) -> list[str]:
                             worst=worst_overrun(total), preempted=total.size - calm.size, calm_on_time=on_time(calm),
                             calm_worst=worst_overrun(calm)),
         late and "Late undisturbed (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
+        probes and prose("deadline", "stalls", late_ms=LATE_MS, margin=DEADLINE_MARGIN_MS,
+                         threshold_us=f"{stalls.THRESHOLD_S * 1e6:g}", off_core_ms=f"{timing.OFF_CORE_S * 1e3:g}"),
+        probes and table(STALLS_HEAD, [stalls_cells(p, [r for r in rows if getattr(r, "load", LOADS[0]) == p.load])
+                                       for p in probes]),
         floors and prose("deadline", "floor"),
         floors and table(["manipulator", "load", "Estimators", "smallest deciding budget ms: median", "max"],
                          [[f.kind, f.load, len(f.floor_ms), fmt(float(np.median(f.floor_ms))),
