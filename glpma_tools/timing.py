@@ -58,6 +58,17 @@ def involuntary_switches() -> int:
         return 0
 
 
+def steal_s() -> float | None:
+    """The time the hypervisor has run something else while this virtual machine's CPUs were runnable ("steal",
+    summed over its CPUs, s; Linux's ``/proc/stat``, in clock ticks: 10 ms steps), None where not reported."""
+    try:
+        with open("/proc/stat") as f:
+            fields = f.readline().split()
+        return int(fields[8]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
+
+
 def infeasible_legs(model) -> np.ndarray:
     """Leg lengths of the shipped configs' geometries with no real assembly (the platform cannot
     reach the base joints), so that a search runs until its deadline or its evaluation cap.  The

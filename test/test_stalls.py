@@ -79,3 +79,11 @@ def test_the_deadline_section_has_a_row_of_stalls_per_load():
     assert row == ["no load added", "10", "3 (0.3)", "2 (0.2)", "1.5", "0.2", "0.00877", "0.0018", 1], row
     text = "\n".join(deadline_section({"deadline": [cell, probe], "figures": {}}, "BENCHMARKS.md"))
     assert "| " + " | ".join(STALLS_HEAD) + " |" in text and "| no load added | 10 | 3 (0.3) |" in text, text
+
+
+def test_the_hosts_steal_time_reads_as_seconds_that_only_grow():
+    """Part 4's host steal column: the machine's steal time in seconds where Linux reports it, never decreasing."""
+    first = timing.steal_s()
+    if first is None:
+        pytest.skip("this system reports no steal time (/proc/stat)")
+    assert first >= 0.0 and timing.steal_s() >= first

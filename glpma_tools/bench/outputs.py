@@ -251,13 +251,14 @@ def section(res, md_path=None) -> list[str]:
         body = [[r["variant"], MISSING if r.get("run") is None else r["run"],
                  f"{r['sent']} / {r['received']} / {r['poses']}", f"{100 * r['answered']:.1f} %",
                  r["dropped"], r["wrong"], f"{r['p50']:.3f} / {r['p99']:.3f}", _against_floor(r),
-                 f"{r['cpu_us_per_input']:.0f}", r.get("client_late", MISSING)] for r in rows]
+                 f"{r['cpu_us_per_input']:.0f}", r.get("client_late", MISSING),
+                 MISSING if r.get("steal_ms") is None else f"{r['steal_ms']:.0f}"] for r in rows]
         out += [prose("outputs", "rclpy", manipulator=setup["manipulator"], rate=f"{setup['rate']:g}",
                       seconds=f"{setup['seconds']:g}", runs=setup.get("runs", 1),
                       target=f"{RCLPY_FLOOR_FACTOR:g}", answered=f"{100 * RCLPY_ANSWERED:g}"),
                 table(["variant", "run", "sent / received / poses", "answered", "dropped (newest wins)", "wrong",
                        "latency p50 / p99 (ms)", "against the floor p50 / p99", "node CPU µs per input",
-                       "client late"], body),
+                       "client late", "host steal ms"], body),
                 "load" in setup and prose("outputs", "rclpy_load", start=f"{setup['load'][0]:.1f}",
                                           end=f"{setup['load'][1]:.1f}", policy=setup["policy"])]
     return md_blocks(HEADING, *out)

@@ -29,6 +29,7 @@ from glpma_ros.node.dds import messages as dds_messages
 from glpma_ros.node.rcl_publish import RawPublisher
 from glpma_ros.node.rcl_take import subscribe_taken_by_thread
 from glpma_ros.node.ros_node import FkNode
+from glpma_tools import timing
 from glpma_tools.bench.transport import END_TO_END, answers, params_of
 from glpma_tools.sim.controller import Sent, pose_stamped_fields
 from glpma_tools.sim.echo_node import POSE_NUMBERS
@@ -154,7 +155,7 @@ def run_variant(sc, seconds: float, domain: int, variant: str, extras: str | Non
     hog = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if busy else None
     listener = (subprocess.Popen([sys.executable, "-m", __name__, LISTENER], env=env, cwd=PACKAGE_PARENT)
                 if extras == LISTENER else None)
-    cpu0 = time.process_time()
+    cpu0, steal0 = time.process_time(), timing.steal_s()
     try:
         out = subprocess.run([sys.executable, "-m", __name__, sc.path, str(rate_hz), str(seconds),
                               "extras" if extras == CLIENT else "-", variant], env=env, capture_output=True,
@@ -164,7 +165,8 @@ def run_variant(sc, seconds: float, domain: int, variant: str, extras: str | Non
         st = node if variant == "echo" else node.service.stats
         return {"sent": int(sent), "received": st.handled + st.dropped, "poses": int(poses),
                 "answered": poses / max(sent, 1), "dropped": st.dropped, "wrong": int(wrong), "p50": p50,
-                "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6, "client_late": int(late)}
+                "p99": p99, "cpu_us_per_input": cpu_s / max(sent, 1) * 1e6, "client_late": int(late),
+                "steal_ms": None if steal0 is None else 1e3 * (timing.steal_s() - steal0)}
     finally:
         for process in (hog, listener):
             if process is not None:
