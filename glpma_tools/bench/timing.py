@@ -432,7 +432,9 @@ def deadline_section(res, md_path) -> list[str]:
         calm.size and prose("deadline", "overall", on_time=on_time(total), solves=total.size,
                             worst=worst_overrun(total), preempted=total.size - calm.size, calm_on_time=on_time(calm),
                             calm_worst=worst_overrun(calm)),
-        late and "Late undisturbed (the solver itself overran): " + ", ".join(f"`{x}`" for x in late) + ".",
+        late and ("Late undisturbed (the solver's code after its deadline, or a stall on its core that the thread's "
+                  "CPU clock counts as its own: the machine's stalls below): " + ", ".join(f"`{x}`" for x in late)
+                  + "."),
         probes and prose("deadline", "stalls", late_ms=LATE_MS, margin=DEADLINE_MARGIN_MS,
                          threshold_us=f"{stalls.THRESHOLD_S * 1e6:g}", off_core_ms=f"{timing.OFF_CORE_S * 1e3:g}"),
         probes and table(STALLS_HEAD, [stalls_cells(p, [r for r in rows if getattr(r, "load", LOADS[0]) == p.load])
