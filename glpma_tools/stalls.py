@@ -103,6 +103,13 @@ class Stalls:
         """Gaps longer than ``ms`` per second spun."""
         return self.over(ms) / self.seconds if self.seconds > 0 else float("nan")
 
+    def share_past(self, ms: float) -> float:
+        """The share of the time probed at which a deadline falling then is passed by more than ``ms`` because of a
+        stall: a stall of length L leaves its last (L - ms) in that state.  A solve that runs to its deadline, at
+        an instant the stalls do not know of, ends more than ``ms`` late with about this probability."""
+        return float(np.sum(np.maximum(self.wall_s * 1e3 - ms, 0.0))) / 1e3 / self.seconds if self.seconds > 0 \
+            else float("nan")
+
     def longest_ms(self, on_core: bool | None = None) -> float:
         """The longest gap (ms; 0 when none), of those on or off its core when ``on_core`` is given."""
         sel = np.ones(self.wall_s.shape, dtype=bool) if on_core is None else (

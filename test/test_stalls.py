@@ -62,23 +62,29 @@ def test_gaps_are_counted_on_and_off_the_core_and_joined():
     assert st.over(0.1) == 3 and st.over(0.5) == 2 and st.over(0.5, on_core=True) == 1
     assert st.over(0.5, on_core=False) == 1 and st.rate_per_s(0.5) == 0.5
     assert st.longest_ms() == pytest.approx(2.0) and st.longest_ms(on_core=True) == pytest.approx(0.8)
+    # a deadline passed by more than 0.5 ms: in the last 0.3 ms of the 0.8 ms gap and the last 1.5 ms of the 2 ms
+    # one, 1.8 ms of the 4 s probed
+    assert st.share_past(0.5) == pytest.approx(1.8e-3 / 4.0)
+    assert st.share_past(0.1) == pytest.approx((0.2 + 0.7 + 1.9) * 1e-3 / 4.0)
     assert stalls.Stalls.joined([]).longest_ms() == 0.0
 
 
 def test_the_deadline_section_has_a_row_of_stalls_per_load():
-    """A load's probe beside its cells: the stalls over the margin expected in the time the solves ran (their rate
-    on the probe times that time) and the solves later than the margin."""
+    """A load's probe beside its cells: the solves that ran to their deadline (ended at most LATE_MS before it),
+    how many of them the stalls make late by more than 0.1 and 0.5 ms (that count times the share of time a stall
+    has that much left), and how many were."""
     probe = SimpleNamespace(load="no load added",
                             stalls=stalls.Stalls(10.0, np.array([0.2e-3, 0.7e-3, 1.5e-3]), np.array([0.2e-3, 0, 0])))
-    overrun_ms = np.array([-0.2, 0.05, 0.9, 0.02])
+    overrun_ms = np.array([-0.2, 0.05, 0.9, -0.02])
     cell = SimpleNamespace(case="3-RPR, legs without an assembly", solver="glpma", load="no load added",
                            budget_ms=2.0, elapsed_s=(overrun_ms + 2.0) / 1e3, overrun_ms=overrun_ms,
                            preempted=np.zeros(4, dtype=bool), collected=np.zeros(4, dtype=bool),
                            off_core=np.zeros(4, dtype=bool), statuses={"budget_exhausted": 4})
     row = stalls_cells(probe, [cell])
-    assert row == ["no load added", "10", "3 (0.3)", "2 (0.2)", "1.5", "0.2", "0.00877", "0.0018", 1], row
+    # 3 solves to their deadline; past by > 0.1 ms: (0.1 + 0.6 + 1.4) ms of 10 s; by > 0.5 ms: (0.2 + 1.0) ms
+    assert row == ["no load added", "10", 3, 2, "1.5", "0.2", 3, "0.00063 / 1", "0.00036 / 1"], row
     text = "\n".join(deadline_section({"deadline": [cell, probe], "figures": {}}, "BENCHMARKS.md"))
-    assert "| " + " | ".join(STALLS_HEAD) + " |" in text and "| no load added | 10 | 3 (0.3) |" in text, text
+    assert "| " + " | ".join(STALLS_HEAD) + " |" in text and "| no load added | 10 | 3 | 2 |" in text, text
 
 
 def test_the_hosts_steal_time_reads_as_seconds_that_only_grow():

@@ -382,24 +382,25 @@ CPU_PAST = "p99.9 / max of CPU − budget, ms"
 
 
 #: the columns of the machine's stalls, per load (:func:`stalls_cells`)
-STALLS_HEAD = ["load", "probed s", f"stalls > {LATE_MS:g} ms (per s)", f"> {DEADLINE_MARGIN_MS:g} ms (per s)",
-               "longest off its core ms", "longest on its core ms", "solves' time s",
-               f"stalls > {DEADLINE_MARGIN_MS:g} ms expected in it", f"solves > {DEADLINE_MARGIN_MS:g} ms late"]
+STALLS_HEAD = ["load", "probed s", f"stalls > {LATE_MS:g} ms", f"> {DEADLINE_MARGIN_MS:g} ms",
+               "longest off its core ms", "longest on its core ms", "solves to their deadline",
+               f"> {LATE_MS:g} ms late: expected from the stalls / solves", f"> {DEADLINE_MARGIN_MS:g} ms late: expected / solves"]
 
 
 def stalls_cells(probe, rows) -> list:
-    """A row of the stalls table: the load's probe (``probe.stalls``) and its cells' ``rows``; the stalls longer
-    than the margin expected in the time the solves ran (their rate on the probe times that time) beside the
-    solves that ended later than the margin."""
+    """A row of the stalls table: the load's probe (``probe.stalls``) and its cells' ``rows``.  The solves that ran
+    to their deadline (ended no more than LATE_MS before it) are the ones a stall can make late; each is late by
+    more than ``ms`` with the probability that a stall then has more than ``ms`` left (:meth:`Stalls.share_past`),
+    so the stalls explain about that many of them, set beside the solves that were."""
     st = probe.stalls
-    solving_s = float(sum(np.sum(r.elapsed_s) for r in rows))
-    late = int(sum(np.sum(r.overrun_ms > DEADLINE_MARGIN_MS) for r in rows))
+    overrun = np.concatenate([r.overrun_ms for r in rows]) if rows else np.zeros(0)
+    at_risk = int(np.sum(overrun >= -LATE_MS))
 
-    def counted(ms):
-        return f"{st.over(ms)} ({st.rate_per_s(ms):.2g})"
-    return [probe.load, f"{st.seconds:.3g}", counted(LATE_MS), counted(DEADLINE_MARGIN_MS),
-            fmt(st.longest_ms(on_core=False)), fmt(st.longest_ms(on_core=True)), f"{solving_s:.3g}",
-            f"{st.rate_per_s(DEADLINE_MARGIN_MS) * solving_s:.2g}", late]
+    def against(ms):
+        return f"{at_risk * st.share_past(ms):.2g} / {int(np.sum(overrun > ms))}"
+    return [probe.load, f"{st.seconds:.3g}", st.over(LATE_MS), st.over(DEADLINE_MARGIN_MS),
+            fmt(st.longest_ms(on_core=False)), fmt(st.longest_ms(on_core=True)), at_risk,
+            against(LATE_MS), against(DEADLINE_MARGIN_MS)]
 
 
 def deadline_section(res, md_path) -> list[str]:
