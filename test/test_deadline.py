@@ -24,7 +24,7 @@ from glpma_ros.estimation.estimator import Estimator
 from glpma_ros.runtime import clock as kernel_clock
 from glpma_ros.runtime import precompile
 from glpma_ros.runtime.collector import CollectorHold
-from glpma_ros.solvers import driver, g3pcx, gasa, glpma, lm, local, rcga, refine
+from glpma_ros.solvers import de, driver, g3pcx, gasa, glpma, lm, local, rcga, refine
 from glpma_ros.solvers.common import Termination, initial_population
 
 #: what reading the clock costs on the fake clock (a few hundred nanoseconds on a real one)
@@ -74,6 +74,9 @@ SAME_RTOL = 1e-12
 #: time each chunk of the resumed G3-PCX run is given (s): a few generations (a few microseconds each) after the
 #: call's entry (10-50 µs), so that the clock cuts most chunks
 G3PCX_CHUNK_S = 5e-5
+#: a DE chunk's work deadline in the test that cuts one inside a generation: a few generations of the hexapod's
+#: ~90 trials (a trial is under a microsecond)
+DE_CHUNK_S = 2e-4
 #: G3-PCX generations both runs of its resume test make
 G3PCX_GENERATIONS = 400
 
@@ -141,7 +144,7 @@ def clock(monkeypatch):
     # the fake clock charges a chunk its generations before it runs; the kernels' own clock reads the real one,
     # which the fake clock does not move: here they run the generations they are asked for (their stop inside
     # a generation is counted by the tests below, on the real clock)
-    for module in (rcga, g3pcx):
+    for module in (rcga, g3pcx, de):
         monkeypatch.setattr(module, "kernel_end", lambda deadline: math.inf)
     # ... so no kernel stops itself here: a chunk is sized by the time left, as for every other solver
     monkeypatch.setattr(g3pcx.G3PCXPopulation, "stops_itself", False)
@@ -424,6 +427,31 @@ def test_g3pcx_stopped_by_the_clock_resumes_exactly(hexapod):
     assert cut_term.nfev == whole_term.nfev
     np.testing.assert_allclose(cut.pop, whole.pop, rtol=SAME_RTOL)
     np.testing.assert_allclose(cut.fit, whole.fit, rtol=SAME_RTOL)
+
+
+def test_a_de_chunk_does_no_work_after_its_work_deadline(hexapod):
+    """Counted evaluations: a DE chunk whose work deadline has passed evaluates no trial (its kernel reads the
+    clock before each block of trials) and says so; without a deadline the same chunk runs whole generations of
+    ``Np`` evaluations.  A chunk cut inside a generation evaluated whole blocks of trials only, and left a
+    population whose fitness is its members' (each evaluated trial replaced its own target or not)."""
+    rng = np.random.default_rng(0)
+    term = Termination(max_evals=10**9)
+    problem = driver.Problem(hexapod, np.array(HEX_CASES[0]))
+    pop = initial_population(rng, de.default_population(hexapod), hexapod.n_vars, HEX_RANGE, None, None)
+    state = de.DEPopulation(problem, pop, problem.evaluate(pop, term), rng)
+    before = term.nfev
+    state.work_deadline = time.perf_counter()
+    assert state.step(driver.CHUNK_GENERATIONS, term) == 0 and term.nfev == before and state.out_of_time
+    state.work_deadline = None
+    assert state.step(3, term) == 3 and term.nfev - before == 3 * len(pop) and not state.out_of_time
+    cut = 0
+    while not cut:                  # short work deadlines until one falls inside a generation's evaluations
+        before = term.nfev
+        state.work_deadline = time.perf_counter() + DE_CHUNK_S
+        gens = state.step(driver.CHUNK_GENERATIONS, term)
+        cut = (term.nfev - before) - gens * len(pop)
+    assert state.out_of_time and cut % de.CLOCK_STRIDE == 0 and 0 < cut < len(pop)
+    np.testing.assert_allclose(state.fit, problem.evaluate(state.pop, term), rtol=SAME_RTOL)
 
 
 def test_a_chunk_that_stops_itself_is_sized_by_the_budget(hexapod, monkeypatch):
