@@ -127,7 +127,8 @@ def test_the_section_states_targets_figures_and_misses(shipped_above_us, handoff
     text = "\n".join(outputs.section(res))
     # each node row against the floor of its run: 0.4 / 0.25 = 1.60, 1.2 / 0.8 = 1.50
     assert "| echo | 1 | 2000 / 2000 / 2000 | 100.0 % | 0 | 0 | 0.250 / 0.800 | — | 300 | — | — |" in text
-    assert "| shipped | 1 | 2000 / 1990 / 1980 | 99.0 % | 10 | 0 | 0.400 / 1.200 | 1.60× / 1.50× | 512 | 3 | 12 |" in text
+    assert ("| shipped | 1 | 2000 / 1990 / 1980 | 99.0 % | 10 | 0 | 0.400 / 1.200 | 1.60× / 1.50× | 512 | 3 | 12 |"
+            in text)
     assert "at 1000 Hz for 2 s per variant" in text and "each of 2 runs" in text
     assert "within 1.5× the floor at p50 and p99 and at least 99.5 % answered" in " ".join(text.split())
     assert "at the start / end of part 4: 3.2 / 4.0; the bench (the node and, inheriting it, the client) ran under " \

@@ -384,7 +384,8 @@ CPU_PAST = "p99.9 / max of CPU − budget, ms"
 #: the columns of the machine's stalls, per load (:func:`stalls_cells`)
 STALLS_HEAD = ["load", "probed s", f"stalls > {LATE_MS:g} ms", f"> {DEADLINE_MARGIN_MS:g} ms",
                "longest off its core ms", "longest on its core ms", "solves to their deadline",
-               f"> {LATE_MS:g} ms late: expected from the stalls / solves", f"> {DEADLINE_MARGIN_MS:g} ms late: expected / solves"]
+               f"> {LATE_MS:g} ms late: expected from the stalls / solves",
+               f"> {DEADLINE_MARGIN_MS:g} ms late: expected / solves"]
 
 
 def stalls_cells(probe, rows) -> list:
