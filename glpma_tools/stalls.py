@@ -70,6 +70,27 @@ def spin_and_record(seconds, threshold_s, gaps):
             return seen
 
 
+@njit(cache=True)
+def spin_until(seconds):
+    """Read the clock until ``seconds`` have passed since this call's first read, then return: a solver that does
+    no work but stop at its deadline, the floor the deadline section sets beside the solvers (it ends late only by
+    a stall of the machine's that its deadline falls in, and by its own entry and return, microseconds)."""
+    start = _monotonic_s()
+    while _monotonic_s() - start < seconds:
+        pass
+    return seconds
+
+
+#: the deadline section's name for :func:`spin_until` among the solvers
+CLOCK_ONLY = "clock only"
+
+
+def clock_only(budget_s: float) -> str:
+    """:func:`spin_until` as a deadline cell's call: the status of a solve that ran to its deadline."""
+    spin_until(budget_s)
+    return "budget_exhausted"
+
+
 @dataclass
 class Stalls:
     """The gaps a probe recorded: ``seconds`` spun in all, and per gap its length and the thread's CPU time

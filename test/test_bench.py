@@ -72,6 +72,8 @@ def test_markdown_has_every_table(report):
     assert "p99.9 / max of end − deadline, ms" in text
     for load in ("no load added", "every core busy"):          # the machine's stalls probed under each load
         assert f"| {load} | 0.2 |" in text, load
+        floor = "a loop that only reads the clock until its deadline (no solve: the machine's floor)"
+        assert f"| {floor} | clock only | 1 | {load} | 2 |" in text, load     # ... and the floor beside the solvers
     waits = text.split("## Waits of an input")[1].split("\n## ")[0]
     for setup in ("handle", "handle + reports", "node at 1 kHz"):
         assert f"| {setup} | 300 |" in waits, setup

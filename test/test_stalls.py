@@ -3,6 +3,7 @@ sharing the probe's core makes gaps the probe records off its core; the accounti
 row per load.  No figure of this machine's stalls is asserted."""
 import multiprocessing
 import os
+import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -50,6 +51,16 @@ def test_a_process_sharing_the_core_makes_gaps_off_its_core():
     # two clocks are read a few microseconds apart)
     assert np.all(st.wall_s > stalls.THRESHOLD_S)
     assert np.all(st.cpu_s <= st.wall_s + timing.OFF_CORE_S)
+
+
+def test_the_clock_only_solver_returns_at_its_deadline_and_not_before():
+    """The deadline section's floor: it reads the clock until its budget has passed (never returns sooner; how much
+    later is the machine's, not asserted) and reports the status of a solve that ran to its deadline."""
+    budget_s = 2e-3
+    stalls.clock_only(budget_s)                 # compiled (or loaded) before it is timed
+    start = time.perf_counter()
+    assert stalls.clock_only(budget_s) == "budget_exhausted"
+    assert time.perf_counter() - start >= budget_s
 
 
 def test_gaps_are_counted_on_and_off_the_core_and_joined():

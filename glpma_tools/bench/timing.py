@@ -230,7 +230,9 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS, stall
     """The bench's deadline experiment, under each of ``loads``: every registered solver (evaluation cap
     10^9: only the deadline or convergence stops it) on feasible legs and on legs without a real assembly, and
     the Estimator as the node runs it, cold, on feasible legs, on legs without an assembly that its probe must
-    tell, and on legs the loop bounds of a pair of legs tell at once.  A row per cell, with the statuses; per
+    tell, and on legs the loop bounds of a pair of legs tell at once; beside them, at each budget, a compiled loop
+    that only reads the clock until its deadline (:func:`glpma_tools.stalls.spin_until`: what the machine lets any
+    solver do).  A row per cell, with the statuses; per
     load, a row of the smallest deciding budgets and (``stall_seconds`` > 0) one of the machine's own stalls
     (:mod:`glpma_tools.stalls`), probed that long in all, a share after each cell so that it samples the
     cells' time, in bursts of the largest budget with the cells' rest between them."""
@@ -260,6 +262,9 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS, stall
         cases.append((f"{sc.label}, legs without an assembly, told by a pair's loop bounds", f"{sc.label} told", told))
         cells += [(f"{case} (Estimator: GLPMA, cold)", short, "Estimator", b, cold(sc.model, legs, b))
                   for case, short, legs in cases for b in budgets_ms]
+    # the machine's floor beside the solvers: a "solver" that only reads the clock until its deadline
+    cells += [("a loop that only reads the clock until its deadline (no solve: the machine's floor)", "machine floor",
+               stalls.CLOCK_ONLY, b, lambda _, b=b: stalls.clock_only(b / 1e3)) for b in budgets_ms]
     # every compiled path a cell may take loaded before any is timed, as the node's warm-up does: a kernel's first
     # use loads it from Numba's cache, tens of milliseconds inside the solve that happens to need it first (the
     # cells' own warm-up stops after a few quick calls, which need not take every path)
