@@ -262,7 +262,9 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS, stall
         cases.append((f"{sc.label}, legs without an assembly, told by a pair's loop bounds", f"{sc.label} told", told))
         cells += [(f"{case} (Estimator: GLPMA, cold)", short, "Estimator", b, cold(sc.model, legs, b))
                   for case, short, legs in cases for b in budgets_ms]
-    # the machine's floor beside the solvers: a "solver" that only reads the clock until its deadline
+    # the machine's floor beside the solvers: a "solver" that only reads the clock until its deadline, as many times
+    # at each budget as a solver is timed in all (one cell per case and manipulator)
+    floor_solves = n * sum(1 for cell in cells if cell[2] == cells[0][2] and cell[3] == cells[0][3])
     cells += [("a loop that only reads the clock until its deadline (no solve: the machine's floor)", "machine floor",
                stalls.CLOCK_ONLY, b, lambda _, b=b: stalls.clock_only(b / 1e3)) for b in budgets_ms]
     # every compiled path a cell may take loaded before any is timed, as the node's warm-up does: a kernel's first
@@ -283,7 +285,8 @@ def deadlines(scenarios, budgets_ms, n, progress, names=None, loads=LOADS, stall
             probed = []
             for case, short, solver, b, call in cells:
                 warm_up(call, b, DEADLINE_WARM_UP_QUIET, DEADLINE_WARM_UP_MAX_CALLS)
-                calls = timed_calls(call, n, b, f"deadline {short} {solver} {b:g} ms, {load}", progress,
+                calls = timed_calls(call, floor_solves if solver == stalls.CLOCK_ONLY else n, b,
+                                    f"deadline {short} {solver} {b:g} ms, {load}", progress,
                                     stop_early=False, rest_s=FIFO_REST_S if fifo else 0.0)
                 rows.append(SimpleNamespace(**{**vars(calls), "results": []}, overrun_ms=calls.overrun_ms, case=case,
                                             solver=solver, load=load, statuses=Counter(calls.results),
