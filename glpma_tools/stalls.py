@@ -23,20 +23,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from glpma_ros.runtime.clock import CLOCK_ID, clock_reader
+from glpma_ros.runtime.clock import clock_reader, monotonic_s
 
 from .timing import OFF_CORE_S
 
 #: a gap between two clock reads longer than this (s) is recorded: the loop's own iteration is ~0.1 µs, and about
 #: a microsecond when it also reads the thread's CPU clock
 THRESHOLD_S = 20e-6
-#: the gaps one burst can record (a burst with more stops recording, and says so by its count)
-MAX_GAPS = 100_000
 #: the loop reads the thread's CPU clock again every this many iterations: that read is a system call (the
 #: monotonic clock's is not: the vDSO), so that the thread's CPU time before a gap is a recent one
 CPU_READ_STRIDE = 64
 
-_monotonic_s = clock_reader(CLOCK_ID)
+#: the thread's CPU clock, compiled as the kernels' monotonic one is (:func:`~glpma_ros.runtime.clock.monotonic_s`)
 _thread_cpu_s = clock_reader(time.CLOCK_THREAD_CPUTIME_ID)
 
 
@@ -44,14 +42,15 @@ _thread_cpu_s = clock_reader(time.CLOCK_THREAD_CPUTIME_ID)
 def spin_and_record(seconds, threshold_s, gaps):
     """Read the monotonic clock back to back for ``seconds``; each gap over ``threshold_s`` goes to a row of
     ``gaps``: (its start from the loop's start, its length, the thread's CPU time across it), in seconds.
-    Returns the gaps seen (rows past ``gaps``' end are not written)."""
-    start = _monotonic_s()
+    Returns the gaps seen (rows past ``gaps``' end are not written: :func:`probe` sizes it for every gap a burst
+    can hold)."""
+    start = monotonic_s()
     cpu_before = _thread_cpu_s()
     previous = start
     seen = 0
     reads = 0
     while True:
-        now = _monotonic_s()
+        now = monotonic_s()
         reads += 1
         if now - previous > threshold_s:
             cpu = _thread_cpu_s()
@@ -75,8 +74,8 @@ def spin_until(seconds):
     """Read the clock until ``seconds`` have passed since this call's first read, then return: a solver that does
     no work but stop at its deadline, the floor the deadline section sets beside the solvers (it ends late only by
     a stall of the machine's that its deadline falls in, and by its own entry and return, microseconds)."""
-    start = _monotonic_s()
-    while _monotonic_s() - start < seconds:
+    start = monotonic_s()
+    while monotonic_s() - start < seconds:
         pass
     return seconds
 
@@ -99,14 +98,13 @@ class Stalls:
     seconds: float
     wall_s: np.ndarray
     cpu_s: np.ndarray
-    dropped: int = 0            # gaps seen past a burst's MAX_GAPS (not in the arrays)
 
     @classmethod
     def joined(cls, parts) -> "Stalls":
         """The probes ``parts`` as one (a probe spread over the cells of a load)."""
         parts = list(parts)
         return cls(sum(p.seconds for p in parts), np.concatenate([p.wall_s for p in parts] or [np.zeros(0)]),
-                   np.concatenate([p.cpu_s for p in parts] or [np.zeros(0)]), sum(p.dropped for p in parts))
+                   np.concatenate([p.cpu_s for p in parts] or [np.zeros(0)]))
 
     @property
     def off_core(self) -> np.ndarray:
@@ -119,10 +117,6 @@ class Stalls:
         if on_core is not None:
             sel &= ~self.off_core if on_core else self.off_core
         return int(np.sum(sel))
-
-    def rate_per_s(self, ms: float) -> float:
-        """Gaps longer than ``ms`` per second spun."""
-        return self.over(ms) / self.seconds if self.seconds > 0 else float("nan")
 
     def share_past(self, ms: float) -> float:
         """The share of the time probed at which a deadline falling then is passed by more than ``ms`` because of a
@@ -141,17 +135,16 @@ class Stalls:
 def probe(seconds: float, burst_s: float, rest_s: float = 0.0, threshold_s: float = THRESHOLD_S) -> Stalls:
     """Spin for ``seconds`` in all, in bursts of ``burst_s`` each after ``rest_s`` of sleep, on the calling
     thread (under its scheduling policy and affinity), and return the gaps recorded."""
-    gaps = np.zeros((MAX_GAPS, 3))
+    # every gap but the last is longer than threshold_s and began within the burst: this many rows hold them all
+    gaps = np.empty((int(burst_s / threshold_s) + 2, 3))
     spin_and_record(min(burst_s, 1e-3), threshold_s, gaps)      # compiled (or loaded) before it counts
-    walls, cpus, spun, dropped = [], [], 0.0, 0
+    walls, cpus, spun = [], [], 0.0
     while spun < seconds:
         if rest_s:
             time.sleep(rest_s)
         burst = min(burst_s, seconds - spun)
         seen = spin_and_record(burst, threshold_s, gaps)
-        kept = min(seen, MAX_GAPS)
-        walls.append(gaps[:kept, 1].copy())
-        cpus.append(gaps[:kept, 2].copy())
-        dropped += seen - kept
+        walls.append(gaps[:seen, 1].copy())
+        cpus.append(gaps[:seen, 2].copy())
         spun += burst
-    return Stalls(spun, np.concatenate(walls), np.concatenate(cpus), dropped)
+    return Stalls(spun, np.concatenate(walls), np.concatenate(cpus))
